@@ -1,0 +1,66 @@
+// The ray casters (reference, naive, fast) behind one interface, plus frame rendering.
+#pragma once
+
+#include "ig/frame.hpp"
+#include "ig/terrain.hpp"
+
+#include <memory>
+#include <string>
+#include <string_view>
+
+namespace ig {
+
+enum class CasterKind { Reference, Naive, Fast };
+
+std::string_view casterName(CasterKind kind);
+// Parses "reference" | "naive" | "fast"; throws InputError otherwise.
+CasterKind parseCasterKind(std::string_view name);
+
+// Appearance of what is not terrain.
+struct SkyModel {
+    Rgb8 zenith{70, 110, 190};
+    Rgb8 horizon{185, 205, 230};
+    // Distance haze: colour blends toward `horizon` by 1 - exp(-distance / hazeDistance);
+    // 0 disables haze.
+    double hazeDistance = 0.0;
+};
+
+struct RenderOptions {
+    SkyModel sky;
+    int threads = 0;  // 0: the library's default
+};
+
+// A ray caster over one terrain map. Implementations keep no per-frame state, so one caster
+// may render several frames concurrently.
+class Caster {
+public:
+    virtual ~Caster() = default;
+    virtual CasterKind kind() const = 0;
+    // Renders colour and depth of `camera` into `frame` (sized from the camera's intrinsics)
+    // and fills frame.stats. The reference and naive casters honour any roll; the fast caster
+    // requires roll == 0 (CHECKed).
+    virtual void render(const Camera& camera, RenderedFrame& frame) const = 0;
+};
+
+std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
+                                   const RenderOptions& options = {});
+
+// Renders a whole frame: colour, depth, the nine control points (cast exactly by the reference
+// caster through their pixel centres) and stats. Throws InputError for a non-finite pose or a
+// camera below the terrain surface.
+RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
+                          const Intrinsics& intrinsics, double time = 0.0,
+                          std::uint64_t sequence = 0);
+
+// Nine pixels evenly spread over an image: a 3x3 grid at 1/6, 1/2, 5/6 of width and height.
+std::array<glm::dvec2, kControlPointCount> controlPointPixels(const Intrinsics& intrinsics);
+
+// Exact hit of one ray against the map's bilinear surface (the reference surface model).
+struct RayHit {
+    bool hit = false;
+    double distance = 0.0;  // along the normalised direction, metres
+    glm::dvec3 point{0.0};
+};
+RayHit intersectTerrain(const TerrainMap& map, const glm::dvec3& origin, const glm::dvec3& dir);
+
+}  // namespace ig

@@ -1,0 +1,98 @@
+#include "ig/terrain.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ig {
+
+TerrainMap::TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
+                       double heightOffset)
+    : width_(width),
+      height_(height),
+      spacingX_(spacingX),
+      spacingY_(spacingY),
+      heightScale_(heightScale),
+      heightOffset_(heightOffset),
+      heights_(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0),
+      colors_(heights_.size()) {
+    updateRange();
+}
+
+void TerrainMap::updateRange() {
+    if (heights_.empty()) {
+        maxHeight_ = minHeight_ = heightOffset_;
+        return;
+    }
+    auto [lo, hi] = std::minmax_element(heights_.begin(), heights_.end());
+    const double a = *lo * heightScale_ + heightOffset_;
+    const double b = *hi * heightScale_ + heightOffset_;
+    minHeight_ = std::min(a, b);
+    maxHeight_ = std::max(a, b);
+}
+
+namespace {
+// Cell and fraction of a world coordinate along an axis of n samples, clamped to the grid.
+inline void cellOf(double v, double spacing, int n, int& i, double& f) {
+    double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
+    i = std::min(static_cast<int>(g), std::max(n - 2, 0));
+    f = g - i;
+}
+}  // namespace
+
+double TerrainMap::surfaceHeight(double x, double y) const {
+    int ix, iy;
+    double fx, fy;
+    cellOf(x, spacingX_, width_, ix, fx);
+    cellOf(y, spacingY_, height_, iy, fy);
+    const int ix1 = std::min(ix + 1, width_ - 1), iy1 = std::min(iy + 1, height_ - 1);
+    const double h00 = heightAt(ix, iy), h10 = heightAt(ix1, iy);
+    const double h01 = heightAt(ix, iy1), h11 = heightAt(ix1, iy1);
+    return (h00 * (1 - fx) + h10 * fx) * (1 - fy) + (h01 * (1 - fx) + h11 * fx) * fy;
+}
+
+void TerrainMap::surfaceColor(double x, double y, float rgb[3]) const {
+    int ix, iy;
+    double fx, fy;
+    cellOf(x, spacingX_, width_, ix, fx);
+    cellOf(y, spacingY_, height_, iy, fy);
+    const int ix1 = std::min(ix + 1, width_ - 1), iy1 = std::min(iy + 1, height_ - 1);
+    const Rgb8 c00 = colorAt(ix, iy), c10 = colorAt(ix1, iy);
+    const Rgb8 c01 = colorAt(ix, iy1), c11 = colorAt(ix1, iy1);
+    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
+                 w11 = fx * fy;
+    rgb[0] = static_cast<float>(w00 * c00.r + w10 * c10.r + w01 * c01.r + w11 * c11.r);
+    rgb[1] = static_cast<float>(w00 * c00.g + w10 * c10.g + w01 * c01.g + w11 * c11.g);
+    rgb[2] = static_cast<float>(w00 * c00.b + w10 * c10.b + w01 * c01.b + w11 * c11.b);
+}
+
+void TerrainMap::shadeFromHeights(double sunAzimuth, double sunElevation) {
+    const double lx = std::sin(sunAzimuth) * std::cos(sunElevation);
+    const double ly = std::cos(sunAzimuth) * std::cos(sunElevation);
+    const double lz = std::sin(sunElevation);
+    const double range = std::max(maxHeight_ - minHeight_, 1e-9);
+    for (int iy = 0; iy < height_; ++iy) {
+        for (int ix = 0; ix < width_; ++ix) {
+            const int x0 = std::max(ix - 1, 0), x1 = std::min(ix + 1, width_ - 1);
+            const int y0 = std::max(iy - 1, 0), y1 = std::min(iy + 1, height_ - 1);
+            const double dzdx = (heightAt(x1, iy) - heightAt(x0, iy)) /
+                                std::max((x1 - x0) * spacingX_, 1e-12);
+            const double dzdy = (heightAt(ix, y1) - heightAt(ix, y0)) /
+                                std::max((y1 - y0) * spacingY_, 1e-12);
+            // Normal (-dz/dx, -dz/dy, 1), normalised.
+            const double inv = 1.0 / std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
+            const double lambert = std::max(0.0, (-dzdx * lx - dzdy * ly + lz) * inv);
+            const double light = 0.25 + 0.75 * lambert;
+            // Albedo by elevation: low green, mid brown, high near-white.
+            const double t = (heightAt(ix, iy) - minHeight_) / range;
+            const double r = t < 0.5 ? 70 + 140 * t : 140 + 200 * (t - 0.5);
+            const double g = t < 0.5 ? 120 + 40 * t : 140 + 180 * (t - 0.5);
+            const double b = t < 0.5 ? 60 + 40 * t : 80 + 300 * (t - 0.5);
+            auto q = [&](double v) {
+                return static_cast<std::uint8_t>(std::clamp(v * light, 0.0, 255.0) + 0.5);
+            };
+            colors_[index(ix, iy)] = Rgb8{q(r), q(g), q(b)};
+        }
+    }
+}
+
+}  // namespace ig

@@ -1,0 +1,76 @@
+// Terrain map: a heightfield of integer heights with scale/offset and an RGB8 colour per sample.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ig {
+
+struct Rgb8 {
+    std::uint8_t r = 0, g = 0, b = 0;
+    bool operator==(const Rgb8&) const = default;
+};
+
+// Grid convention (files): column i -> x = i * spacingX (east); row j with row 0 the north edge
+// -> y = (rows - 1 - j) * spacingY (north); z = value * heightScale + heightOffset (up).
+// In memory the rows are stored south first: sample (ix, iy) sits at x = ix * spacingX,
+// y = iy * spacingY, index iy * width + ix. Loaders flip file rows accordingly.
+class TerrainMap {
+public:
+    TerrainMap() = default;
+    // Allocates a width x height map filled with raw height 0 and black.
+    TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
+               double heightOffset);
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    double spacingX() const { return spacingX_; }
+    double spacingY() const { return spacingY_; }
+    double heightScale() const { return heightScale_; }
+    double heightOffset() const { return heightOffset_; }
+    // World extent of the sample grid: x in [0, extentX], y in [0, extentY].
+    double extentX() const { return (width_ - 1) * spacingX_; }
+    double extentY() const { return (height_ - 1) * spacingY_; }
+    bool empty() const { return width_ == 0 || height_ == 0; }
+
+    std::uint16_t raw(int ix, int iy) const { return heights_[index(ix, iy)]; }
+    double heightAt(int ix, int iy) const { return raw(ix, iy) * heightScale_ + heightOffset_; }
+    Rgb8 colorAt(int ix, int iy) const { return colors_[index(ix, iy)]; }
+    void setRaw(int ix, int iy, std::uint16_t v) { heights_[index(ix, iy)] = v; }
+    void setColor(int ix, int iy, Rgb8 c) { colors_[index(ix, iy)] = c; }
+
+    // Bilinear surface height at world (x, y); clamps to the map's edge.
+    double surfaceHeight(double x, double y) const;
+    // Bilinear colour at world (x, y), components 0..255; clamps to the map's edge.
+    void surfaceColor(double x, double y, float rgb[3]) const;
+
+    // Raw storage, rows south first.
+    const std::vector<std::uint16_t>& rawHeights() const { return heights_; }
+    std::vector<std::uint16_t>& rawHeights() { return heights_; }
+    const std::vector<Rgb8>& colors() const { return colors_; }
+    std::vector<Rgb8>& colors() { return colors_; }
+
+    // Highest and lowest surface heights in metres (recomputed by updateRange()).
+    double maxHeight() const { return maxHeight_; }
+    double minHeight() const { return minHeight_; }
+    void updateRange();
+
+    // Shades the map in place from its heights: a grey-green albedo lit by a sun at the given
+    // azimuth (clockwise from north) and elevation, radians. Used when no colour image is given.
+    void shadeFromHeights(double sunAzimuth = 5.5, double sunElevation = 0.7);
+
+    std::size_t index(int ix, int iy) const {
+        return static_cast<std::size_t>(iy) * static_cast<std::size_t>(width_) + ix;
+    }
+
+private:
+    int width_ = 0, height_ = 0;
+    double spacingX_ = 1.0, spacingY_ = 1.0;
+    double heightScale_ = 1.0, heightOffset_ = 0.0;
+    double maxHeight_ = 0.0, minHeight_ = 0.0;
+    std::vector<std::uint16_t> heights_;
+    std::vector<Rgb8> colors_;
+};
+
+}  // namespace ig
