@@ -21,7 +21,9 @@ Intrinsics Intrinsics::fromFov(int windowWidth, int windowHeight, double hfov, i
     return in;
 }
 
-double Intrinsics::windowHfov() const { return 2.0 * std::atan(0.5 * windowWidth() / focal); }
+double Intrinsics::windowHfov() const {
+    return 2.0 * std::atan(0.5 * windowWidth() / focal);
+}
 
 CameraBasis CameraBasis::fromPose(const Pose& pose) {
     // Heading h (clockwise from north) and its right-hand horizontal, then pitch about right,
@@ -62,7 +64,11 @@ double Camera::forwardDepth(const glm::dvec3& p) const {
     return glm::dot(p - pose_.position, basis_.forward);
 }
 
-double degToRad(double deg) { return deg * (std::numbers::pi / 180.0); }
-double radToDeg(double rad) { return rad * (180.0 / std::numbers::pi); }
+double degToRad(double deg) {
+    return deg * (std::numbers::pi / 180.0);
+}
+double radToDeg(double rad) {
+    return rad * (180.0 / std::numbers::pi);
+}
 
 }  // namespace ig

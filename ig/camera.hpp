@@ -53,7 +53,7 @@ struct CameraBasis {
 
 // A camera: pose plus intrinsics, with the projections every module shares.
 class Camera {
-public:
+  public:
     Camera(const Pose& pose, const Intrinsics& intrinsics);
 
     const Pose& pose() const { return pose_; }
@@ -68,7 +68,7 @@ public:
     // Depth of a world point along the forward axis (camera z).
     double forwardDepth(const glm::dvec3& p) const;
 
-private:
+  private:
     Pose pose_;
     Intrinsics intr_;
     CameraBasis basis_;

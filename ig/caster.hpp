@@ -33,7 +33,7 @@ struct RenderOptions {
 // A ray caster over one terrain map. Implementations keep no per-frame state, so one caster
 // may render several frames concurrently.
 class Caster {
-public:
+  public:
     virtual ~Caster() = default;
     virtual CasterKind kind() const = 0;
     // Renders colour and depth of `camera` into `frame` (sized from the camera's intrinsics)

@@ -9,7 +9,7 @@ namespace ig {
 // Bad input: the message names the input and what is wrong with it. Programs catch it at main,
 // print it and exit non-zero.
 class InputError : public std::runtime_error {
-public:
+  public:
     using std::runtime_error::runtime_error;
 };
 

@@ -23,6 +23,24 @@ void TerrainMap::updateRange() {
         maxHeight_ = minHeight_ = heightOffset_;
         return;
     }
+    cellMax_.assign(static_cast<std::size_t>(std::max(width_ - 1, 0)) * std::max(height_ - 1, 0),
+                    0);
+    // Over a cell the bilinear surface's x-slope lies between its two edge slopes (likewise y),
+    // so the largest sample difference along each axis bounds the gradient.
+    int maxDx = 0, maxDy = 0;
+    for (int cy = 0; cy + 1 < height_; ++cy) {
+        for (int cx = 0; cx + 1 < width_; ++cx) {
+            const int h00 = raw(cx, cy), h10 = raw(cx + 1, cy);
+            const int h01 = raw(cx, cy + 1), h11 = raw(cx + 1, cy + 1);
+            cellMax_[static_cast<std::size_t>(cy) * (width_ - 1) + cx] =
+                static_cast<std::uint16_t>(std::max({h00, h10, h01, h11}));
+            maxDx = std::max({maxDx, std::abs(h10 - h00), std::abs(h11 - h01)});
+            maxDy = std::max({maxDy, std::abs(h01 - h00), std::abs(h11 - h10)});
+        }
+    }
+    const double gx = maxDx * std::abs(heightScale_) / spacingX_;
+    const double gy = maxDy * std::abs(heightScale_) / spacingY_;
+    maxSlope_ = std::sqrt(gx * gx + gy * gy);
     auto [lo, hi] = std::minmax_element(heights_.begin(), heights_.end());
     const double a = *lo * heightScale_ + heightOffset_;
     const double b = *hi * heightScale_ + heightOffset_;
@@ -58,8 +76,7 @@ void TerrainMap::surfaceColor(double x, double y, float rgb[3]) const {
     const int ix1 = std::min(ix + 1, width_ - 1), iy1 = std::min(iy + 1, height_ - 1);
     const Rgb8 c00 = colorAt(ix, iy), c10 = colorAt(ix1, iy);
     const Rgb8 c01 = colorAt(ix, iy1), c11 = colorAt(ix1, iy1);
-    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
-                 w11 = fx * fy;
+    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
     rgb[0] = static_cast<float>(w00 * c00.r + w10 * c10.r + w01 * c01.r + w11 * c11.r);
     rgb[1] = static_cast<float>(w00 * c00.g + w10 * c10.g + w01 * c01.g + w11 * c11.g);
     rgb[2] = static_cast<float>(w00 * c00.b + w10 * c10.b + w01 * c01.b + w11 * c11.b);
@@ -74,10 +91,10 @@ void TerrainMap::shadeFromHeights(double sunAzimuth, double sunElevation) {
         for (int ix = 0; ix < width_; ++ix) {
             const int x0 = std::max(ix - 1, 0), x1 = std::min(ix + 1, width_ - 1);
             const int y0 = std::max(iy - 1, 0), y1 = std::min(iy + 1, height_ - 1);
-            const double dzdx = (heightAt(x1, iy) - heightAt(x0, iy)) /
-                                std::max((x1 - x0) * spacingX_, 1e-12);
-            const double dzdy = (heightAt(ix, y1) - heightAt(ix, y0)) /
-                                std::max((y1 - y0) * spacingY_, 1e-12);
+            const double dzdx =
+                (heightAt(x1, iy) - heightAt(x0, iy)) / std::max((x1 - x0) * spacingX_, 1e-12);
+            const double dzdy =
+                (heightAt(ix, y1) - heightAt(ix, y0)) / std::max((y1 - y0) * spacingY_, 1e-12);
             // Normal (-dz/dx, -dz/dy, 1), normalised.
             const double inv = 1.0 / std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
             const double lambert = std::max(0.0, (-dzdx * lx - dzdy * ly + lz) * inv);

@@ -17,7 +17,7 @@ struct Rgb8 {
 // In memory the rows are stored south first: sample (ix, iy) sits at x = ix * spacingX,
 // y = iy * spacingY, index iy * width + ix. Loaders flip file rows accordingly.
 class TerrainMap {
-public:
+  public:
     TerrainMap() = default;
     // Allocates a width x height map filled with raw height 0 and black.
     TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
@@ -51,10 +51,20 @@ public:
     const std::vector<Rgb8>& colors() const { return colors_; }
     std::vector<Rgb8>& colors() { return colors_; }
 
-    // Highest and lowest surface heights in metres (recomputed by updateRange()).
+    // Highest and lowest surface heights in metres, and the per-cell maxima below (all
+    // recomputed by updateRange(): call it after changing heights).
     double maxHeight() const { return maxHeight_; }
     double minHeight() const { return minHeight_; }
     void updateRange();
+
+    // Raw maximum of the four samples of cell (cx, cy), cx in [0, width-2], cy in [0, height-2]:
+    // a conservative bound on the bilinear surface over the cell. Stored (width-1) per row.
+    std::uint16_t cellMaxRaw(int cx, int cy) const {
+        return cellMax_[static_cast<std::size_t>(cy) * (width_ - 1) + cx];
+    }
+    const std::uint16_t* cellMaxData() const { return cellMax_.data(); }
+    // Bound on the gradient magnitude of the bilinear surface anywhere on the map (m per m).
+    double maxSlope() const { return maxSlope_; }
 
     // Shades the map in place from its heights: a grey-green albedo lit by a sun at the given
     // azimuth (clockwise from north) and elevation, radians. Used when no colour image is given.
@@ -64,13 +74,14 @@ public:
         return static_cast<std::size_t>(iy) * static_cast<std::size_t>(width_) + ix;
     }
 
-private:
+  private:
     int width_ = 0, height_ = 0;
     double spacingX_ = 1.0, spacingY_ = 1.0;
     double heightScale_ = 1.0, heightOffset_ = 0.0;
-    double maxHeight_ = 0.0, minHeight_ = 0.0;
+    double maxHeight_ = 0.0, minHeight_ = 0.0, maxSlope_ = 0.0;
     std::vector<std::uint16_t> heights_;
     std::vector<Rgb8> colors_;
+    std::vector<std::uint16_t> cellMax_;
 };
 
 }  // namespace ig

@@ -13,7 +13,7 @@ namespace {
 
 // A file written under a temporary name and renamed into place on commit.
 class AtomicFile {
-public:
+  public:
     explicit AtomicFile(const std::string& path) : path_(path) {
         if (path == "-") {
             file_ = stdout;
@@ -48,7 +48,7 @@ public:
         return 0;
     }
 
-private:
+  private:
     std::string path_, tmp_;
     std::FILE* file_ = nullptr;
     int err_ = 0;
@@ -64,8 +64,9 @@ int writePngImpl(const std::string& path, int width, int height, int channels, i
     if (width <= 0 || height <= 0) return fail(error, path, "image has no pixels", -EINVAL);
     AtomicFile out(path);
     if (!out.get()) {
-        return fail(error, path, std::string("cannot open for writing: ") +
-                                     std::strerror(out.openError()), -out.openError());
+        return fail(error, path,
+                    std::string("cannot open for writing: ") + std::strerror(out.openError()),
+                    -out.openError());
     }
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
     png_infop info = png ? png_create_info_struct(png) : nullptr;
@@ -98,7 +99,8 @@ int writePngImpl(const std::string& path, int width, int height, int channels, i
 
 int writePng8(const std::string& path, int width, int height, int channels,
               std::span<const std::uint8_t> pixels, std::string* error) {
-    if (channels != 1 && channels != 3) return fail(error, path, "channels must be 1 or 3", -EINVAL);
+    if (channels != 1 && channels != 3)
+        return fail(error, path, "channels must be 1 or 3", -EINVAL);
     if (pixels.size() < static_cast<std::size_t>(width) * height * channels) {
         return fail(error, path, "pixel buffer smaller than the image", -EINVAL);
     }
@@ -124,8 +126,9 @@ int writePfm(const std::string& path, int width, int height, std::span<const flo
     }
     AtomicFile out(path);
     if (!out.get()) {
-        return fail(error, path, std::string("cannot open for writing: ") +
-                                     std::strerror(out.openError()), -out.openError());
+        return fail(error, path,
+                    std::string("cannot open for writing: ") + std::strerror(out.openError()),
+                    -out.openError());
     }
     std::fprintf(out.get(), "Pf\n%d %d\n-1.0\n", width, height);
     for (int y = height - 1; y >= 0; --y) {

@@ -1,0 +1,99 @@
+#include "ig/caster.hpp"
+
+#include "ig/caster_impl.hpp"
+#include "ig/error.hpp"
+
+#include <glm/geometric.hpp>
+
+#include <chrono>
+#include <string>
+
+namespace ig {
+
+std::string_view casterName(CasterKind kind) {
+    switch (kind) {
+        case CasterKind::Reference:
+            return "reference";
+        case CasterKind::Naive:
+            return "naive";
+        case CasterKind::Fast:
+            return "fast";
+    }
+    return "?";
+}
+
+CasterKind parseCasterKind(std::string_view name) {
+    if (name == "reference") return CasterKind::Reference;
+    if (name == "naive") return CasterKind::Naive;
+    if (name == "fast") return CasterKind::Fast;
+    throw InputError("caster '" + std::string(name) + "': expected fast, naive or reference");
+}
+
+std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
+                                   const RenderOptions& options) {
+    switch (kind) {
+        case CasterKind::Reference:
+            return makeReferenceCaster(map, options);
+        case CasterKind::Naive:
+            return makeNaiveCaster(map, options);
+        case CasterKind::Fast:
+            return makeFastCaster(map, options);
+    }
+    return nullptr;
+}
+
+std::array<glm::dvec2, kControlPointCount> controlPointPixels(const Intrinsics& intrinsics) {
+    std::array<glm::dvec2, kControlPointCount> px{};
+    const double f[3] = {1.0 / 6.0, 0.5, 5.0 / 6.0};
+    for (int j = 0; j < 3; ++j) {
+        for (int i = 0; i < 3; ++i) {
+            px[j * 3 + i] = glm::dvec2{f[i] * intrinsics.width, f[j] * intrinsics.height};
+        }
+    }
+    return px;
+}
+
+void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics) {
+    if (!pose.isFinite()) throw InputError("pose: position and angles must be finite numbers");
+    if (intrinsics.width <= 0 || intrinsics.height <= 0 || !(intrinsics.focal > 0.0)) {
+        throw InputError("camera: image size and focal length must be positive");
+    }
+    const glm::dvec3& p = pose.position;
+    if (p.x >= 0.0 && p.y >= 0.0 && p.x <= map.extentX() && p.y <= map.extentY() &&
+        p.z <= map.surfaceHeight(p.x, p.y)) {
+        throw InputError("pose: camera at z = " + std::to_string(p.z) +
+                         " m is on or below the terrain surface (" +
+                         std::to_string(map.surfaceHeight(p.x, p.y)) +
+                         " m) at x = " + std::to_string(p.x) + ", y = " + std::to_string(p.y));
+    }
+}
+
+RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
+                          const Intrinsics& intrinsics, double time, std::uint64_t sequence) {
+    validateView(map, pose, intrinsics);
+    RenderedFrame frame;
+    frame.sequence = sequence;
+    frame.time = time;
+    frame.pose = pose;
+    frame.intrinsics = intrinsics;
+    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
+    frame.color.resize(n);
+    frame.depth.resize(n);
+    const Camera camera(pose, intrinsics);
+
+    const auto start = std::chrono::steady_clock::now();
+    caster.render(camera, frame);
+    frame.stats.renderMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+
+    const auto pixels = controlPointPixels(intrinsics);
+    for (int i = 0; i < kControlPointCount; ++i) {
+        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
+        const RayHit hit = intersectTerrain(map, pose.position, dir);
+        frame.controlPoints[i].pixel = pixels[i];
+        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
+    }
+    return frame;
+}
+
+}  // namespace ig

@@ -1,0 +1,34 @@
+// Factories of the individual casters (internal to ig).
+#pragma once
+
+#include "ig/caster.hpp"
+
+#include <memory>
+
+namespace ig {
+
+std::unique_ptr<Caster> makeReferenceCaster(const TerrainMap& map, const RenderOptions& options);
+std::unique_ptr<Caster> makeNaiveCaster(const TerrainMap& map, const RenderOptions& options);
+std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options);
+
+// Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.
+void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);
+
+}  // namespace ig
+
+#include <tbb/task_arena.h>
+
+namespace ig {
+
+// Runs f with at most `threads` workers (0: the library's default).
+template <typename F>
+void runWithThreads(int threads, F&& f) {
+    if (threads <= 0) {
+        f();
+        return;
+    }
+    tbb::task_arena arena(threads);
+    arena.execute(f);
+}
+
+}  // namespace ig

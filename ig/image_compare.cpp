@@ -1,0 +1,38 @@
+#include "ig/image_compare.hpp"
+
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <stdexcept>
+
+namespace ig {
+namespace {
+void checkSizes(std::span<const Rgb8> a, std::span<const Rgb8> b) {
+    if (a.size() != b.size() || a.empty()) {
+        throw std::invalid_argument("image comparison needs two non-empty images of one size");
+    }
+}
+}  // namespace
+
+double meanAbsErrorPct(std::span<const Rgb8> a, std::span<const Rgb8> b) {
+    checkSizes(a, b);
+    std::uint64_t sum = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        sum += std::abs(a[i].r - b[i].r) + std::abs(a[i].g - b[i].g) + std::abs(a[i].b - b[i].b);
+    }
+    return 100.0 * static_cast<double>(sum) / (3.0 * 255.0 * static_cast<double>(a.size()));
+}
+
+double psnrDb(std::span<const Rgb8> a, std::span<const Rgb8> b) {
+    checkSizes(a, b);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        const double dr = a[i].r - b[i].r, dg = a[i].g - b[i].g, db = a[i].b - b[i].b;
+        sum += dr * dr + dg * dg + db * db;
+    }
+    const double mse = sum / (3.0 * static_cast<double>(a.size()));
+    if (mse == 0.0) return std::numeric_limits<double>::infinity();
+    return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+}  // namespace ig

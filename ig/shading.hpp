@@ -1,0 +1,38 @@
+// Colour of a hit (bilinear from the map), of the sky, and distance haze — shared by all casters.
+#pragma once
+
+#include "ig/caster.hpp"
+#include "ig/terrain.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ig {
+
+// Sky colour for a unit direction whose vertical component is dz: horizon colour at and below
+// the horizon, blending to the zenith colour straight up.
+inline Rgb8 skyColor(const SkyModel& sky, double dz) {
+    const double t = std::sqrt(std::clamp(dz, 0.0, 1.0));
+    auto mix = [t](std::uint8_t a, std::uint8_t b) {
+        return static_cast<std::uint8_t>(a + (b - a) * t + 0.5);
+    };
+    return Rgb8{mix(sky.horizon.r, sky.zenith.r), mix(sky.horizon.g, sky.zenith.g),
+                mix(sky.horizon.b, sky.zenith.b)};
+}
+
+// Terrain colour at world (x, y) seen from `distance` metres: bilinear map colour, hazed.
+inline Rgb8 terrainColor(const TerrainMap& map, const SkyModel& sky, double x, double y,
+                         double distance) {
+    float c[3];
+    map.surfaceColor(x, y, c);
+    if (sky.hazeDistance > 0.0) {
+        const float k = static_cast<float>(1.0 - std::exp(-distance / sky.hazeDistance));
+        c[0] += (sky.horizon.r - c[0]) * k;
+        c[1] += (sky.horizon.g - c[1]) * k;
+        c[2] += (sky.horizon.b - c[2]) * k;
+    }
+    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
+    return Rgb8{q(c[0]), q(c[1]), q(c[2])};
+}
+
+}  // namespace ig

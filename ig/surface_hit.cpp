@@ -1,0 +1,157 @@
+#include "ig/surface_hit.hpp"
+
+#include "ig/caster.hpp"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ig {
+
+TerrainRay::TerrainRay(const TerrainMap& map, const glm::dvec3& o, const glm::dvec3& d)
+    : origin(o), dir(glm::normalize(d)) {
+    gox = o.x / map.spacingX();
+    goy = o.y / map.spacingY();
+    gdx = dir.x / map.spacingX();
+    gdy = dir.y / map.spacingY();
+}
+
+namespace {
+
+// Intersects [t0, t1] with the parameters where lo <= o + t * d <= hi.
+inline bool clipSlab(double o, double d, double lo, double hi, double& t0, double& t1) {
+    if (d == 0.0) return o >= lo && o <= hi;
+    double ta = (lo - o) / d, tb = (hi - o) / d;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    return t0 <= t1;
+}
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+}  // namespace
+
+bool clipToMapBox(const TerrainMap& map, const TerrainRay& ray, double& t0, double& t1) {
+    t0 = 0.0;
+    t1 = kInf;
+    if (map.width() < 2 || map.height() < 2) return false;
+    // The height slab is widened a little so a flat map still has a box with an inside.
+    const double eps = 1e-6 * std::max({1.0, std::abs(map.minHeight()), std::abs(map.maxHeight())});
+    return clipSlab(ray.gox, ray.gdx, 0.0, map.width() - 1.0, t0, t1) &&
+           clipSlab(ray.goy, ray.gdy, 0.0, map.height() - 1.0, t0, t1) &&
+           clipSlab(ray.origin.z, ray.dir.z, map.minHeight() - eps, map.maxHeight() + eps, t0,
+                    t1);
+}
+
+double heightAboveSurface(const TerrainMap& map, const TerrainRay& ray, double t) {
+    const double gx = ray.gox + t * ray.gdx, gy = ray.goy + t * ray.gdy;
+    const double eps = 1e-9;
+    if (gx < -eps || gy < -eps || gx > map.width() - 1 + eps || gy > map.height() - 1 + eps) {
+        return kInf;
+    }
+    const glm::dvec3 p = ray.at(t);
+    return p.z - map.surfaceHeight(p.x, p.y);
+}
+
+double exactHitInRange(const TerrainMap& map, const TerrainRay& ray, double ta, double tb,
+                       std::uint64_t* cellsVisited) {
+    double c0, c1;
+    if (!clipToMapBox(map, ray, c0, c1)) return -1.0;
+    ta = std::max(ta, c0);
+    tb = std::min(tb, c1);
+    if (!(ta <= tb)) return -1.0;
+
+    const int w = map.width(), h = map.height();
+    // Cell containing the start, nudged along the ray so that a start on a grid line picks the
+    // cell the ray goes into.
+    const double tNudge = ta + 1e-9 * std::max(1.0, tb - ta);
+    int ix = std::clamp(static_cast<int>(std::floor(ray.gox + tNudge * ray.gdx)), 0, w - 2);
+    int iy = std::clamp(static_cast<int>(std::floor(ray.goy + tNudge * ray.gdy)), 0, h - 2);
+    const int stepX = ray.gdx > 0 ? 1 : -1, stepY = ray.gdy > 0 ? 1 : -1;
+    const double invX = ray.gdx != 0.0 ? 1.0 / ray.gdx : kInf;
+    const double invY = ray.gdy != 0.0 ? 1.0 / ray.gdy : kInf;
+
+    double t = ta;
+    std::uint64_t cells = 0;
+    while (t <= tb) {
+        ++cells;
+        // Parameter where the ray leaves this cell.
+        const double nextX = ray.gdx != 0.0 ? ((ray.gdx > 0 ? ix + 1 : ix) - ray.gox) * invX : kInf;
+        const double nextY = ray.gdy != 0.0 ? ((ray.gdy > 0 ? iy + 1 : iy) - ray.goy) * invY : kInf;
+        const double tExit = std::min({nextX, nextY, tb});
+
+        const double h00 = map.heightAt(ix, iy), h10 = map.heightAt(ix + 1, iy);
+        const double h01 = map.heightAt(ix, iy + 1), h11 = map.heightAt(ix + 1, iy + 1);
+        const double za = ray.origin.z + t * ray.dir.z, zb = ray.origin.z + tExit * ray.dir.z;
+        const double cellMax = std::max({h00, h10, h01, h11});
+        if (std::min(za, zb) <= cellMax) {
+            // In local parameter s = t' - t: f(s) = z(s) - h(u(s), v(s)) = C + B s + A s^2.
+            const double ua = ray.gox + t * ray.gdx - ix, va = ray.goy + t * ray.gdy - iy;
+            const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
+            const double du = ray.gdx, dv = ray.gdy;
+            const double H0 = h00 + a * ua + b * va + c * ua * va;
+            const double H1 = a * du + b * dv + c * (ua * dv + va * du);
+            const double H2 = c * du * dv;
+            const double C = za - H0, B = ray.dir.z - H1, A = -H2;
+            const double len = tExit - t;
+            if (C <= 0.0) {
+                if (cellsVisited) *cellsVisited += cells;
+                return t;
+            }
+            // Smallest root in (0, len].
+            double root = kInf;
+            const double scale = std::abs(B) * len + std::abs(A) * len * len;
+            if (std::abs(A) * len * len <= 1e-12 * std::max(scale, 1e-300)) {
+                if (B < 0.0) root = -C / B;
+            } else {
+                const double disc = B * B - 4.0 * A * C;
+                if (disc >= 0.0) {
+                    const double sq = std::sqrt(disc);
+                    const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
+                    const double r1 = q / A;
+                    const double r2 = q != 0.0 ? C / q : kInf;
+                    for (double r : {r1, r2}) {
+                        if (r >= 0.0 && r < root) root = r;
+                    }
+                }
+            }
+            if (root <= len) {
+                if (cellsVisited) *cellsVisited += cells;
+                return t + root;
+            }
+            // Guard against a root lost to rounding at the far end of the cell.
+            if (C + B * len + A * len * len <= 0.0) {
+                if (cellsVisited) *cellsVisited += cells;
+                return tExit;
+            }
+        }
+        if (tExit >= tb) break;
+        t = tExit;
+        if (nextX <= nextY) {
+            ix += stepX;
+            if (ix < 0 || ix > w - 2) break;
+        } else {
+            iy += stepY;
+            if (iy < 0 || iy > h - 2) break;
+        }
+    }
+    if (cellsVisited) *cellsVisited += cells;
+    return -1.0;
+}
+
+RayHit intersectTerrain(const TerrainMap& map, const glm::dvec3& origin, const glm::dvec3& dir) {
+    const TerrainRay ray(map, origin, dir);
+    RayHit hit;
+    const double t = exactHitInRange(map, ray, 0.0, kInf);
+    if (t >= 0.0) {
+        hit.hit = true;
+        hit.distance = t;
+        hit.point = ray.at(t);
+    }
+    return hit;
+}
+
+}  // namespace ig
