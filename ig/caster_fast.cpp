@@ -75,7 +75,7 @@ class FastCaster final : public Caster {
         for (int y = h - 1; y >= 0; --y) {
             const TerrainRay ray(map_, eye, base + (y + 0.5) * down);
             const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-            const double horiz = std::hypot(ray.dir.x, ray.dir.y);
+            const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
             const glm::dvec2 track =
                 horiz > 1e-12 ? glm::dvec2{ray.dir.x, ray.dir.y} / horiz : glm::dvec2{0.0};
             const double slope = horiz > 1e-12 ? ray.dir.z / horiz : 0.0;

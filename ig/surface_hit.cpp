@@ -11,7 +11,7 @@
 namespace ig {
 
 TerrainRay::TerrainRay(const TerrainMap& map, const glm::dvec3& o, const glm::dvec3& d)
-    : origin(o), dir(glm::normalize(d)) {
+    : origin(o), dir(d * (1.0 / std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z))) {
     gox = o.x / map.spacingX();
     goy = o.y / map.spacingY();
     gdx = dir.x / map.spacingX();
@@ -42,8 +42,7 @@ bool clipToMapBox(const TerrainMap& map, const TerrainRay& ray, double& t0, doub
     const double eps = 1e-6 * std::max({1.0, std::abs(map.minHeight()), std::abs(map.maxHeight())});
     return clipSlab(ray.gox, ray.gdx, 0.0, map.width() - 1.0, t0, t1) &&
            clipSlab(ray.goy, ray.gdy, 0.0, map.height() - 1.0, t0, t1) &&
-           clipSlab(ray.origin.z, ray.dir.z, map.minHeight() - eps, map.maxHeight() + eps, t0,
-                    t1);
+           clipSlab(ray.origin.z, ray.dir.z, map.minHeight() - eps, map.maxHeight() + eps, t0, t1);
 }
 
 double heightAboveSurface(const TerrainMap& map, const TerrainRay& ray, double t) {
@@ -83,49 +82,12 @@ double exactHitInRange(const TerrainMap& map, const TerrainRay& ray, double ta, 
         const double nextY = ray.gdy != 0.0 ? ((ray.gdy > 0 ? iy + 1 : iy) - ray.goy) * invY : kInf;
         const double tExit = std::min({nextX, nextY, tb});
 
-        const double h00 = map.heightAt(ix, iy), h10 = map.heightAt(ix + 1, iy);
-        const double h01 = map.heightAt(ix, iy + 1), h11 = map.heightAt(ix + 1, iy + 1);
         const double za = ray.origin.z + t * ray.dir.z, zb = ray.origin.z + tExit * ray.dir.z;
-        const double cellMax = std::max({h00, h10, h01, h11});
-        if (std::min(za, zb) <= cellMax) {
-            // In local parameter s = t' - t: f(s) = z(s) - h(u(s), v(s)) = C + B s + A s^2.
-            const double ua = ray.gox + t * ray.gdx - ix, va = ray.goy + t * ray.gdy - iy;
-            const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
-            const double du = ray.gdx, dv = ray.gdy;
-            const double H0 = h00 + a * ua + b * va + c * ua * va;
-            const double H1 = a * du + b * dv + c * (ua * dv + va * du);
-            const double H2 = c * du * dv;
-            const double C = za - H0, B = ray.dir.z - H1, A = -H2;
-            const double len = tExit - t;
-            if (C <= 0.0) {
+        if (std::min(za, zb) <= map.cellMaxRaw(ix, iy) * map.heightScale() + map.heightOffset()) {
+            const double hit = solveCell(map, ray, ix, iy, t, tExit);
+            if (hit >= 0.0) {
                 if (cellsVisited) *cellsVisited += cells;
-                return t;
-            }
-            // Smallest root in (0, len].
-            double root = kInf;
-            const double scale = std::abs(B) * len + std::abs(A) * len * len;
-            if (std::abs(A) * len * len <= 1e-12 * std::max(scale, 1e-300)) {
-                if (B < 0.0) root = -C / B;
-            } else {
-                const double disc = B * B - 4.0 * A * C;
-                if (disc >= 0.0) {
-                    const double sq = std::sqrt(disc);
-                    const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
-                    const double r1 = q / A;
-                    const double r2 = q != 0.0 ? C / q : kInf;
-                    for (double r : {r1, r2}) {
-                        if (r >= 0.0 && r < root) root = r;
-                    }
-                }
-            }
-            if (root <= len) {
-                if (cellsVisited) *cellsVisited += cells;
-                return t + root;
-            }
-            // Guard against a root lost to rounding at the far end of the cell.
-            if (C + B * len + A * len * len <= 0.0) {
-                if (cellsVisited) *cellsVisited += cells;
-                return tExit;
+                return hit;
             }
         }
         if (tExit >= tb) break;

@@ -1,0 +1,131 @@
+#include "ig/cli.hpp"
+
+#include "ig/error.hpp"
+#include "ig/synthetic.hpp"
+#include "ig/terrain_io.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <vector>
+
+namespace ig {
+
+void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
+    app.add_option("--height", o.height,
+                   "Height map: 8/16-bit grey PNG or a GDAL raster such as GeoTIFF "
+                   "(default: the shipped Puget Sound map)");
+    app.add_option("--color", o.color, "Colour image over the same extent (PNG, JPEG, GeoTIFF)");
+    app.add_option("--spacing", o.spacing,
+                   "Metres between height samples (default: from the georeference, else 10)");
+    app.add_option("--height-scale", o.heightScale, "Metres per height unit (default 1)");
+    app.add_option("--height-offset", o.heightOffset, "Metres added to every height (default 0)");
+    app.add_option("--synthetic", o.synthetic,
+                   "Synthetic terrain SIZE[:SEED] (power of two up to 16384) instead of files");
+}
+
+namespace {
+double parseNumber(const std::string& s, const std::string& what) {
+    std::size_t used = 0;
+    double v = 0.0;
+    try {
+        v = std::stod(s, &used);
+    } catch (const std::exception&) {
+        used = 0;
+    }
+    if (used == 0 || used != s.size() || !std::isfinite(v)) {
+        throw InputError(what + ": '" + s + "' is not a finite number");
+    }
+    return v;
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+    std::vector<std::string> parts;
+    std::stringstream ss(s);
+    std::string part;
+    while (std::getline(ss, part, sep))
+        parts.push_back(part);
+    if (!s.empty() && s.back() == sep) parts.emplace_back();
+    return parts;
+}
+}  // namespace
+
+TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+    if (!o.synthetic.empty()) {
+        if (!o.height.empty() || !o.color.empty()) {
+            throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
+        }
+        const auto parts = split(o.synthetic, ':');
+        if (parts.empty() || parts.size() > 2) {
+            throw InputError("--synthetic: expected SIZE[:SEED], got '" + o.synthetic + "'");
+        }
+        const double size = parseNumber(parts[0], "--synthetic size");
+        const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
+        if (size != std::floor(size) || seed != std::floor(seed) || seed < 0) {
+            throw InputError("--synthetic: SIZE and SEED must be whole numbers, got '" +
+                             o.synthetic + "'");
+        }
+        const double spacing = o.spacing.value_or(10.0);
+        if (!(spacing > 0.0) || !std::isfinite(spacing)) {
+            throw InputError("--spacing: must be a positive finite number of metres");
+        }
+        return makeSyntheticTerrain(static_cast<int>(size), static_cast<std::uint64_t>(seed),
+                                    spacing);
+    }
+    if (o.height.empty()) {
+        if (!o.color.empty() || o.spacing || o.heightScale || o.heightOffset) {
+            throw InputError("--height: terrain flags given without a height map");
+        }
+        return loadPugetSound();
+    }
+    TerrainSource src;
+    src.heightPath = o.height;
+    src.colorPath = o.color;
+    src.spacing = o.spacing;
+    src.heightScale = o.heightScale;
+    src.heightOffset = o.heightOffset;
+    return loadTerrain(src);
+}
+
+std::string describeTerrain(const TerrainMap& map) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "%d x %d samples, spacing %.3g x %.3g m, extent %.1f x %.1f km, heights "
+                  "%.1f..%.1f m",
+                  map.width(), map.height(), map.spacingX(), map.spacingY(), map.extentX() / 1000.0,
+                  map.extentY() / 1000.0, map.minHeight(), map.maxHeight());
+    return buf;
+}
+
+std::pair<int, int> parseSize(const std::string& text, const std::string& what) {
+    const auto parts = split(text, 'x');
+    if (parts.size() != 2) throw InputError(what + ": expected WxH, got '" + text + "'");
+    const double w = parseNumber(parts[0], what), h = parseNumber(parts[1], what);
+    if (w != std::floor(w) || h != std::floor(h) || w < 1 || h < 1 || w > 16384 || h > 16384) {
+        throw InputError(what + ": width and height must be whole numbers from 1 to 16384, got '" +
+                         text + "'");
+    }
+    return {static_cast<int>(w), static_cast<int>(h)};
+}
+
+Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what) {
+    const auto parts = split(text, ',');
+    if (parts.size() != 6) {
+        throw InputError(what + ": expected x,y,z,yaw,pitch,roll (6 numbers), got '" + text + "'");
+    }
+    Pose p;
+    p.position.x = parseNumber(parts[0], what + " x");
+    p.position.y = parseNumber(parts[1], what + " y");
+    if (!parts[2].empty() && parts[2][0] == '+') {
+        p.position.z = map.surfaceHeight(p.position.x, p.position.y) +
+                       parseNumber(parts[2].substr(1), what + " z");
+    } else {
+        p.position.z = parseNumber(parts[2], what + " z");
+    }
+    p.yaw = degToRad(parseNumber(parts[3], what + " yaw"));
+    p.pitch = degToRad(parseNumber(parts[4], what + " pitch"));
+    p.roll = degToRad(parseNumber(parts[5], what + " roll"));
+    return p;
+}
+
+}  // namespace ig

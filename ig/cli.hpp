@@ -1,0 +1,38 @@
+// Command-line pieces every program shares: terrain flags, image size and pose parsing.
+#pragma once
+
+#include "ig/camera.hpp"
+#include "ig/terrain.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+#include <utility>
+
+namespace ig {
+
+// Terrain flags: --height FILE [--color FILE] [--spacing M] [--height-scale M]
+// [--height-offset M], or --synthetic SIZE[:SEED]. Neither: the shipped Puget Sound map.
+struct TerrainOptions {
+    std::string height;
+    std::string color;
+    std::optional<double> spacing;
+    std::optional<double> heightScale;
+    std::optional<double> heightOffset;
+    std::string synthetic;
+};
+
+void addTerrainOptions(CLI::App& app, TerrainOptions& options);
+// Loads what the flags name; throws InputError.
+TerrainMap loadTerrainFromOptions(const TerrainOptions& options);
+// One line describing a loaded map, for logs.
+std::string describeTerrain(const TerrainMap& map);
+
+// "WxH" -> {W, H}; throws InputError naming `what`.
+std::pair<int, int> parseSize(const std::string& text, const std::string& what = "--size");
+// "x,y,z,yaw,pitch,roll" in metres and degrees; z written "+H" means H metres above the terrain
+// under (x, y). Throws InputError naming `what`.
+Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what = "--pose");
+
+}  // namespace ig
