@@ -61,9 +61,12 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
         }
         const double size = parseNumber(parts[0], "--synthetic size");
         const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
-        if (size != std::floor(size) || seed != std::floor(seed) || seed < 0) {
-            throw InputError("--synthetic: SIZE and SEED must be whole numbers, got '" +
-                             o.synthetic + "'");
+        if (size != std::floor(size) || seed != std::floor(seed) || seed < 0 || size < 2 ||
+            size > 16384 || seed > 1e15) {
+            throw InputError(
+                "--synthetic: SIZE must be a whole number 2..16384 and SEED a whole "
+                "number 0..1e15, got '" +
+                o.synthetic + "'");
         }
         const double spacing = o.spacing.value_or(10.0);
         if (!(spacing > 0.0) || !std::isfinite(spacing)) {

@@ -1,0 +1,24 @@
+// Synthetic terrain: deterministic fractal relief and land-cover colours from a seed.
+#pragma once
+
+#include <cstdint>
+
+#include "ig/terrain.hpp"
+
+namespace ig {
+
+// Fixed height quantisation of every synthetic map (independent of its size, so maps of different
+// sizes agree sample for sample): z = raw * kSyntheticHeightScale + kSyntheticHeightOffset.
+inline constexpr double kSyntheticHeightScale = 0.1;      // metres per raw unit
+inline constexpr double kSyntheticHeightOffset = -100.0;  // metres at raw 0
+// Water is flat at this height, metres; land is at least one quantum above it, so a sample is
+// water exactly when its height equals the sea level.
+inline constexpr double kSyntheticSeaLevel = 0.0;
+
+// A size x size map (size a power of two, 2..16384) at `spacing` metres (0.01..10000). Heights and
+// colours are functions of world position (x = ix * spacing, y = iy * spacing) and the seed only,
+// so a smaller map is exactly the south-west corner of a larger one. Throws InputError for a bad
+// size or spacing.
+TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing = 10.0);
+
+}  // namespace ig

@@ -1,0 +1,892 @@
+#include "ig/terrain_io.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <gdal.h>
+#include <jpeglib.h>
+#include <ogr_srs_api.h>
+#include <png.h>
+
+#include <jerror.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <numbers>
+#include <span>
+#include <sstream>
+#include <vector>
+
+#include "ig/error.hpp"
+
+// The magic bytes pick the reader (libpng, libjpeg, or GDAL for everything else); each reader
+// returns its raster in file order, which is then turned north-up, converted to the map's integer
+// heights and the colour image resampled onto the height grid. docs/formats.md has the rules.
+
+namespace ig {
+namespace {
+
+static_assert(sizeof(Rgb8) == 3,
+              "Rgb8 must be three packed bytes: images are read straight into it");
+
+// Largest image accepted (samples): 2^30, far beyond any map the renderer holds in memory.
+constexpr std::size_t kMaxSamples = std::size_t{1} << 30;
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+    throw InputError(path + ": " + what);
+}
+
+std::string formatNumber(double v) {
+    std::ostringstream s;
+    s.precision(10);
+    s << v;
+    return s.str();
+}
+
+void checkSize(const std::string& path, long long width, long long height) {
+    if (width <= 0 || height <= 0) fail(path, "image has no pixels");
+    if (static_cast<unsigned long long>(width) * static_cast<unsigned long long>(height) >
+            kMaxSamples ||
+        width > (1LL << 30) || height > (1LL << 30)) {
+        fail(path, "image too large (" + std::to_string(width) + " x " + std::to_string(height) +
+                       " samples; at most 2^30 supported)");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// File sniffing: the magic bytes decide the reader; the extension only sharpens the message.
+
+enum class FileKind { Png, Jpeg, Gdal };
+
+std::string lowerExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+FileKind sniff(const std::string& path) {
+    if (path.empty()) throw InputError("terrain file name is empty");
+    // GDAL virtual file systems (/vsizip/, /vsicurl/, ...) are not local files.
+    if (path.rfind("/vsi", 0) == 0) return FileKind::Gdal;
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not an image file");
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    unsigned char magic[8] = {};
+    const std::size_t n = std::fread(magic, 1, sizeof magic, f);
+    std::fclose(f);
+    if (n == sizeof magic && png_sig_cmp(magic, 0, sizeof magic) == 0) return FileKind::Png;
+    if (n >= 3 && magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF) return FileKind::Jpeg;
+    if (n == 0) fail(path, "file is empty");
+    const std::string ext = lowerExtension(path);
+    if (ext == ".png") fail(path, "not a PNG file (bad signature)");
+    if (ext == ".jpg" || ext == ".jpeg") fail(path, "not a JPEG file (bad signature)");
+    return FileKind::Gdal;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rasters as read, rows in file order, then normalised to north-up, east-right.
+
+// Geotransform and the units of its coordinate system.
+struct Georef {
+    bool valid = false;    // the file has a geotransform
+    bool rotated = false;  // with rotation/shear terms (not used for spacing or alignment)
+    double gt[6] = {0, 1, 0, 0, 0, 1};
+    bool geographic = false;    // coordinates are angles
+    double degreesPerUnit = 1;  // geographic: size of one coordinate unit in degrees
+    double metresPerUnit = 1;   // projected (or no SRS): size of one coordinate unit in metres
+    std::shared_ptr<void> srs;  // OGRSpatialReferenceH (cloned), null when the file has none
+};
+
+struct HeightRaster {
+    int width = 0, height = 0;
+    bool integer = false;            // raw integer units (PNG/JPEG) in `raw`, else `values`
+    std::vector<std::uint16_t> raw;  // integer images
+    std::vector<double> values;      // GDAL rasters, metres after the user's scale/offset
+    Georef geo;
+};
+
+struct ColorRaster {
+    int width = 0, height = 0;
+    std::vector<Rgb8> pixels;
+    Georef geo;
+};
+
+template <typename T>
+void flipRows(std::vector<T>& v, int width, int height) {
+    for (int r = 0; r < height / 2; ++r) {
+        auto a = v.begin() + static_cast<std::ptrdiff_t>(r) * width;
+        auto b = v.begin() + static_cast<std::ptrdiff_t>(height - 1 - r) * width;
+        std::swap_ranges(a, a + width, b);
+    }
+}
+
+template <typename T>
+void flipColumns(std::vector<T>& v, int width, int height) {
+    for (int r = 0; r < height; ++r) {
+        auto a = v.begin() + static_cast<std::ptrdiff_t>(r) * width;
+        std::reverse(a, a + width);
+    }
+}
+
+// Makes file row 0 the north edge and column 0 the west edge, adjusting the geotransform.
+template <typename T>
+void normaliseOrientation(std::vector<T>& v, int width, int height, Georef& geo) {
+    if (!geo.valid || geo.rotated) return;
+    if (geo.gt[1] < 0) {
+        flipColumns(v, width, height);
+        geo.gt[0] += geo.gt[1] * width;
+        geo.gt[1] = -geo.gt[1];
+    }
+    if (geo.gt[5] > 0) {
+        flipRows(v, width, height);
+        geo.gt[3] += geo.gt[5] * height;
+        geo.gt[5] = -geo.gt[5];
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// PNG via libpng. libpng reports errors by longjmp: every function that calls into it sets its
+// own jump point and holds only trivially destructible locals; the owning objects live in the
+// caller's frame, which is never jumped over.
+
+struct PngErrorState {
+    char message[256] = {};
+};
+
+[[noreturn]] void pngError(png_structp png, png_const_charp msg) {
+    auto* state = static_cast<PngErrorState*>(png_get_error_ptr(png));
+    std::snprintf(state->message, sizeof state->message, "%s", msg ? msg : "unknown error");
+    png_longjmp(png, 1);
+}
+
+void pngWarning(png_structp, png_const_charp) {}
+
+struct PngReader {
+    std::FILE* file = nullptr;
+    png_structp png = nullptr;
+    png_infop info = nullptr;
+    PngErrorState error;
+    PngReader() = default;
+    PngReader(const PngReader&) = delete;
+    PngReader& operator=(const PngReader&) = delete;
+    ~PngReader() {
+        if (png) png_destroy_read_struct(&png, info ? &info : nullptr, nullptr);
+        if (file) std::fclose(file);
+    }
+};
+
+struct PngHeader {
+    png_uint_32 width = 0, height = 0;
+    int bitDepth = 0, colorType = 0;
+};
+
+bool pngReadHeader(png_structp png, png_infop info, std::FILE* file, PngHeader* header) {
+    if (setjmp(png_jmpbuf(png))) return false;
+    png_init_io(png, file);
+    png_read_info(png, info);
+    header->width = png_get_image_width(png, info);
+    header->height = png_get_image_height(png, info);
+    header->bitDepth = png_get_bit_depth(png, info);
+    header->colorType = png_get_color_type(png, info);
+    return true;
+}
+
+// Sets the transforms that turn any PNG into 8-bit RGB (toRgb) or leaves samples as they are.
+bool pngPrepare(png_structp png, png_infop info, bool toRgb, png_size_t* rowBytes) {
+    if (setjmp(png_jmpbuf(png))) return false;
+    if (toRgb) {
+        const int colorType = png_get_color_type(png, info);
+        const int bitDepth = png_get_bit_depth(png, info);
+        if (colorType == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+        if ((colorType & PNG_COLOR_MASK_COLOR) == 0 && bitDepth < 8) {
+            png_set_expand_gray_1_2_4_to_8(png);
+        }
+        if (bitDepth == 16) png_set_scale_16(png);
+        if (colorType & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(png);
+        if ((colorType & PNG_COLOR_MASK_COLOR) == 0) png_set_gray_to_rgb(png);
+    }
+    png_set_interlace_handling(png);
+    png_read_update_info(png, info);
+    *rowBytes = png_get_rowbytes(png, info);
+    return true;
+}
+
+bool pngReadRows(png_structp png, png_bytepp rows) {
+    if (setjmp(png_jmpbuf(png))) return false;
+    png_read_image(png, rows);
+    png_read_end(png, nullptr);
+    return true;
+}
+
+std::string pngColorTypeName(int colorType) {
+    switch (colorType) {
+        case PNG_COLOR_TYPE_GRAY:
+            return "greyscale";
+        case PNG_COLOR_TYPE_GRAY_ALPHA:
+            return "greyscale with alpha";
+        case PNG_COLOR_TYPE_PALETTE:
+            return "palette (indexed colour)";
+        case PNG_COLOR_TYPE_RGB:
+            return "RGB";
+        case PNG_COLOR_TYPE_RGB_ALPHA:
+            return "RGB with alpha";
+        default:
+            return "unknown colour type";
+    }
+}
+
+// Opens `path`, reads its header, and checks the size. Throws InputError on failure.
+void pngOpen(const std::string& path, PngReader& r, PngHeader& header) {
+    r.file = std::fopen(path.c_str(), "rb");
+    if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &r.error, pngError, pngWarning);
+    if (!r.png) fail(path, "out of memory opening PNG");
+    r.info = png_create_info_struct(r.png);
+    if (!r.info) fail(path, "out of memory opening PNG");
+    if (!pngReadHeader(r.png, r.info, r.file, &header)) {
+        fail(path, std::string("corrupt or truncated PNG (") + r.error.message + ")");
+    }
+    checkSize(path, header.width, header.height);
+}
+
+// Reads the image rows of an opened PNG into `pixels` (rowBytes per row, file order).
+void pngReadPixels(const std::string& path, PngReader& r, std::size_t height, std::size_t rowBytes,
+                   std::vector<std::uint8_t>& pixels) {
+    pixels.resize(rowBytes * height);
+    std::vector<png_bytep> rows(height);
+    for (std::size_t y = 0; y < height; ++y)
+        rows[y] = pixels.data() + y * rowBytes;
+    if (!pngReadRows(r.png, rows.data())) {
+        fail(path, std::string("corrupt or truncated PNG (") + r.error.message + ")");
+    }
+}
+
+HeightRaster readPngHeights(const std::string& path) {
+    PngReader r;
+    PngHeader header;
+    pngOpen(path, r, header);
+    if (header.colorType != PNG_COLOR_TYPE_GRAY) {
+        fail(path, "height map must be an 8- or 16-bit greyscale PNG; this one is " +
+                       pngColorTypeName(header.colorType));
+    }
+    if (header.bitDepth != 8 && header.bitDepth != 16) {
+        fail(path, "height map must be an 8- or 16-bit greyscale PNG; this one has " +
+                       std::to_string(header.bitDepth) + "-bit samples");
+    }
+    png_size_t rowBytes = 0;
+    if (!pngPrepare(r.png, r.info, false, &rowBytes)) {
+        fail(path, std::string("corrupt PNG (") + r.error.message + ")");
+    }
+    const std::size_t w = header.width, h = header.height;
+    const std::size_t bytesPerSample = header.bitDepth / 8;
+    if (rowBytes != w * bytesPerSample) fail(path, "unexpected PNG row layout");
+    std::vector<std::uint8_t> pixels;
+    pngReadPixels(path, r, h, rowBytes, pixels);
+
+    HeightRaster out;
+    out.width = static_cast<int>(w);
+    out.height = static_cast<int>(h);
+    out.integer = true;
+    out.raw.resize(w * h);
+    if (bytesPerSample == 1) {
+        std::copy(pixels.begin(), pixels.end(), out.raw.begin());
+    } else {
+        for (std::size_t k = 0; k < w * h; ++k) {  // PNG stores 16-bit samples big-endian
+            out.raw[k] = static_cast<std::uint16_t>((pixels[2 * k] << 8) | pixels[2 * k + 1]);
+        }
+    }
+    return out;
+}
+
+ColorRaster readPngColors(const std::string& path) {
+    PngReader r;
+    PngHeader header;
+    pngOpen(path, r, header);
+    png_size_t rowBytes = 0;
+    if (!pngPrepare(r.png, r.info, true, &rowBytes)) {
+        fail(path, std::string("corrupt PNG (") + r.error.message + ")");
+    }
+    const std::size_t w = header.width, h = header.height;
+    if (rowBytes != w * 3) fail(path, "unexpected PNG row layout after conversion to RGB");
+    std::vector<std::uint8_t> pixels;
+    pngReadPixels(path, r, h, rowBytes, pixels);
+    ColorRaster out;
+    out.width = static_cast<int>(w);
+    out.height = static_cast<int>(h);
+    out.pixels.resize(w * h);
+    std::memcpy(out.pixels.data(), pixels.data(), pixels.size());
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// JPEG via libjpeg; errors longjmp exactly as with libpng (same frame discipline).
+
+struct JpegErrorState {
+    jpeg_error_mgr manager;  // first member: libjpeg hands back a pointer to it
+    std::jmp_buf jump;
+    char message[JMSG_LENGTH_MAX] = {};
+    bool truncated = false;
+};
+
+[[noreturn]] void jpegErrorExit(j_common_ptr cinfo) {
+    auto* state = reinterpret_cast<JpegErrorState*>(cinfo->err);
+    (*cinfo->err->format_message)(cinfo, state->message);
+    std::longjmp(state->jump, 1);
+}
+
+// Warnings are silent, except a premature end of data, which is an error here: libjpeg would
+// otherwise pad the image with grey.
+void jpegEmitMessage(j_common_ptr cinfo, int level) {
+    if (level < 0 && cinfo->err->msg_code == JWRN_JPEG_EOF) {
+        reinterpret_cast<JpegErrorState*>(cinfo->err)->truncated = true;
+    }
+}
+
+struct JpegReader {
+    std::FILE* file = nullptr;
+    jpeg_decompress_struct cinfo{};
+    JpegErrorState error{};
+    bool created = false;
+    JpegReader() = default;
+    JpegReader(const JpegReader&) = delete;
+    JpegReader& operator=(const JpegReader&) = delete;
+    ~JpegReader() {
+        if (created) jpeg_destroy_decompress(&cinfo);
+        if (file) std::fclose(file);
+    }
+};
+
+bool jpegStart(jpeg_decompress_struct* cinfo, JpegErrorState* error, std::FILE* file) {
+    if (setjmp(error->jump)) return false;
+    jpeg_create_decompress(cinfo);
+    jpeg_stdio_src(cinfo, file);
+    jpeg_read_header(cinfo, TRUE);
+    // Grey stays grey (expanded to RGB by the caller); everything else is converted to RGB.
+    cinfo->out_color_space = cinfo->num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
+    jpeg_start_decompress(cinfo);
+    return true;
+}
+
+bool jpegReadRows(jpeg_decompress_struct* cinfo, JpegErrorState* error, std::uint8_t* pixels,
+                  std::size_t rowBytes) {
+    if (setjmp(error->jump)) return false;
+    while (cinfo->output_scanline < cinfo->output_height) {
+        JSAMPROW row = pixels + static_cast<std::size_t>(cinfo->output_scanline) * rowBytes;
+        jpeg_read_scanlines(cinfo, &row, 1);
+    }
+    jpeg_finish_decompress(cinfo);
+    return true;
+}
+
+// Reads a JPEG as 1 (grey) or 3 (RGB) channels, rows in file order.
+std::vector<std::uint8_t> readJpeg(const std::string& path, int& width, int& height,
+                                   int& channels) {
+    JpegReader r;
+    r.file = std::fopen(path.c_str(), "rb");
+    if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    r.cinfo.err = jpeg_std_error(&r.error.manager);
+    r.error.manager.error_exit = jpegErrorExit;
+    r.error.manager.emit_message = jpegEmitMessage;
+    r.created = true;  // jpeg_destroy_decompress is safe even if creation fails part-way
+    if (!jpegStart(&r.cinfo, &r.error, r.file)) {
+        fail(path, std::string("corrupt JPEG (") + r.error.message + ")");
+    }
+    checkSize(path, r.cinfo.output_width, r.cinfo.output_height);
+    channels = r.cinfo.output_components;
+    if (channels != 1 && channels != 3) {
+        fail(path, "unsupported JPEG with " + std::to_string(channels) + " channels");
+    }
+    width = static_cast<int>(r.cinfo.output_width);
+    height = static_cast<int>(r.cinfo.output_height);
+    const std::size_t rowBytes = static_cast<std::size_t>(width) * channels;
+    std::vector<std::uint8_t> pixels(rowBytes * height);
+    if (!jpegReadRows(&r.cinfo, &r.error, pixels.data(), rowBytes)) {
+        fail(path, std::string("corrupt JPEG (") + r.error.message + ")");
+    }
+    if (r.error.truncated) fail(path, "truncated JPEG (premature end of data)");
+    return pixels;
+}
+
+HeightRaster readJpegHeights(const std::string& path) {
+    HeightRaster out;
+    int channels = 0;
+    std::vector<std::uint8_t> pixels = readJpeg(path, out.width, out.height, channels);
+    if (channels != 1) {
+        fail(path, "height map must be greyscale; this JPEG is colour (" +
+                       std::to_string(channels) + " channels)");
+    }
+    out.integer = true;
+    out.raw.assign(pixels.begin(), pixels.end());
+    return out;
+}
+
+ColorRaster readJpegColors(const std::string& path) {
+    ColorRaster out;
+    int channels = 0;
+    std::vector<std::uint8_t> pixels = readJpeg(path, out.width, out.height, channels);
+    out.pixels.resize(static_cast<std::size_t>(out.width) * out.height);
+    if (channels == 3) {
+        std::memcpy(out.pixels.data(), pixels.data(), pixels.size());
+    } else {
+        for (std::size_t k = 0; k < out.pixels.size(); ++k) {
+            out.pixels[k] = Rgb8{pixels[k], pixels[k], pixels[k]};
+        }
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// GDAL (GeoTIFF and every other raster format GDAL reads).
+
+void gdalInit() {
+    static std::once_flag once;
+    std::call_once(once, [] { GDALAllRegister(); });
+}
+
+// Keeps GDAL from printing to stderr while we work; the last message goes into our own errors.
+class QuietGdal {
+  public:
+    QuietGdal() {
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        CPLErrorReset();
+    }
+    ~QuietGdal() { CPLPopErrorHandler(); }
+    QuietGdal(const QuietGdal&) = delete;
+    QuietGdal& operator=(const QuietGdal&) = delete;
+    static std::string lastError() {
+        const char* m = CPLGetLastErrorMsg();
+        return m && *m ? std::string(" (") + m + ")" : std::string();
+    }
+};
+
+struct GdalDataset {
+    GDALDatasetH handle = nullptr;
+    GdalDataset() = default;
+    GdalDataset(const GdalDataset&) = delete;
+    GdalDataset& operator=(const GdalDataset&) = delete;
+    ~GdalDataset() {
+        if (handle) GDALClose(handle);
+    }
+};
+
+void gdalOpen(const std::string& path, GdalDataset& ds) {
+    gdalInit();
+    ds.handle =
+        GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+    if (!ds.handle) fail(path, "not a readable image or raster file" + QuietGdal::lastError());
+    if (GDALGetRasterCount(ds.handle) < 1) fail(path, "raster file has no bands");
+    checkSize(path, GDALGetRasterXSize(ds.handle), GDALGetRasterYSize(ds.handle));
+}
+
+Georef readGeoref(const std::string& path, GDALDatasetH ds) {
+    Georef geo;
+    double gt[6];
+    if (GDALGetGeoTransform(ds, gt) != CE_None) return geo;
+    const bool identity =
+        gt[0] == 0 && gt[1] == 1 && gt[2] == 0 && gt[3] == 0 && gt[4] == 0 && gt[5] == 1;
+    if (identity) return geo;
+    for (double v : gt) {
+        if (!std::isfinite(v)) fail(path, "geotransform has a non-finite term");
+    }
+    if (gt[1] * gt[5] - gt[2] * gt[4] == 0) fail(path, "geotransform is degenerate");
+    geo.valid = true;
+    std::copy(gt, gt + 6, geo.gt);
+    geo.rotated = gt[2] != 0 || gt[4] != 0;
+    OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+    if (srs) {
+        geo.srs = std::shared_ptr<void>(OSRClone(srs), [](void* p) {
+            if (p) OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p));
+        });
+        if (OSRIsGeographic(srs)) {
+            geo.geographic = true;
+            geo.degreesPerUnit = OSRGetAngularUnits(srs, nullptr) * 180.0 / std::numbers::pi;
+        } else {
+            geo.metresPerUnit = OSRGetLinearUnits(srs, nullptr);
+        }
+        if (!(geo.degreesPerUnit > 0) || !(geo.metresPerUnit > 0)) {
+            fail(path, "coordinate reference system has unusable units");
+        }
+    }
+    return geo;
+}
+
+HeightRaster readGdalHeights(const std::string& path, double scale, double offset) {
+    QuietGdal quiet;
+    GdalDataset ds;
+    gdalOpen(path, ds);
+    HeightRaster out;
+    out.width = GDALGetRasterXSize(ds.handle);
+    out.height = GDALGetRasterYSize(ds.handle);
+    GDALRasterBandH band = GDALGetRasterBand(ds.handle, 1);
+    const GDALColorInterp interp = GDALGetRasterColorInterpretation(band);
+    if (interp == GCI_PaletteIndex ||
+        (GDALGetRasterCount(ds.handle) >= 3 && interp == GCI_RedBand)) {
+        fail(path, "height map must hold heights in one band; this file is a colour image");
+    }
+    const std::size_t w = out.width, h = out.height;
+    out.values.resize(w * h);
+    if (GDALRasterIO(band, GF_Read, 0, 0, out.width, out.height, out.values.data(), out.width,
+                     out.height, GDT_Float64, 0, 0) != CE_None) {
+        fail(path, "cannot read heights" + QuietGdal::lastError());
+    }
+    int hasNoData = 0;
+    const double noData = GDALGetRasterNoDataValue(band, &hasNoData);
+    for (std::size_t r = 0; r < h; ++r) {
+        for (std::size_t c = 0; c < w; ++c) {
+            double& v = out.values[r * w + c];
+            auto where = [&] {
+                return " at row " + std::to_string(r) + ", column " + std::to_string(c);
+            };
+            if (hasNoData && (v == noData || (std::isnan(noData) && std::isnan(v)))) {
+                fail(path, "no-data value (" + formatNumber(noData) + ")" + where() +
+                               "; height maps with holes are not supported");
+            }
+            if (!std::isfinite(v)) {
+                fail(path, "non-finite height (" + formatNumber(v) + ")" + where());
+            }
+            v = v * scale + offset;
+            if (!std::isfinite(v)) fail(path, "height out of range after scaling" + where());
+        }
+    }
+    out.geo = readGeoref(path, ds.handle);
+    return out;
+}
+
+ColorRaster readGdalColors(const std::string& path) {
+    QuietGdal quiet;
+    GdalDataset ds;
+    gdalOpen(path, ds);
+    ColorRaster out;
+    out.width = GDALGetRasterXSize(ds.handle);
+    out.height = GDALGetRasterYSize(ds.handle);
+    const std::size_t n = static_cast<std::size_t>(out.width) * out.height;
+    out.pixels.resize(n);
+    const int bands = GDALGetRasterCount(ds.handle);
+    GDALRasterBandH band1 = GDALGetRasterBand(ds.handle, 1);
+    const GDALDataType type = GDALGetRasterDataType(band1);
+    if (type != GDT_Byte) {
+        fail(path, std::string("colour image must have 8-bit samples; this one has ") +
+                       GDALGetDataTypeName(type));
+    }
+    GDALColorTableH palette = GDALGetRasterColorTable(band1);
+    if (bands >= 3) {
+        int bandMap[3] = {1, 2, 3};
+        if (GDALDatasetRasterIO(ds.handle, GF_Read, 0, 0, out.width, out.height, out.pixels.data(),
+                                out.width, out.height, GDT_Byte, 3, bandMap, 3,
+                                static_cast<GSpacing>(out.width) * 3, 1) != CE_None) {
+            fail(path, "cannot read colours" + QuietGdal::lastError());
+        }
+    } else {
+        std::vector<std::uint8_t> grey(n);
+        if (GDALRasterIO(band1, GF_Read, 0, 0, out.width, out.height, grey.data(), out.width,
+                         out.height, GDT_Byte, 0, 0) != CE_None) {
+            fail(path, "cannot read colours" + QuietGdal::lastError());
+        }
+        Rgb8 lut[256];
+        for (int v = 0; v < 256; ++v) {
+            const auto g = static_cast<std::uint8_t>(v);
+            lut[v] = Rgb8{g, g, g};
+            if (palette && v < GDALGetColorEntryCount(palette)) {
+                const GDALColorEntry* e = GDALGetColorEntry(palette, v);
+                auto q = [](short s) {
+                    return static_cast<std::uint8_t>(std::clamp<int>(s, 0, 255));
+                };
+                lut[v] = Rgb8{q(e->c1), q(e->c2), q(e->c3)};
+            }
+        }
+        for (std::size_t k = 0; k < n; ++k)
+            out.pixels[k] = lut[grey[k]];
+    }
+    out.geo = readGeoref(path, ds.handle);
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Loading, georeference and colour resampling.
+
+HeightRaster readHeights(const std::string& path, double scale, double offset) {
+    switch (sniff(path)) {
+        case FileKind::Png:
+            return readPngHeights(path);
+        case FileKind::Jpeg:
+            return readJpegHeights(path);
+        case FileKind::Gdal:
+            break;
+    }
+    return readGdalHeights(path, scale, offset);
+}
+
+ColorRaster readColors(const std::string& path) {
+    switch (sniff(path)) {
+        case FileKind::Png:
+            return readPngColors(path);
+        case FileKind::Jpeg:
+            return readJpegColors(path);
+        case FileKind::Gdal:
+            break;
+    }
+    return readGdalColors(path);
+}
+
+void checkPositive(const std::string& path, const char* what, double v) {
+    if (!std::isfinite(v) || v <= 0) {
+        fail(path,
+             std::string(what) + " must be a positive finite number (got " + formatNumber(v) + ")");
+    }
+}
+
+// Spacing in metres along x and y from a north-up geotransform (normalised: gt[1] > 0, gt[5] < 0).
+void georefSpacing(const std::string& path, const Georef& geo, int height, double& sx, double& sy) {
+    if (geo.geographic) {
+        const double latDeg = (geo.gt[3] + geo.gt[5] * height * 0.5) * geo.degreesPerUnit;
+        if (!(std::abs(latDeg) <= 90.0)) {
+            fail(path, "georeferenced latitude out of range (" + formatNumber(latDeg) + " deg)");
+        }
+        const double lat = latDeg * std::numbers::pi / 180.0;
+        sx = std::abs(geo.gt[1]) * geo.degreesPerUnit * metresPerDegreeLongitude(lat);
+        sy = std::abs(geo.gt[5]) * geo.degreesPerUnit * metresPerDegreeLatitude(lat);
+    } else {
+        sx = std::abs(geo.gt[1]) * geo.metresPerUnit;
+        sy = std::abs(geo.gt[5]) * geo.metresPerUnit;
+    }
+    if (!std::isfinite(sx) || !std::isfinite(sy) || sx <= 0 || sy <= 0) {
+        fail(path, "georeference gives an unusable sample spacing (" + formatNumber(sx) + " x " +
+                       formatNumber(sy) + " m); give the spacing explicitly");
+    }
+}
+
+// Whether two north-up georeferenced grids cover the same extent to within one pixel.
+bool extentsMatch(const Georef& a, int aw, int ah, const Georef& b, int bw, int bh) {
+    const double tolX = std::max(a.gt[1], b.gt[1]);
+    const double tolY = std::max(-a.gt[5], -b.gt[5]);
+    return std::abs(a.gt[0] - b.gt[0]) <= tolX &&
+           std::abs((a.gt[0] + a.gt[1] * aw) - (b.gt[0] + b.gt[1] * bw)) <= tolX &&
+           std::abs(a.gt[3] - b.gt[3]) <= tolY &&
+           std::abs((a.gt[3] + a.gt[5] * ah) - (b.gt[3] + b.gt[5] * bh)) <= tolY;
+}
+
+// A geotransform without a coordinate system: take the colour image's when it describes the same
+// grid; otherwise treat coordinates as degrees when they can only be angles (pixels under 0.01
+// units, the whole extent within longitude -180..180 and latitude -90..90), else as metres.
+void resolveUnits(Georef& geo, int w, int h, const Georef* other, int ow, int oh) {
+    if (!geo.valid || geo.rotated || geo.srs) return;
+    if (other && other->valid && !other->rotated && other->srs &&
+        extentsMatch(geo, w, h, *other, ow, oh)) {
+        geo.srs = other->srs;
+        geo.geographic = other->geographic;
+        geo.degreesPerUnit = other->degreesPerUnit;
+        geo.metresPerUnit = other->metresPerUnit;
+        return;
+    }
+    const double x0 = geo.gt[0], x1 = geo.gt[0] + geo.gt[1] * w;
+    const double y0 = geo.gt[3] + geo.gt[5] * h, y1 = geo.gt[3];
+    geo.geographic =
+        geo.gt[1] <= 0.01 && -geo.gt[5] <= 0.01 && x0 >= -180 && x1 <= 180 && y0 >= -90 && y1 <= 90;
+}
+
+// Colour pixel coordinate (pixel centres at integers) of height sample column/row `i`, u = a*i+b.
+struct AxisMap {
+    double a = 1, b = 0;
+};
+
+void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorRaster& cr,
+                  AxisMap& mx, AxisMap& my) {
+    const Georef& hg = hr.geo;
+    const Georef& cg = cr.geo;
+    const std::string both = src.heightPath + " and " + src.colorPath;
+    if (hg.valid && cg.valid && !hg.rotated && !cg.rotated) {
+        if (hg.srs && cg.srs &&
+            !OSRIsSame(static_cast<OGRSpatialReferenceH>(hg.srs.get()),
+                       static_cast<OGRSpatialReferenceH>(cg.srs.get()))) {
+            throw InputError(both + ": coordinate reference systems differ");
+        }
+        if (!extentsMatch(hg, hr.width, hr.height, cg, cr.width, cr.height)) {
+            const double hx0 = hg.gt[0], hx1 = hg.gt[0] + hg.gt[1] * hr.width;
+            const double hy0 = hg.gt[3], hy1 = hg.gt[3] + hg.gt[5] * hr.height;
+            const double cx0 = cg.gt[0], cx1 = cg.gt[0] + cg.gt[1] * cr.width;
+            const double cy0 = cg.gt[3], cy1 = cg.gt[3] + cg.gt[5] * cr.height;
+            std::ostringstream s;
+            s.precision(10);
+            s << both << ": extents do not match (heights x " << hx0 << ".." << hx1 << ", y " << hy1
+              << ".." << hy0 << "; colours x " << cx0 << ".." << cx1 << ", y " << cy1 << ".." << cy0
+              << ")";
+            throw InputError(s.str());
+        }
+        // Pixel centres in both files: X = g0 + (i + 0.5) g1.
+        mx.a = hg.gt[1] / cg.gt[1];
+        mx.b = (hg.gt[0] - cg.gt[0]) / cg.gt[1] + 0.5 * mx.a - 0.5;
+        my.a = hg.gt[5] / cg.gt[5];
+        my.b = (hg.gt[3] - cg.gt[3]) / cg.gt[5] + 0.5 * my.a - 0.5;
+        return;
+    }
+    if (hr.width == cr.width && hr.height == cr.height) return;  // one colour per sample
+    const double heightAspect = static_cast<double>(hr.width - 1) / (hr.height - 1);
+    const double colorAspect = static_cast<double>(cr.width) / cr.height;
+    if (std::abs(colorAspect / heightAspect - 1.0) > 0.02) {
+        throw InputError(both + ": aspect ratios differ by more than 2% (heights " +
+                         std::to_string(hr.width) + " x " + std::to_string(hr.height) +
+                         ", colours " + std::to_string(cr.width) + " x " +
+                         std::to_string(cr.height) + ")");
+    }
+    // Sample i of n heights at fraction i/(n-1) of the extent; texel k of m at (k+0.5)/m.
+    mx.a = static_cast<double>(cr.width) / (hr.width - 1);
+    mx.b = -0.5;
+    my.a = static_cast<double>(cr.height) / (hr.height - 1);
+    my.b = -0.5;
+}
+
+// Index and weight of the two texels around coordinate u on an axis of n texels.
+struct Tap {
+    int i0 = 0, i1 = 0;
+    float w1 = 0;
+};
+
+std::vector<Tap> makeTaps(int samples, int texels, AxisMap m) {
+    std::vector<Tap> taps(samples);
+    for (int i = 0; i < samples; ++i) {
+        const double u = std::clamp(m.a * i + m.b, 0.0, static_cast<double>(texels - 1));
+        const int i0 = std::min(static_cast<int>(u), std::max(texels - 2, 0));
+        taps[i] = Tap{i0, std::min(i0 + 1, texels - 1), static_cast<float>(u - i0)};
+    }
+    return taps;
+}
+
+// Fills the map's colours (rows south first) by bilinear sampling of the north-up colour raster.
+void resampleColors(const ColorRaster& cr, AxisMap mx, AxisMap my, TerrainMap& map) {
+    const int w = map.width(), h = map.height();
+    const std::vector<Tap> cols = makeTaps(w, cr.width, mx);
+    const std::vector<Tap> rows = makeTaps(h, cr.height, my);
+    const Rgb8* px = cr.pixels.data();
+    const std::size_t stride = static_cast<std::size_t>(cr.width);
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        const Tap ty = rows[fileRow];
+        const Rgb8* r0 = px + ty.i0 * stride;
+        const Rgb8* r1 = px + ty.i1 * stride;
+        Rgb8* out = map.colors().data() + map.index(0, h - 1 - fileRow);
+        for (int ix = 0; ix < w; ++ix) {
+            const Tap tx = cols[ix];
+            const float w00 = (1 - tx.w1) * (1 - ty.w1), w10 = tx.w1 * (1 - ty.w1);
+            const float w01 = (1 - tx.w1) * ty.w1, w11 = tx.w1 * ty.w1;
+            const Rgb8 a = r0[tx.i0], b = r0[tx.i1], c = r1[tx.i0], d = r1[tx.i1];
+            auto mix = [&](std::uint8_t p, std::uint8_t q, std::uint8_t s, std::uint8_t t) {
+                return static_cast<std::uint8_t>(w00 * p + w10 * q + w01 * s + w11 * t + 0.5f);
+            };
+            out[ix] =
+                Rgb8{mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
+        }
+    }
+}
+
+}  // namespace
+
+double metresPerDegreeLatitude(double latitude) {
+    return 111132.954 - 559.822 * std::cos(2 * latitude) + 1.175 * std::cos(4 * latitude);
+}
+
+double metresPerDegreeLongitude(double latitude) {
+    return 111412.84 * std::cos(latitude) - 93.5 * std::cos(3 * latitude);
+}
+
+TerrainMap loadTerrain(const TerrainSource& src) {
+    const std::string& path = src.heightPath;
+    if (path.empty()) throw InputError("height map: no file given");
+    if (src.spacing) checkPositive(path, "spacing", *src.spacing);
+    if (src.heightScale) checkPositive(path, "height scale", *src.heightScale);
+    if (src.heightOffset && !std::isfinite(*src.heightOffset)) {
+        fail(path, "height offset must be finite (got " + formatNumber(*src.heightOffset) + ")");
+    }
+    const double userScale = src.heightScale.value_or(1.0);
+    const double userOffset = src.heightOffset.value_or(0.0);
+
+    HeightRaster hr = readHeights(path, userScale, userOffset);
+    if (hr.width < 2 || hr.height < 2) {
+        fail(path, "height map needs at least 2 x 2 samples (has " + std::to_string(hr.width) +
+                       " x " + std::to_string(hr.height) + ")");
+    }
+    if (hr.integer) {
+        normaliseOrientation(hr.raw, hr.width, hr.height, hr.geo);
+    } else {
+        normaliseOrientation(hr.values, hr.width, hr.height, hr.geo);
+    }
+
+    ColorRaster cr;
+    const bool hasColor = !src.colorPath.empty();
+    if (hasColor) {
+        cr = readColors(src.colorPath);
+        normaliseOrientation(cr.pixels, cr.width, cr.height, cr.geo);
+    }
+    resolveUnits(hr.geo, hr.width, hr.height, hasColor ? &cr.geo : nullptr, cr.width, cr.height);
+    if (hasColor) resolveUnits(cr.geo, cr.width, cr.height, &hr.geo, hr.width, hr.height);
+
+    double sx = kDefaultSpacing, sy = kDefaultSpacing;
+    if (src.spacing) {
+        sx = sy = *src.spacing;
+    } else if (hr.geo.valid) {
+        if (hr.geo.rotated) {
+            fail(path, "georeference is rotated or sheared; give the sample spacing explicitly");
+        }
+        georefSpacing(path, hr.geo, hr.height, sx, sy);
+    }
+
+    const std::size_t w = hr.width, h = hr.height;
+    double scale = userScale, offset = userOffset;
+    std::vector<std::uint16_t> raw;
+    if (hr.integer) {
+        raw = std::move(hr.raw);
+    } else {
+        // Quantise to 16 bits over the map's own range: exact to within scale / 2.
+        const auto [lo, hi] = std::minmax_element(hr.values.begin(), hr.values.end());
+        const double minV = *lo, maxV = *hi;
+        offset = minV;
+        scale = maxV > minV ? (maxV - minV) / 65535.0 : 1.0;
+        raw.resize(w * h);
+        for (std::size_t k = 0; k < w * h; ++k) {
+            const double q = std::round((hr.values[k] - minV) / scale);
+            raw[k] = static_cast<std::uint16_t>(std::clamp(q, 0.0, 65535.0));
+        }
+        hr.values = {};
+    }
+
+    TerrainMap map(hr.width, hr.height, sx, sy, scale, offset);
+    for (std::size_t fileRow = 0; fileRow < h; ++fileRow) {
+        std::copy_n(raw.begin() + fileRow * w, w, map.rawHeights().begin() + (h - 1 - fileRow) * w);
+    }
+    raw = {};
+    map.updateRange();
+
+    if (!hasColor) {
+        map.shadeFromHeights();
+        return map;
+    }
+    AxisMap mx, my;
+    colorMapping(src, hr, cr, mx, my);
+    resampleColors(cr, mx, my, map);
+    return map;
+}
+
+TerrainMap loadPugetSound() {
+    TerrainSource src;
+    src.heightPath = VIG_DATA_DIR "/puget-sound-1k/ps_height_1k.png";
+    src.colorPath = VIG_DATA_DIR "/puget-sound-1k/ps_texture_1k.png";
+    src.spacing = 160.0;
+    src.heightScale = 0.1;
+    return loadTerrain(src);
+}
+
+TerrainMap loadGoleta() {
+    TerrainSource src;
+    src.heightPath = VIG_DATA_DIR "/goleta-512/sba_elev32_wgs84_512x512.tif";
+    src.colorPath = VIG_DATA_DIR "/goleta-512/sba_rgb_wgs84_512x512.tif";
+    return loadTerrain(src);
+}
+
+}  // namespace ig

@@ -1,0 +1,729 @@
+#include "ig/terrain_io.hpp"
+
+#include <gtest/gtest.h>
+#include <jpeglib.h>
+#include <png.h>
+
+#if __has_include(<gdal.h>)
+#include <gdal.h>
+#include <ogr_srs_api.h>
+#else
+#include <gdal/gdal.h>
+#include <gdal/ogr_srs_api.h>
+#endif
+
+#include <algorithm>
+#include <cmath>
+#include <csetjmp>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "ig/error.hpp"
+
+namespace {
+
+using ig::InputError;
+using ig::loadTerrain;
+using ig::Rgb8;
+using ig::TerrainMap;
+using ig::TerrainSource;
+
+std::string tmpPath(const std::string& name) {
+    const std::filesystem::path dir = std::filesystem::path(VIG_TEST_TMP) / "terrain_io";
+    std::filesystem::create_directories(dir);
+    return (dir / name).string();
+}
+
+// --- Fixture writers ---------------------------------------------------------------------------
+
+[[noreturn]] void pngWriteError(png_structp png, png_const_charp) {
+    png_longjmp(png, 1);
+}
+
+bool pngWriteRows(png_structp png, png_infop info, std::FILE* f, int w, int h, int colorType,
+                  int bitDepth, const png_color* palette, int paletteSize, png_bytepp rows) {
+    if (setjmp(png_jmpbuf(png))) return false;
+    png_init_io(png, f);
+    png_set_IHDR(png, info, w, h, bitDepth, colorType, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    if (paletteSize > 0) png_set_PLTE(png, info, palette, paletteSize);
+    png_write_info(png, info);
+    png_write_image(png, rows);
+    png_write_end(png, nullptr);
+    return true;
+}
+
+// Writes a PNG of any type from packed rows (top first) exactly as the format stores them.
+void writePng(const std::string& path, int w, int h, int colorType, int bitDepth,
+              const std::vector<std::uint8_t>& bytes, const std::vector<png_color>& palette = {}) {
+    const std::size_t rowBytes = bytes.size() / h;
+    std::vector<png_bytep> rows(h);
+    std::vector<std::uint8_t> copy = bytes;
+    for (int y = 0; y < h; ++y)
+        rows[y] = copy.data() + y * rowBytes;
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_NE(f, nullptr) << path;
+    png_structp png =
+        png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, pngWriteError, nullptr);
+    png_infop info = png_create_info_struct(png);
+    const bool ok = pngWriteRows(png, info, f, w, h, colorType, bitDepth, palette.data(),
+                                 static_cast<int>(palette.size()), rows.data());
+    png_destroy_write_struct(&png, &info);
+    std::fclose(f);
+    ASSERT_TRUE(ok) << path;
+}
+
+void writePng16Grey(const std::string& path, int w, int h, const std::vector<std::uint16_t>& v) {
+    std::vector<std::uint8_t> bytes;
+    for (std::uint16_t s : v) {
+        bytes.push_back(static_cast<std::uint8_t>(s >> 8));
+        bytes.push_back(static_cast<std::uint8_t>(s & 0xFF));
+    }
+    writePng(path, w, h, PNG_COLOR_TYPE_GRAY, 16, bytes);
+}
+
+void writePngRgb(const std::string& path, int w, int h, const std::vector<Rgb8>& px) {
+    std::vector<std::uint8_t> bytes;
+    for (Rgb8 c : px)
+        bytes.insert(bytes.end(), {c.r, c.g, c.b});
+    writePng(path, w, h, PNG_COLOR_TYPE_RGB, 8, bytes);
+}
+
+void writeJpegRgb(const std::string& path, int w, int h, const std::vector<Rgb8>& px,
+                  int channels = 3) {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_NE(f, nullptr) << path;
+    jpeg_compress_struct c{};
+    jpeg_error_mgr err{};
+    c.err = jpeg_std_error(&err);
+    jpeg_create_compress(&c);
+    jpeg_stdio_dest(&c, f);
+    c.image_width = w;
+    c.image_height = h;
+    c.input_components = channels;
+    c.in_color_space = channels == 3 ? JCS_RGB : JCS_GRAYSCALE;
+    jpeg_set_defaults(&c);
+    jpeg_set_quality(&c, 100, TRUE);
+    for (int k = 0; k < c.num_components; ++k) {  // no chroma subsampling
+        c.comp_info[k].h_samp_factor = 1;
+        c.comp_info[k].v_samp_factor = 1;
+    }
+    jpeg_start_compress(&c, TRUE);
+    std::vector<std::uint8_t> row(static_cast<std::size_t>(w) * channels);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const Rgb8 p = px[static_cast<std::size_t>(y) * w + x];
+            if (channels == 3) {
+                row[3 * x] = p.r;
+                row[3 * x + 1] = p.g;
+                row[3 * x + 2] = p.b;
+            } else {
+                row[x] = p.r;
+            }
+        }
+        JSAMPROW r = row.data();
+        jpeg_write_scanlines(&c, &r, 1);
+    }
+    jpeg_finish_compress(&c);
+    jpeg_destroy_compress(&c);
+    std::fclose(f);
+}
+
+// Writes a GeoTIFF, band-sequential data, optional geotransform (WGS84 when `geographic`).
+void writeGeoTiff(const std::string& path, int w, int h, int bands, GDALDataType type,
+                  const void* data, const double* gt, bool geographic = true,
+                  const double* noData = nullptr) {
+    GDALAllRegister();
+    GDALDriverH drv = GDALGetDriverByName("GTiff");
+    ASSERT_NE(drv, nullptr);
+    char photometric[] = "PHOTOMETRIC=RGB";
+    char* options[] = {bands == 3 ? photometric : nullptr, nullptr};
+    GDALDatasetH ds = GDALCreate(drv, path.c_str(), w, h, bands, type, options);
+    ASSERT_NE(ds, nullptr) << path;
+    if (gt) {
+        double copy[6];
+        std::copy(gt, gt + 6, copy);
+        GDALSetGeoTransform(ds, copy);
+        if (geographic) {
+            OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+            OSRSetWellKnownGeogCS(srs, "WGS84");
+            GDALSetSpatialRef(ds, srs);
+            OSRDestroySpatialReference(srs);
+        }
+    }
+    if (noData) GDALSetRasterNoDataValue(GDALGetRasterBand(ds, 1), *noData);
+    const CPLErr rc = GDALDatasetRasterIO(ds, GF_Write, 0, 0, w, h, const_cast<void*>(data), w, h,
+                                          type, bands, nullptr, 0, 0, 0);
+    GDALClose(ds);
+    ASSERT_EQ(rc, CE_None) << path;
+}
+
+void writeText(const std::string& path, const std::string& text) {
+    std::ofstream(path, std::ios::binary) << text;
+}
+
+// Reads an 8-bit RGB PNG with libpng's simplified API (rows top first).
+std::vector<Rgb8> readPngRgb(const std::string& path, int& w, int& h) {
+    png_image image{};
+    image.version = PNG_IMAGE_VERSION;
+    EXPECT_TRUE(png_image_begin_read_from_file(&image, path.c_str())) << path;
+    image.format = PNG_FORMAT_RGB;
+    w = static_cast<int>(image.width);
+    h = static_cast<int>(image.height);
+    std::vector<Rgb8> px(static_cast<std::size_t>(w) * h);
+    EXPECT_TRUE(png_image_finish_read(&image, nullptr, px.data(), 0, nullptr)) << path;
+    return px;
+}
+
+// Expects loadTerrain(src) to throw InputError whose message contains every `needles` entry.
+void expectInputError(const TerrainSource& src, const std::vector<std::string>& needles) {
+    try {
+        loadTerrain(src);
+        ADD_FAILURE() << "no error for " << src.heightPath << " / " << src.colorPath;
+    } catch (const InputError& e) {
+        const std::string msg = e.what();
+        for (const std::string& n : needles) {
+            EXPECT_NE(msg.find(n), std::string::npos) << "message: " << msg << "\nmissing: " << n;
+        }
+    }
+}
+
+// --- Grid convention ----------------------------------------------------------------------------
+
+TEST(TerrainIo, GridConventionNorthRowLastInMemory) {
+    const int w = 3, h = 2;
+    std::vector<std::uint16_t> heights(w * h);
+    std::vector<Rgb8> colors(w * h);
+    for (int r = 0; r < h; ++r) {
+        for (int c = 0; c < w; ++c) {
+            heights[r * w + c] = static_cast<std::uint16_t>(1000 * r + 10 * c + 7);
+            colors[r * w + c] = Rgb8{static_cast<std::uint8_t>(40 * c + 1),
+                                     static_cast<std::uint8_t>(100 * r + 2), 200};
+        }
+    }
+    TerrainSource src;
+    src.heightPath = tmpPath("grid_h.png");
+    src.colorPath = tmpPath("grid_c.png");
+    writePng16Grey(src.heightPath, w, h, heights);
+    writePngRgb(src.colorPath, w, h, colors);
+    src.spacing = 5.0;
+    src.heightScale = 0.5;
+    src.heightOffset = -20.0;
+    const TerrainMap map = loadTerrain(src);
+    ASSERT_EQ(map.width(), w);
+    ASSERT_EQ(map.height(), h);
+    EXPECT_EQ(map.spacingX(), 5.0);
+    EXPECT_EQ(map.spacingY(), 5.0);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const int fileRow = h - 1 - iy;  // file row 0 is the north edge, stored last
+            EXPECT_EQ(map.raw(ix, iy), heights[fileRow * w + ix]) << ix << "," << iy;
+            EXPECT_DOUBLE_EQ(map.heightAt(ix, iy), heights[fileRow * w + ix] * 0.5 - 20.0);
+            EXPECT_EQ(map.colorAt(ix, iy), colors[fileRow * w + ix]) << ix << "," << iy;
+        }
+    }
+    // Sample (ix, iy) sits at x = ix * spacing, y = iy * spacing.
+    EXPECT_DOUBLE_EQ(map.surfaceHeight(2 * 5.0, 1 * 5.0), heights[0 * w + 2] * 0.5 - 20.0);
+}
+
+TEST(TerrainIo, EightBitPngHeightsDefaultScaleAndSpacing) {
+    const int w = 5, h = 4;
+    std::vector<std::uint8_t> bytes(w * h);
+    for (int k = 0; k < w * h; ++k)
+        bytes[k] = static_cast<std::uint8_t>(k * 13 % 256);
+    TerrainSource src;
+    src.heightPath = tmpPath("h8.png");
+    writePng(src.heightPath, w, h, PNG_COLOR_TYPE_GRAY, 8, bytes);
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_EQ(map.spacingX(), ig::kDefaultSpacing);
+    EXPECT_EQ(map.spacingY(), ig::kDefaultSpacing);
+    EXPECT_EQ(map.heightScale(), 1.0);
+    EXPECT_EQ(map.heightOffset(), 0.0);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            EXPECT_EQ(map.raw(ix, iy), bytes[(h - 1 - iy) * w + ix]);
+        }
+    }
+    // No colour image: shaded from the heights, so not all black.
+    bool anyLit = false;
+    for (Rgb8 c : map.colors())
+        anyLit |= c.r + c.g + c.b > 0;
+    EXPECT_TRUE(anyLit);
+}
+
+TEST(TerrainIo, SixteenBitPngKeepsFullRange) {
+    const int w = 4, h = 3;
+    std::vector<std::uint16_t> v = {0,     1,     255,   256,   4095,  32767,
+                                    32768, 40000, 65534, 65535, 12345, 54321};
+    TerrainSource src;
+    src.heightPath = tmpPath("h16.png");
+    writePng16Grey(src.heightPath, w, h, v);
+    const TerrainMap map = loadTerrain(src);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix)
+            EXPECT_EQ(map.raw(ix, iy), v[(h - 1 - iy) * w + ix]);
+    }
+    EXPECT_EQ(map.minHeight(), 0.0);
+    EXPECT_EQ(map.maxHeight(), 65535.0);
+}
+
+TEST(TerrainIo, GreyAndPaletteColourImagesExpandToRgb) {
+    const int w = 4, h = 2;
+    TerrainSource src;
+    src.heightPath = tmpPath("pal_h.png");
+    writePng16Grey(src.heightPath, w, h, std::vector<std::uint16_t>(w * h, 5));
+    // Grey colour image.
+    std::vector<std::uint8_t> grey(w * h);
+    for (int k = 0; k < w * h; ++k)
+        grey[k] = static_cast<std::uint8_t>(30 * k);
+    src.colorPath = tmpPath("grey_c.png");
+    writePng(src.colorPath, w, h, PNG_COLOR_TYPE_GRAY, 8, grey);
+    TerrainMap map = loadTerrain(src);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const std::uint8_t g = grey[(h - 1 - iy) * w + ix];
+            EXPECT_EQ(map.colorAt(ix, iy), (Rgb8{g, g, g}));
+        }
+    }
+    // Palette colour image.
+    const std::vector<png_color> palette = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}, {9, 8, 7}};
+    std::vector<std::uint8_t> idx(w * h);
+    for (int k = 0; k < w * h; ++k)
+        idx[k] = static_cast<std::uint8_t>(k % 4);
+    src.colorPath = tmpPath("pal_c.png");
+    writePng(src.colorPath, w, h, PNG_COLOR_TYPE_PALETTE, 8, idx, palette);
+    map = loadTerrain(src);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const png_color p = palette[idx[(h - 1 - iy) * w + ix]];
+            EXPECT_EQ(map.colorAt(ix, iy), (Rgb8{p.red, p.green, p.blue}));
+        }
+    }
+}
+
+TEST(TerrainIo, JpegColourAndGreyJpegHeights) {
+    const int w = 16, h = 8;
+    std::vector<Rgb8> px(w * h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            px[y * w + x] = Rgb8{static_cast<std::uint8_t>(16 * x),
+                                 static_cast<std::uint8_t>(30 * y), static_cast<std::uint8_t>(128)};
+        }
+    }
+    TerrainSource src;
+    src.heightPath = tmpPath("jpg_h.jpg");
+    src.colorPath = tmpPath("jpg_c.jpg");
+    writeJpegRgb(src.heightPath, w, h, px, 1);  // grey: the red ramp
+    writeJpegRgb(src.colorPath, w, h, px, 3);
+    const TerrainMap map = loadTerrain(src);
+    ASSERT_EQ(map.width(), w);
+    ASSERT_EQ(map.height(), h);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const Rgb8 want = px[(h - 1 - iy) * w + ix];
+            const Rgb8 got = map.colorAt(ix, iy);
+            // JPEG is lossy; at quality 100 without subsampling a ramp comes back close.
+            EXPECT_NEAR(got.r, want.r, 6) << ix << "," << iy;
+            EXPECT_NEAR(got.g, want.g, 6) << ix << "," << iy;
+            EXPECT_NEAR(got.b, want.b, 6) << ix << "," << iy;
+            EXPECT_NEAR(map.raw(ix, iy), want.r, 4) << ix << "," << iy;
+        }
+    }
+}
+
+// --- GeoTIFF ------------------------------------------------------------------------------------
+
+TEST(TerrainIo, GeoTiffGeographicSpacingAndQuantisation) {
+    const int w = 7, h = 5;
+    const double gt[6] = {-119.9, 3.0e-5, 0, 34.5, 0, -2.5e-5};
+    std::vector<float> z(w * h);
+    for (int r = 0; r < h; ++r) {
+        for (int c = 0; c < w; ++c)
+            z[r * w + c] = 2.5f + 0.37f * c * c + 1.9f * r;
+    }
+    std::vector<std::uint8_t> rgb(3 * w * h);  // band-sequential
+    for (int k = 0; k < w * h; ++k) {
+        rgb[k] = static_cast<std::uint8_t>(k);
+        rgb[w * h + k] = static_cast<std::uint8_t>(2 * k);
+        rgb[2 * w * h + k] = static_cast<std::uint8_t>(255 - k);
+    }
+    TerrainSource src;
+    src.heightPath = tmpPath("geo_h.tif");
+    src.colorPath = tmpPath("geo_c.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), gt);
+    writeGeoTiff(src.colorPath, w, h, 3, GDT_Byte, rgb.data(), gt);
+    const TerrainMap map = loadTerrain(src);
+    ASSERT_EQ(map.width(), w);
+    ASSERT_EQ(map.height(), h);
+
+    const double lat = (gt[3] + gt[5] * h / 2) * std::numbers::pi / 180;
+    const double mLat = 111132.954 - 559.822 * std::cos(2 * lat) + 1.175 * std::cos(4 * lat);
+    const double mLon = 111412.84 * std::cos(lat) - 93.5 * std::cos(3 * lat);
+    EXPECT_NEAR(map.spacingX(), gt[1] * mLon, 1e-9);
+    EXPECT_NEAR(map.spacingY(), -gt[5] * mLat, 1e-9);
+    EXPECT_GT(map.spacingY(), map.spacingX());  // a degree of longitude is shorter at 34 N
+
+    const auto [lo, hi] = std::minmax_element(z.begin(), z.end());
+    const double quantum = (*hi - *lo) / 65535.0;
+    EXPECT_NEAR(map.heightScale(), quantum, 1e-12);
+    EXPECT_NEAR(map.minHeight(), *lo, 1e-9);
+    EXPECT_NEAR(map.maxHeight(), *hi, quantum);
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const int k = (h - 1 - iy) * w + ix;
+            EXPECT_NEAR(map.heightAt(ix, iy), z[k], quantum / 2 + 1e-9) << ix << "," << iy;
+            // Same geotransform: one colour per sample, exactly.
+            EXPECT_EQ(map.colorAt(ix, iy), (Rgb8{rgb[k], rgb[w * h + k], rgb[2 * w * h + k]}));
+        }
+    }
+}
+
+TEST(TerrainIo, GeoTiffUserScaleAndSpacingOverride) {
+    const int w = 4, h = 3;
+    const double gt[6] = {500000, 30, 0, 4000000, 0, -30};  // no SRS: linear units
+    std::vector<std::int16_t> z = {0, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 110};
+    TerrainSource src;
+    src.heightPath = tmpPath("geo_int.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Int16, z.data(), gt, false);
+    TerrainMap map = loadTerrain(src);
+    EXPECT_DOUBLE_EQ(map.spacingX(), 30.0);
+    EXPECT_DOUBLE_EQ(map.spacingY(), 30.0);
+    src.spacing = 12.5;
+    src.heightScale = 0.3048;  // feet
+    src.heightOffset = 100.0;
+    map = loadTerrain(src);
+    EXPECT_EQ(map.spacingX(), 12.5);
+    EXPECT_EQ(map.spacingY(), 12.5);
+    const double quantum = 110 * 0.3048 / 65535.0;
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            EXPECT_NEAR(map.heightAt(ix, iy), z[(h - 1 - iy) * w + ix] * 0.3048 + 100.0,
+                        quantum / 2 + 1e-9);
+        }
+    }
+}
+
+TEST(TerrainIo, GeoTiffSouthUpRowsAreNotFlipped) {
+    const int w = 3, h = 4;
+    const double gt[6] = {0, 10, 0, 0, 0, 10};  // row 0 is the south edge
+    std::vector<float> z(w * h);
+    for (int k = 0; k < w * h; ++k)
+        z[k] = static_cast<float>(k);
+    TerrainSource src;
+    src.heightPath = tmpPath("southup.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), gt, false);
+    const TerrainMap map = loadTerrain(src);
+    const double quantum = 11.0 / 65535.0;
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            EXPECT_NEAR(map.heightAt(ix, iy), z[iy * w + ix], quantum);
+        }
+    }
+}
+
+TEST(TerrainIo, GeoTiffConstantHeights) {
+    const int w = 3, h = 3;
+    std::vector<double> z(w * h, 42.25);
+    TerrainSource src;
+    src.heightPath = tmpPath("flat.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float64, z.data(), nullptr);
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_EQ(map.heightScale(), 1.0);
+    EXPECT_EQ(map.heightOffset(), 42.25);
+    for (std::uint16_t r : map.rawHeights())
+        EXPECT_EQ(r, 0);
+    EXPECT_EQ(map.spacingX(), ig::kDefaultSpacing);
+}
+
+TEST(TerrainIo, ColourResampledOntoLargerHeightGrid) {
+    // 5 heights over the extent of 4 texels: sample i at i/4 of the extent, texel k at (k+0.5)/4.
+    const int hw = 5, hh = 5, cw = 4, ch = 4;
+    TerrainSource src;
+    src.heightPath = tmpPath("rs_h.png");
+    src.colorPath = tmpPath("rs_c.png");
+    writePng16Grey(src.heightPath, hw, hh, std::vector<std::uint16_t>(hw * hh, 1));
+    std::vector<Rgb8> tex(cw * ch);
+    for (int y = 0; y < ch; ++y) {
+        for (int x = 0; x < cw; ++x) {
+            tex[y * cw + x] =
+                Rgb8{static_cast<std::uint8_t>(60 * x), static_cast<std::uint8_t>(70 * y),
+                     static_cast<std::uint8_t>(20 * x + 10 * y)};
+        }
+    }
+    writePngRgb(src.colorPath, cw, ch, tex);
+    const TerrainMap map = loadTerrain(src);
+    for (int iy = 0; iy < hh; ++iy) {
+        for (int ix = 0; ix < hw; ++ix) {
+            const int row = hh - 1 - iy;
+            // Texel coordinates (centres at integers), clamped at the edges.
+            const double u = std::clamp(ix * double(cw) / (hw - 1) - 0.5, 0.0, cw - 1.0);
+            const double v = std::clamp(row * double(ch) / (hh - 1) - 0.5, 0.0, ch - 1.0);
+            // The texture is linear in x and y, so bilinear interpolation is exact.
+            const Rgb8 got = map.colorAt(ix, iy);
+            EXPECT_NEAR(got.r, 60 * u, 0.51) << ix << "," << iy;
+            EXPECT_NEAR(got.g, 70 * v, 0.51) << ix << "," << iy;
+            EXPECT_NEAR(got.b, 20 * u + 10 * v, 0.51) << ix << "," << iy;
+        }
+    }
+}
+
+// --- Shipped data -------------------------------------------------------------------------------
+
+TEST(TerrainIo, PugetSoundShippedDefault) {
+    const TerrainMap map = ig::loadPugetSound();
+    ASSERT_EQ(map.width(), 1025);
+    ASSERT_EQ(map.height(), 1025);
+    EXPECT_EQ(map.spacingX(), 160.0);
+    EXPECT_EQ(map.spacingY(), 160.0);
+    EXPECT_EQ(map.heightScale(), 0.1);
+    EXPECT_NEAR(map.minHeight(), 0.0, 1e-9);
+    EXPECT_NEAR(map.maxHeight(), 4379.8, 1e-6);  // raw 43798: Mount Rainier
+    int tw = 0, th = 0;
+    const std::vector<Rgb8> tex =
+        readPngRgb(VIG_DATA_DIR "/puget-sound-1k/ps_texture_1k.png", tw, th);
+    ASSERT_EQ(tw, 1024);
+    ASSERT_EQ(th, 1024);
+    // Colour at sample (ix, iy) = bilinear sample of the texture at u = ix * 1024/1024 - 0.5.
+    for (int ix : {0, 1, 17, 512, 777, 1023, 1024}) {
+        for (int iy : {0, 3, 400, 1000, 1024}) {
+            const int row = 1024 - iy;
+            const double u = std::clamp(ix - 0.5, 0.0, 1023.0);
+            const double v = std::clamp(row - 0.5, 0.0, 1023.0);
+            const int u0 = std::min(static_cast<int>(u), 1022),
+                      v0 = std::min(static_cast<int>(v), 1022);
+            const double fu = u - u0, fv = v - v0;
+            auto at = [&](int x, int y) { return tex[static_cast<std::size_t>(y) * 1024 + x]; };
+            auto bil = [&](auto ch) {
+                return (1 - fu) * (1 - fv) * ch(at(u0, v0)) + fu * (1 - fv) * ch(at(u0 + 1, v0)) +
+                       (1 - fu) * fv * ch(at(u0, v0 + 1)) + fu * fv * ch(at(u0 + 1, v0 + 1));
+            };
+            const Rgb8 got = map.colorAt(ix, iy);
+            EXPECT_NEAR(got.r, bil([](Rgb8 c) { return c.r; }), 0.51) << ix << "," << iy;
+            EXPECT_NEAR(got.g, bil([](Rgb8 c) { return c.g; }), 0.51) << ix << "," << iy;
+            EXPECT_NEAR(got.b, bil([](Rgb8 c) { return c.b; }), 0.51) << ix << "," << iy;
+        }
+    }
+}
+
+TEST(TerrainIo, GoletaShippedGeoTiffs) {
+    const TerrainMap map = ig::loadGoleta();
+    ASSERT_EQ(map.width(), 512);
+    ASSERT_EQ(map.height(), 512);
+    EXPECT_NEAR(map.spacingX(), 2.8, 0.1);
+    EXPECT_NEAR(map.spacingY(), 3.4, 0.1);
+    // Geotransform (PROVENANCE.txt): top 34.4448 N, 512 rows of 3.02734375e-5 degrees.
+    const double pixel = 3.02734375e-5;
+    const double lat = (34.4448 - 256 * pixel) * std::numbers::pi / 180;
+    EXPECT_NEAR(map.spacingX(), pixel * ig::metresPerDegreeLongitude(lat), 1e-9);
+    EXPECT_NEAR(map.spacingY(), pixel * ig::metresPerDegreeLatitude(lat), 1e-9);
+    const double quantum = map.heightScale();
+    EXPECT_LT(quantum, 0.001);
+    EXPECT_NEAR(map.minHeight(), 2.53, 0.005 + quantum);
+    EXPECT_NEAR(map.maxHeight(), 20.73, 0.005 + quantum);
+    // Identical geotransforms: each sample takes its own photo pixel.
+    GDALAllRegister();
+    GDALDatasetH photo =
+        GDALOpen(VIG_DATA_DIR "/goleta-512/sba_rgb_wgs84_512x512.tif", GA_ReadOnly);
+    ASSERT_NE(photo, nullptr);
+    for (int c : {0, 5, 300, 511}) {
+        for (int r : {0, 77, 256, 511}) {
+            std::uint8_t px[3] = {};
+            ASSERT_EQ(GDALDatasetRasterIO(photo, GF_Read, c, r, 1, 1, px, 1, 1, GDT_Byte, 3,
+                                          nullptr, 0, 0, 0),
+                      CE_None);
+            EXPECT_EQ(map.colorAt(c, 511 - r), (Rgb8{px[0], px[1], px[2]})) << c << "," << r;
+        }
+    }
+    GDALClose(photo);
+    // A real photo: colours vary.
+    std::size_t distinct = 0;
+    for (int k = 1; k < 512; ++k)
+        distinct += !(map.colorAt(k, 100) == map.colorAt(k - 1, 100));
+    EXPECT_GT(distinct, 100u);
+}
+
+// --- Bad input ----------------------------------------------------------------------------------
+
+TEST(TerrainIo, MissingAndNonImageFilesNameTheFile) {
+    TerrainSource src;
+    for (const char* name : {"missing.png", "missing.tif", "missing.dat"}) {
+        src.heightPath = tmpPath(name);
+        std::filesystem::remove(src.heightPath);
+        expectInputError(src, {name});
+    }
+    for (const char* name : {"text.png", "text.jpg", "text.tif", "text.dat"}) {
+        src.heightPath = tmpPath(name);
+        writeText(src.heightPath, "this is not an image at all\n");
+        expectInputError(src, {name});
+    }
+    src.heightPath = tmpPath("empty.png");
+    writeText(src.heightPath, "");
+    expectInputError(src, {"empty.png"});
+    src.heightPath = tmpPath("");  // a directory
+    expectInputError(src, {"terrain_io"});
+    // A good height map with a missing colour image names the colour image.
+    src.heightPath = tmpPath("ok_h.png");
+    writePng16Grey(src.heightPath, 2, 2, {1, 2, 3, 4});
+    src.colorPath = tmpPath("missing_colour.png");
+    expectInputError(src, {"missing_colour.png"});
+}
+
+TEST(TerrainIo, RejectsColourAndOddDepthHeightPngs) {
+    TerrainSource src;
+    src.heightPath = tmpPath("rgb_h.png");
+    writePngRgb(src.heightPath, 2, 2, std::vector<Rgb8>(4, Rgb8{1, 2, 3}));
+    expectInputError(src, {"rgb_h.png", "RGB"});
+
+    src.heightPath = tmpPath("palette_h.png");
+    writePng(src.heightPath, 2, 2, PNG_COLOR_TYPE_PALETTE, 8, {0, 1, 1, 0},
+             {{0, 0, 0}, {255, 255, 255}});
+    expectInputError(src, {"palette_h.png", "palette"});
+
+    src.heightPath = tmpPath("grey4_h.png");
+    writePng(src.heightPath, 2, 2, PNG_COLOR_TYPE_GRAY, 4, {0x12, 0x34});
+    expectInputError(src, {"grey4_h.png", "4-bit"});
+
+    src.heightPath = tmpPath("ga_h.png");
+    writePng(src.heightPath, 2, 2, PNG_COLOR_TYPE_GRAY_ALPHA, 8, {1, 255, 2, 255, 3, 255, 4, 255});
+    expectInputError(src, {"ga_h.png", "alpha"});
+
+    src.heightPath = tmpPath("rgb_h.jpg");
+    writeJpegRgb(src.heightPath, 8, 8, std::vector<Rgb8>(64, Rgb8{200, 10, 10}));
+    expectInputError(src, {"rgb_h.jpg", "colour"});
+
+    src.heightPath = tmpPath("rgb_h.tif");
+    std::vector<std::uint8_t> rgb(3 * 4, 9);
+    writeGeoTiff(src.heightPath, 2, 2, 3, GDT_Byte, rgb.data(), nullptr);
+    expectInputError(src, {"rgb_h.tif", "colour"});
+}
+
+TEST(TerrainIo, TruncatedFilesNameTheFile) {
+    const int w = 64, h = 64;
+    std::vector<std::uint16_t> v(w * h);
+    for (int k = 0; k < w * h; ++k)
+        v[k] = static_cast<std::uint16_t>(k * 2654435761u >> 16);
+    TerrainSource src;
+    src.heightPath = tmpPath("trunc.png");
+    writePng16Grey(src.heightPath, w, h, v);
+    const auto size = std::filesystem::file_size(src.heightPath);
+    for (auto keep : {size / 2, std::uintmax_t{12}, std::uintmax_t{40}}) {
+        std::filesystem::resize_file(src.heightPath, keep);
+        expectInputError(src, {"trunc.png"});
+        writePng16Grey(src.heightPath, w, h, v);
+    }
+
+    src.heightPath = tmpPath("ok_h2.png");
+    writePng16Grey(src.heightPath, w, h, v);
+    src.colorPath = tmpPath("trunc.jpg");
+    std::vector<Rgb8> px(w * h);
+    for (int k = 0; k < w * h; ++k)
+        px[k] = Rgb8{static_cast<std::uint8_t>(k), 7, static_cast<std::uint8_t>(k / 64)};
+    writeJpegRgb(src.colorPath, w, h, px);
+    std::filesystem::resize_file(src.colorPath, std::filesystem::file_size(src.colorPath) / 2);
+    expectInputError(src, {"trunc.jpg"});
+}
+
+TEST(TerrainIo, NonFiniteAndNoDataHeightsNameTheSample) {
+    const int w = 4, h = 3;
+    std::vector<float> z(w * h, 1.0f);
+    TerrainSource src;
+    src.heightPath = tmpPath("nan.tif");
+    z[1 * w + 2] = std::numeric_limits<float>::quiet_NaN();
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+    expectInputError(src, {"nan.tif", "row 1", "column 2"});
+
+    src.heightPath = tmpPath("inf.tif");
+    z[1 * w + 2] = std::numeric_limits<float>::infinity();
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+    expectInputError(src, {"inf.tif", "row 1", "column 2"});
+
+    src.heightPath = tmpPath("nodata.tif");
+    z[1 * w + 2] = 1.0f;
+    z[2 * w + 3] = -9999.0f;
+    const double noData = -9999.0;
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr, false, &noData);
+    expectInputError(src, {"nodata.tif", "no-data", "row 2", "column 3"});
+}
+
+TEST(TerrainIo, RejectsBadSpacingAndScale) {
+    TerrainSource src;
+    src.heightPath = tmpPath("good_h.png");
+    writePng16Grey(src.heightPath, 2, 2, {1, 2, 3, 4});
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    for (double bad : {0.0, -1.0, -0.0, nan, inf, -inf}) {
+        TerrainSource s = src;
+        s.spacing = bad;
+        expectInputError(s, {"good_h.png", "spacing"});
+        s = src;
+        s.heightScale = bad;
+        expectInputError(s, {"good_h.png", "scale"});
+    }
+    for (double bad : {nan, inf}) {
+        TerrainSource s = src;
+        s.heightOffset = bad;
+        expectInputError(s, {"good_h.png", "offset"});
+    }
+    TerrainSource s = src;
+    s.spacing = 0.25;
+    s.heightScale = 1e-3;
+    s.heightOffset = -5;
+    EXPECT_NO_THROW(loadTerrain(s));
+}
+
+TEST(TerrainIo, RejectsMismatchedExtentsAndAspect) {
+    const int w = 6, h = 6;
+    const double gtH[6] = {-119.9, 3.0e-5, 0, 34.5, 0, -3.0e-5};
+    std::vector<float> z(w * h, 3.0f);
+    std::vector<std::uint8_t> rgb(3 * w * h, 100);
+    TerrainSource src;
+    src.heightPath = tmpPath("ext_h.tif");
+    src.colorPath = tmpPath("ext_c.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), gtH);
+    // Shifted by two pixels east: more than one pixel off.
+    double gtC[6] = {gtH[0] + 2 * gtH[1], gtH[1], 0, gtH[3], 0, gtH[5]};
+    writeGeoTiff(src.colorPath, w, h, 3, GDT_Byte, rgb.data(), gtC);
+    expectInputError(src, {"ext_h.tif", "ext_c.tif", "extents do not match"});
+    // Half a pixel off is tolerated.
+    gtC[0] = gtH[0] + 0.5 * gtH[1];
+    writeGeoTiff(src.colorPath, w, h, 3, GDT_Byte, rgb.data(), gtC);
+    EXPECT_NO_THROW(loadTerrain(src));
+
+    // Without georeference, a different aspect ratio is an error.
+    src.heightPath = tmpPath("asp_h.png");
+    src.colorPath = tmpPath("asp_c.png");
+    writePng16Grey(src.heightPath, 11, 11, std::vector<std::uint16_t>(121, 0));
+    writePngRgb(src.colorPath, 10, 8, std::vector<Rgb8>(80, Rgb8{1, 1, 1}));
+    expectInputError(src, {"asp_h.png", "asp_c.png", "aspect"});
+    writePngRgb(src.colorPath, 20, 20, std::vector<Rgb8>(400, Rgb8{1, 1, 1}));
+    EXPECT_NO_THROW(loadTerrain(src));
+}
+
+TEST(TerrainIo, RejectsTooSmallHeightMap) {
+    TerrainSource src;
+    src.heightPath = tmpPath("one_row.png");
+    writePng16Grey(src.heightPath, 5, 1, {1, 2, 3, 4, 5});
+    expectInputError(src, {"one_row.png", "2 x 2"});
+}
+
+TEST(TerrainIo, WgsDegreeLengths) {
+    // Known values of the series: equator and 45 degrees.
+    EXPECT_NEAR(ig::metresPerDegreeLatitude(0), 110574.3, 0.1);
+    EXPECT_NEAR(ig::metresPerDegreeLongitude(0), 111319.3, 0.1);
+    EXPECT_NEAR(ig::metresPerDegreeLatitude(std::numbers::pi / 4), 111132.0, 1.0);
+    EXPECT_NEAR(ig::metresPerDegreeLongitude(std::numbers::pi / 4), 78846.8, 1.0);
+    // Longitude degrees shrink toward the pole.
+    for (int d = 0; d < 89; ++d) {
+        const double a = d * std::numbers::pi / 180, b = (d + 1) * std::numbers::pi / 180;
+        EXPECT_GT(ig::metresPerDegreeLongitude(a), ig::metresPerDegreeLongitude(b));
+        EXPECT_LT(ig::metresPerDegreeLatitude(a), ig::metresPerDegreeLatitude(b));
+    }
+}
+
+}  // namespace
