@@ -1,0 +1,85 @@
+// Output fields of the post-rendering processor: parity, timing, pixel formats and warp record.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+namespace prp {
+
+// Top = frame lines 0, 2, 4, ...; Bottom = frame lines 1, 3, 5, ...
+enum class Parity { Top, Bottom };
+// Uyvy = BT.601 studio-range Y'CbCr 4:2:2, 2 bytes per pixel (Cb Y0 Cr Y1).
+enum class PixelFormat { Rgb8, Y8, Uyvy };
+// How a field is made from the latest rendered frame.
+enum class WarpModel { Poly, Affine, Homography, Depth, Hold };
+// What the fit fell back to when the model's own fit was unusable.
+enum class Fallback { None, Affine, Rotation, Hold };
+
+// Seconds per NTSC field.
+inline constexpr double kFieldPeriod = 1001.0 / 60000.0;
+
+// Field index 0 is Bottom (NTSC sends the bottom field first), then parities alternate.
+Parity fieldParity(std::uint64_t fieldIndex);
+// t0 + fieldIndex * kFieldPeriod.
+double fieldTime(double t0, std::uint64_t fieldIndex);
+// First frame line of a parity (0 for Top, 1 for Bottom).
+inline int firstLine(Parity parity) {
+    return parity == Parity::Top ? 0 : 1;
+}
+// Number of frame lines of `parity` in a frame of `frameHeight` lines.
+int fieldLines(int frameHeight, Parity parity);
+// Bytes per pixel of a format (Uyvy: 2, averaged over a pixel pair).
+int bytesPerPixel(PixelFormat format);
+
+// "poly" | "affine" | "homography" | "depth" | "hold"; empty for anything else.
+std::optional<WarpModel> parseWarpModel(std::string_view name);
+std::string_view warpModelName(WarpModel model);
+std::string_view fallbackName(Fallback fallback);
+// "rgb8" | "y8" | "uyvy"; empty for anything else.
+std::optional<PixelFormat> parsePixelFormat(std::string_view name);
+
+// The warp a field used. For quadratic warps (poly, affine, rotation fallback, hold) `a` and `b`
+// map an output-frame point (x, y) (continuous, pixel centres at +0.5, full-frame line numbers)
+// to a rendered-frame point: x' = a0 + a1 x + a2 y + a3 xy + a4 x^2 + a5 y^2, likewise y' with b.
+// A homography uses `h` instead (row-major 3x3, same coordinates).
+struct WarpInfo {
+    WarpModel model = WarpModel::Hold;
+    Fallback fallback = Fallback::None;
+    std::array<double, 6> a{}, b{};
+    int rank = 0;             // rank of the fitted system (0 when nothing was fitted)
+    double condition = 0.0;   // 2-norm condition number of the (normalised) fitted system
+    double residualPx = 0.0;  // RMS fit residual over the used points, rendered-frame pixels
+    int pointsUsed = 0;       // control points used by the fit
+    bool projective = false;  // true: `h` holds the warp (homography model)
+    std::array<double, 9> h{};
+};
+
+// One field: only the lines of its parity. `pixels` is reused from field to field.
+struct Field {
+    std::uint64_t index = 0;
+    Parity parity = Parity::Bottom;
+    double time = 0.0;                // the instant the field shows, seconds
+    std::uint64_t frameSequence = 0;  // rendered frame it came from
+    double frameTime = 0.0;           // that frame's pose time
+    double frameAge = 0.0;            // time - frameTime
+    int width = 0;
+    int frameHeight = 0;  // lines of the full (woven) frame
+    int lines = 0;        // lines of this field
+    PixelFormat format = PixelFormat::Uyvy;
+    std::vector<std::uint8_t> pixels;
+    std::size_t stride = 0;  // bytes per field line
+    WarpInfo warp;
+    std::uint64_t edgeSamples = 0;  // samples that fell outside the rendered frame (edge repeated)
+    double warpMs = 0.0;            // time spent in process(), milliseconds
+    double gain = 1.0;              // AGC gain applied to this field
+
+    const std::uint8_t* line(int fieldLine) const { return pixels.data() + fieldLine * stride; }
+    // Frame line number of field line `fieldLine`.
+    int frameLine(int fieldLine) const { return 2 * fieldLine + firstLine(parity); }
+};
+
+}  // namespace prp

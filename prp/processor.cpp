@@ -1,0 +1,285 @@
+#include "prp/processor.hpp"
+
+#include "ig/error.hpp"
+#include "prp/warp_apply.hpp"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace prp {
+
+namespace {
+
+constexpr float kEmpty = std::numeric_limits<float>::max();
+constexpr float kSkySplat = 1e38f;  // behind every terrain point, in front of "empty"
+
+void checkFrame(const ig::RenderedFrame& frame, bool needDepth) {
+    const ig::Intrinsics& in = frame.intrinsics;
+    const std::string what = "rendered frame " + std::to_string(frame.sequence);
+    if (in.width < 2 || in.height < 2 || in.margin < 0 || in.windowWidth() < 1 ||
+        in.windowHeight() < 1 || !(in.focal > 0.0) || !std::isfinite(in.focal)) {
+        throw ig::InputError(what + ": unusable intrinsics " + std::to_string(in.width) + "x" +
+                             std::to_string(in.height) + " margin " + std::to_string(in.margin));
+    }
+    const std::size_t n = static_cast<std::size_t>(in.width) * static_cast<std::size_t>(in.height);
+    if (frame.color.size() != n) {
+        throw ig::InputError(what + ": colour has " + std::to_string(frame.color.size()) +
+                             " pixels, intrinsics say " + std::to_string(n));
+    }
+    if (needDepth && frame.depth.size() != n) {
+        throw ig::InputError(what + ": depth has " + std::to_string(frame.depth.size()) +
+                             " pixels, intrinsics say " + std::to_string(n));
+    }
+}
+
+}  // namespace
+
+PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options) : options_(options) {
+    if (options.outWidth < 2 || options.outHeight < 2 || options.outWidth > 16384 ||
+        options.outHeight > 16384) {
+        throw ig::InputError("output size " + std::to_string(options.outWidth) + "x" +
+                             std::to_string(options.outHeight) +
+                             ": must be between 2x2 and 16384x16384");
+    }
+    if (options.format == PixelFormat::Uyvy && options.outWidth % 2 != 0) {
+        throw ig::InputError("output width " + std::to_string(options.outWidth) +
+                             ": UYVY needs an even width");
+    }
+    if (!(options.agcTarget > 0.0 && options.agcTarget < 1.0)) {
+        throw ig::InputError("AGC target " + std::to_string(options.agcTarget) +
+                             ": must be in (0, 1)");
+    }
+    if (!(options.agcRate > 0.0 && options.agcRate <= 1.0)) {
+        throw ig::InputError("AGC rate " + std::to_string(options.agcRate) + ": must be in (0, 1]");
+    }
+    if (!(options.minGain > 0.0 && options.minGain <= 1.0 && options.maxGain >= 1.0 &&
+          options.maxGain <= 16.0)) {
+        throw ig::InputError("AGC gain limits: need 0 < min <= 1 <= max <= 16");
+    }
+}
+
+void PostRenderingProcessor::reset() {
+    hasPrevious_ = false;
+    gain_ = 1.0;
+    filteredFrom_ = nullptr;
+}
+
+const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& frame) {
+    if (!options_.antiTwitter) return frame.color.data();
+    if (filteredFrom_ == frame.color.data() && filteredSequence_ == frame.sequence &&
+        filtered_.size() == frame.color.size()) {
+        return filtered_.data();
+    }
+    // Vertical [1 2 1] / 4 on the rendered frame, once per frame: the warp is close to a
+    // translation, so this is the output's vertical filter without computing the other field.
+    filtered_.resize(frame.color.size());
+    const int w = frame.width(), h = frame.height();
+    for (int y = 0; y < h; ++y) {
+        const ig::Rgb8* up = frame.color.data() + static_cast<std::size_t>(std::max(y - 1, 0)) * w;
+        const ig::Rgb8* mid = frame.color.data() + static_cast<std::size_t>(y) * w;
+        const ig::Rgb8* dn =
+            frame.color.data() + static_cast<std::size_t>(std::min(y + 1, h - 1)) * w;
+        ig::Rgb8* out = filtered_.data() + static_cast<std::size_t>(y) * w;
+        for (int x = 0; x < w; ++x) {
+            out[x].r = static_cast<std::uint8_t>((up[x].r + 2 * mid[x].r + dn[x].r + 2) >> 2);
+            out[x].g = static_cast<std::uint8_t>((up[x].g + 2 * mid[x].g + dn[x].g + 2) >> 2);
+            out[x].b = static_cast<std::uint8_t>((up[x].b + 2 * mid[x].b + dn[x].b + 2) >> 2);
+        }
+    }
+    filteredFrom_ = frame.color.data();
+    filteredSequence_ = frame.sequence;
+    return filtered_.data();
+}
+
+void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
+                                     double time, std::uint64_t fieldIndex, Field& out) {
+    const auto start = std::chrono::steady_clock::now();
+    const bool depthModel = options_.model == WarpModel::Depth;
+    checkFrame(frame, depthModel);
+
+    out.index = fieldIndex;
+    out.parity = fieldParity(fieldIndex);
+    out.time = time;
+    out.frameSequence = frame.sequence;
+    out.frameTime = frame.time;
+    out.frameAge = time - frame.time;
+    out.width = options_.outWidth;
+    out.frameHeight = options_.outHeight;
+    out.lines = fieldLines(options_.outHeight, out.parity);
+    out.format = options_.format;
+    out.stride = static_cast<std::size_t>(out.width) * bytesPerPixel(out.format);
+    out.pixels.resize(out.stride * static_cast<std::size_t>(out.lines));
+
+    const OutputGeometry geometry =
+        OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight);
+    const int gainQ8 =
+        options_.agc ? static_cast<int>(std::lround(gain_ * kUnityGain)) : kUnityGain;
+    std::uint64_t lumaSum = 0;
+
+    const bool poseOk = poseAtField.isFinite() && frame.pose.isFinite();
+    if (depthModel && poseOk) {
+        warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);
+    } else {
+        FitOptions fit;
+        fit.model = depthModel ? WarpModel::Poly : options_.model;
+        fit.useSky = options_.useSky;
+        out.warp = fitWarp(frame, poseAtField, geometry, fit, hasPrevious_ ? &previous_ : nullptr);
+        if (depthModel) out.warp.model = WarpModel::Depth;
+        const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
+        const FieldView view{out.pixels.data(),     out.stride, out.width,
+                             firstLine(out.parity), out.lines,  out.format};
+        const ApplyResult r =
+            out.warp.projective
+                ? applyHomography(source, Homography{out.warp.h}, view, gainQ8, options_.agc)
+                : applyQuadratic(source, quadraticOf(out.warp), view, gainQ8, options_.agc);
+        out.edgeSamples = r.edgeSamples;
+        lumaSum = r.lumaSum;
+        previous_ = out.warp;
+        hasPrevious_ = true;
+    }
+
+    out.gain = options_.agc ? gainQ8 / static_cast<double>(kUnityGain) : 1.0;
+    if (options_.agc) {
+        // Like a camera's AGC: measure this field, move the gain part of the way toward the
+        // gain that would have hit the target, for the next field.
+        const double pixels = static_cast<double>(out.width) * out.lines;
+        const double mean = std::max(lumaSum / (255.0 * pixels), 1.0 / 255.0);
+        const double wanted =
+            std::clamp(gain_ * options_.agcTarget / mean, options_.minGain, options_.maxGain);
+        gain_ += options_.agcRate * (wanted - gain_);
+    }
+    out.warpMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
+                                       const OutputGeometry& geometry, Field& out, int gainQ8,
+                                       std::uint64_t& lumaSum) {
+    const int ow = geometry.width, oh = geometry.height;
+    const std::size_t n = static_cast<std::size_t>(ow) * static_cast<std::size_t>(oh);
+    splatSource_.resize(2 * n);
+    splatDepth_.assign(n, kEmpty);
+    rowRgb_.resize(3 * static_cast<std::size_t>(ow));
+
+    // Forward 3D warp: every rendered pixel to its world point, into the field's camera (roll
+    // included), z-buffered onto the nearest output pixel. Each output pixel keeps the source
+    // point that lands on its centre, assuming the local warp is the output scaling (exact for
+    // the pixel's own offset to first order), so sampling stays bilinear.
+    const ig::Camera src(frame.pose, frame.intrinsics);
+    const ig::CameraBasis dst = ig::CameraBasis::fromPose(poseAtField);
+    const glm::dvec3 offset = frame.pose.position - poseAtField.position;
+    const double f = frame.intrinsics.focal;
+    const double sx = static_cast<double>(ow) / geometry.windowWidth;
+    const double sy = static_cast<double>(oh) / geometry.windowHeight;
+    const double cx = 0.5 * geometry.windowWidth, cy = 0.5 * geometry.windowHeight;
+    const int w = frame.width(), h = frame.height();
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * w + x;
+            const float d = frame.depth[i];
+            const glm::dvec3 dir = glm::normalize(src.rayDirection(x + 0.5, y + 0.5));
+            glm::dvec3 v;
+            float z;
+            if (std::isfinite(d)) {
+                v = offset + static_cast<double>(d) * dir;
+                z = 0.0f;
+            } else if (d > 0.0f) {
+                v = dir;  // sky: a direction, seen by rotation only
+                z = kSkySplat;
+            } else {
+                continue;
+            }
+            const double zf = glm::dot(v, dst.forward);
+            if (!(zf > 1e-6)) continue;
+            const double qx = (cx + f * glm::dot(v, dst.right) / zf) * sx;
+            const double qy = (cy - f * glm::dot(v, dst.up) / zf) * sy;
+            if (!(qx >= 0.0 && qy >= 0.0 && qx < ow && qy < oh)) continue;
+            const std::size_t o = static_cast<std::size_t>(qy) * ow + static_cast<std::size_t>(qx);
+            if (z == 0.0f) z = static_cast<float>(zf);
+            if (z < splatDepth_[o]) {
+                splatDepth_[o] = z;
+                splatSource_[2 * o] =
+                    static_cast<float>(x + 0.5 + (std::floor(qx) + 0.5 - qx) / sx);
+                splatSource_[2 * o + 1] =
+                    static_cast<float>(y + 0.5 + (std::floor(qy) + 0.5 - qy) / sy);
+            }
+        }
+    }
+
+    // Holes: the farthest filled 4-neighbour (background first), else the nearest filled pixel
+    // of the row (counted as edge samples), each shifted by the pixel offset; else the frame as
+    // it is.
+    const Quadratic hold = Quadratic::fromAffine(geometry.sourceFromOutputHold());
+    const ig::Rgb8* color = sourcePixels(frame);
+    std::uint64_t edge = 0;
+    const int first = firstLine(out.parity);
+    for (int line = 0; line < out.lines; ++line) {
+        const int y = first + 2 * line;
+        const std::size_t rowStart = static_cast<std::size_t>(y) * ow;
+        std::uint8_t* row = rowRgb_.data();
+        for (int x = 0; x < ow; ++x) {
+            const std::size_t o = rowStart + x;
+            std::size_t from = o;
+            if (splatDepth_[o] == kEmpty) {
+                float best = -1.0f;
+                from = n;
+                const std::size_t nb[4] = {x > 0 ? o - 1 : n, x + 1 < ow ? o + 1 : n,
+                                           y > 0 ? o - ow : n, y + 1 < oh ? o + ow : n};
+                for (const std::size_t k : nb) {
+                    if (k < n && splatDepth_[k] != kEmpty && splatDepth_[k] > best) {
+                        best = splatDepth_[k];
+                        from = k;
+                    }
+                }
+                if (from == n) {
+                    ++edge;
+                    for (int step = 1; step < ow && from == n; ++step) {
+                        if (x - step >= 0 && splatDepth_[rowStart + x - step] != kEmpty) {
+                            from = rowStart + x - step;
+                        } else if (x + step < ow && splatDepth_[rowStart + x + step] != kEmpty) {
+                            from = rowStart + x + step;
+                        }
+                    }
+                }
+            }
+            glm::dvec2 p;
+            if (from < n) {
+                const double fx = static_cast<double>(from % ow),
+                             fy = static_cast<double>(from / ow);
+                p = {splatSource_[2 * from] + (x - fx) / sx,
+                     splatSource_[2 * from + 1] + (y - fy) / sy};
+            } else {
+                p = hold({x + 0.5, y + 0.5});
+            }
+            // Bilinear, edge repeated.
+            const double px = std::clamp(p.x - 0.5, 0.0, w - 1.0);
+            const double py = std::clamp(p.y - 0.5, 0.0, h - 1.0);
+            const int x0 = std::min(static_cast<int>(px), w - 2);
+            const int y0 = std::min(static_cast<int>(py), h - 2);
+            const double ax = px - x0, ay = py - y0;
+            const ig::Rgb8* c0 = color + static_cast<std::size_t>(y0) * w + x0;
+            const ig::Rgb8* c1 = c0 + w;
+            auto lerp = [&](std::uint8_t ig::Rgb8::*ch) {
+                const double top = c0[0].*ch + ax * (c0[1].*ch - c0[0].*ch);
+                const double bot = c1[0].*ch + ax * (c1[1].*ch - c1[0].*ch);
+                return static_cast<std::uint8_t>(top + ay * (bot - top) + 0.5);
+            };
+            row[3 * x] = lerp(&ig::Rgb8::r);
+            row[3 * x + 1] = lerp(&ig::Rgb8::g);
+            row[3 * x + 2] = lerp(&ig::Rgb8::b);
+        }
+        convertRow(row, ow, out.format, gainQ8, options_.agc,
+                   out.pixels.data() + static_cast<std::size_t>(line) * out.stride, lumaSum);
+    }
+    out.edgeSamples = edge;
+    out.warp = WarpInfo{};
+    out.warp.model = WarpModel::Depth;
+    out.warp.fallback = Fallback::None;
+}
+
+}  // namespace prp

@@ -1,0 +1,64 @@
+// The post-rendering processor: turns the latest rendered frame into the field due now.
+#pragma once
+
+#include "ig/camera.hpp"
+#include "ig/frame.hpp"
+#include "prp/field.hpp"
+#include "prp/warp_fit.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace prp {
+
+struct PrpOptions {
+    int outWidth = 720, outHeight = 486;
+    PixelFormat format = PixelFormat::Uyvy;
+    WarpModel model = WarpModel::Poly;
+    bool agc = false;          // automatic gain control toward agcTarget mean luminance
+    double agcTarget = 0.45;   // target mean full-range luminance, 0..1
+    double agcRate = 0.1;      // fraction of the way to the wanted gain per field, (0, 1]
+    bool antiTwitter = false;  // vertical [1 2 1] / 4 filter against interlace twitter
+    bool useSky = true;        // fit sky control points (directions) as well as terrain
+    double minGain = 0.25, maxGain = 4.0;
+};
+
+class PostRenderingProcessor {
+  public:
+    // Throws ig::InputError naming the option when the options are unusable (size below 2 x 2,
+    // odd width for UYVY, AGC target or rate out of range).
+    explicit PostRenderingProcessor(const PrpOptions& options);
+
+    // Warps `frame` (rendered at frame.pose with roll 0, with margins) to `poseAtField` (roll
+    // included), writing only the lines of fieldParity(fieldIndex) into `out`. Allocates only
+    // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose
+    // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
+    void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
+                 std::uint64_t fieldIndex, Field& out);
+
+    const PrpOptions& options() const { return options_; }
+    // AGC gain the next field will use.
+    double gain() const { return gain_; }
+    // Forgets the previous warp and the AGC state.
+    void reset();
+
+  private:
+    void warpDepth(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
+                   const OutputGeometry& geometry, Field& out, int gainQ8, std::uint64_t& lumaSum);
+    const ig::Rgb8* sourcePixels(const ig::RenderedFrame& frame);
+
+    PrpOptions options_;
+    WarpInfo previous_;
+    bool hasPrevious_ = false;
+    double gain_ = 1.0;
+    // Anti-twitter: the vertically filtered copy of the last frame.
+    std::vector<ig::Rgb8> filtered_;
+    const ig::Rgb8* filteredFrom_ = nullptr;
+    std::uint64_t filteredSequence_ = 0;
+    // Depth model scratch, full output frame: source point per pixel and splat depth.
+    std::vector<float> splatSource_;
+    std::vector<float> splatDepth_;
+    std::vector<std::uint8_t> rowRgb_;
+};
+
+}  // namespace prp

@@ -1,0 +1,66 @@
+// Applying a warp to one field: fixed-point forward differences, bilinear taps, fused colour.
+#pragma once
+
+#include "ig/terrain.hpp"
+#include "prp/field.hpp"
+#include "prp/warp_fit.hpp"
+
+#include <cstddef>
+#include <cstdint>
+
+namespace prp {
+
+// The rendered colour being sampled (at least 2 x 2 pixels).
+struct SourceView {
+    const ig::Rgb8* pixels = nullptr;
+    int width = 0;
+    int height = 0;
+};
+
+// The field being written: `lines` lines of `width` pixels; field line L is output-frame line
+// firstLine + 2 L.
+struct FieldView {
+    std::uint8_t* pixels = nullptr;
+    std::size_t stride = 0;
+    int width = 0;
+    int firstLine = 0;
+    int lines = 0;
+    PixelFormat format = PixelFormat::Rgb8;
+};
+
+struct ApplyResult {
+    std::uint64_t edgeSamples = 0;  // samples outside the source (edge pixels repeated)
+    std::uint64_t lumaSum = 0;      // sum of full-range luma of the written pixels (AGC only)
+};
+
+// Unity gain in the Q8 gain used by the kernels.
+inline constexpr int kUnityGain = 256;
+
+// Warps `source` into `field` through `sourceFromOutput`: per row the quadratic is evaluated by
+// forward differences in 32.32 fixed point, each sample is bilinear (8-bit weights) and the
+// colour is converted in the same pass. `gainQ8` != kUnityGain scales RGB first (AGC); `agc`
+// also accumulates luma. The quadratic must be bounded by kMaxSourceCoordinate (fitWarp
+// guarantees it).
+ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFromOutput,
+                           const FieldView& field, int gainQ8, bool agc);
+// Same with a projective map (one division per pixel); its denominator must be positive.
+ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
+                            const FieldView& field, int gainQ8, bool agc);
+// Converts one row of interleaved RGB8 pixels into `format` (with gain), adding luma to
+// `lumaSum` when `agc`.
+void convertRow(const std::uint8_t* rgb, int width, PixelFormat format, int gainQ8, bool agc,
+                std::uint8_t* out, std::uint64_t& lumaSum);
+
+// BT.601 studio-range Y'CbCr of 8-bit R'G'B' (Y' 16..235, Cb/Cr 16..240), integer arithmetic as
+// in the kernels. Chroma of a pixel pair uses the pair's summed components.
+struct YCbCr {
+    std::uint8_t y = 16, cb = 128, cr = 128;
+};
+YCbCr bt601(int r, int g, int b);
+std::uint8_t bt601Luma(int r, int g, int b);
+// Cb, Cr of the mean of two pixels given their component sums (0..510).
+void bt601ChromaOfSum(int rSum, int gSum, int bSum, std::uint8_t& cb, std::uint8_t& cr);
+// Full-range grey (Y8 output): 0.299 R + 0.587 G + 0.114 B.
+std::uint8_t greyOf(int r, int g, int b);
+
+}  // namespace prp

@@ -1,0 +1,271 @@
+// warp-eval: speed against error of the post-rendering warp models along trajectories.
+#include "ig/caster.hpp"
+#include "ig/cli.hpp"
+#include "ig/error.hpp"
+#include "io/image_file.hpp"
+#include "prp/evaluation.hpp"
+#include "sim/plot.hpp"
+#include "sim/trajectory.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+namespace {
+
+constexpr const char* kNotes = R"(For base frames spread along each trajectory, a frame with margins
+is rendered by the fast caster at time t (roll 0), warped by each model to t + k * 1001/60000 s,
+and compared with a true render at that pose (the reference caster where the pose is rolled):
+PSNR and mean absolute error (% of full scale) over the field's lines, averaged over base frames.
+Without --trajectory every CSV in the shipped data/trajectories folder is evaluated.)";
+
+std::vector<int> parseHorizons(const std::string& text) {
+    std::vector<int> ks;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        const std::size_t dots = item.find("..");
+        try {
+            std::size_t used = 0;
+            if (dots != std::string::npos) {
+                const int a = std::stoi(item.substr(0, dots), &used);
+                const int b = std::stoi(item.substr(dots + 2));
+                if (a < 1 || b < a || b > 600) throw std::invalid_argument("range");
+                for (int k = a; k <= b; ++k)
+                    ks.push_back(k);
+            } else {
+                const int k = std::stoi(item, &used);
+                if (used != item.size() || k < 1 || k > 600) throw std::invalid_argument("k");
+                ks.push_back(k);
+            }
+        } catch (const std::exception&) {
+            throw ig::InputError("--horizons: '" + item +
+                                 "' is not a field count 1..600 or a range A..B");
+        }
+    }
+    if (ks.empty()) throw ig::InputError("--horizons: empty");
+    std::sort(ks.begin(), ks.end());
+    ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+    return ks;
+}
+
+std::vector<prp::WarpModel> parseModels(const std::string& text) {
+    std::vector<prp::WarpModel> models;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        const auto m = prp::parseWarpModel(item);
+        if (!m) {
+            throw ig::InputError("--models: unknown model '" + item +
+                                 "' (poly, affine, homography, depth, hold)");
+        }
+        if (std::find(models.begin(), models.end(), *m) == models.end()) models.push_back(*m);
+    }
+    if (models.empty()) throw ig::InputError("--models: empty");
+    return models;
+}
+
+nlohmann::json cellsJson(const prp::EvalResult& r) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const prp::EvalCell& c : r.cells) {
+        a.push_back({{"model", prp::warpModelName(c.model)},
+                     {"horizon", c.horizon},
+                     {"psnr_db", c.psnrDb},
+                     {"mae_pct", c.maePct},
+                     {"ns_per_pixel", c.nsPerPixel},
+                     {"fallbacks", c.fallbacks},
+                     {"fallback_affine", c.fallbackCounts[1]},
+                     {"fallback_rotation", c.fallbackCounts[2]},
+                     {"fallback_hold", c.fallbackCounts[3]},
+                     {"edge_fraction", c.edgeFraction},
+                     {"base_frames", c.samples}});
+    }
+    return a;
+}
+
+void printTable(const std::string& title, const prp::EvalResult& r,
+                const std::vector<int>& horizons) {
+    std::printf("\n%s (%d base frames)\n", title.c_str(), r.baseFrames);
+    std::printf("%-11s", "model");
+    for (const int k : horizons)
+        std::printf("  k=%-10d", k);
+    std::printf("  %9s %9s %8s\n", "ns/px", "fallbacks", "edge%");
+    std::size_t i = 0;
+    while (i < r.cells.size()) {
+        const prp::WarpModel m = r.cells[i].model;
+        std::printf("%-11s", std::string(prp::warpModelName(m)).c_str());
+        double ns = 0, edge = 0;
+        int fb = 0, n = 0;
+        for (; i < r.cells.size() && r.cells[i].model == m; ++i) {
+            const prp::EvalCell& c = r.cells[i];
+            std::printf("  %5.2f/%5.2f%%", c.psnrDb, c.maePct);
+            ns += c.nsPerPixel;
+            edge += c.edgeFraction;
+            fb += c.fallbacks;
+            ++n;
+        }
+        std::printf("  %9.2f %9d %8.3f\n", ns / n, fb, 100.0 * edge / n);
+    }
+    std::printf("(cells: PSNR dB / mean absolute error %% of full scale)\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"Post-rendering warp models: error against horizon, and time per pixel."};
+    app.footer(kNotes);
+    ig::TerrainOptions terrain;
+    ig::addTerrainOptions(app, terrain);
+    std::vector<std::string> trajectories;
+    std::string sizeText = "320x240", horizonsText = "1..8",
+                modelsText = "poly,affine,homography,depth,hold";
+    std::string jsonPath, csvPath, plotPath;
+    int margin = 32, frames = 3, repeats = 3;
+    double fovDeg = 60.0;
+    bool noSky = false;
+    app.add_option("--trajectory", trajectories, "Trajectory CSV (repeatable)");
+    app.add_option("--size", sizeText, "Output window WxH")->capture_default_str();
+    app.add_option("--margin", margin, "Rendered margin, pixels per side")->capture_default_str();
+    app.add_option("--fov", fovDeg, "Horizontal field of view, degrees")->capture_default_str();
+    app.add_option("--horizons", horizonsText, "Fields ahead: list and/or ranges, e.g. 1..8")
+        ->capture_default_str();
+    app.add_option("--models", modelsText, "Comma-separated warp models")->capture_default_str();
+    app.add_option("--frames", frames, "Base frames per trajectory")->capture_default_str();
+    app.add_option("--repeats", repeats, "Timing repeats per warp (fastest counts)")
+        ->capture_default_str();
+    app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
+    app.add_option("--json", jsonPath, "Results as JSON");
+    app.add_option("--csv", csvPath, "Results as CSV");
+    app.add_option("--plot", plotPath, "Plot of error against horizon (PNG)");
+    CLI11_PARSE(app, argc, argv);
+
+    try {
+        if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
+            throw ig::InputError("--fov: must be between 0 and 179 degrees");
+        }
+        if (margin < 0 || margin > 4096) throw ig::InputError("--margin: must be 0..4096 pixels");
+        if (frames < 1 || frames > 10000) throw ig::InputError("--frames: must be 1..10000");
+        if (repeats < 1 || repeats > 1000) throw ig::InputError("--repeats: must be 1..1000");
+        prp::EvalConfig config;
+        std::tie(config.width, config.height) = ig::parseSize(sizeText);
+        if (config.width % 2 != 0) throw ig::InputError("--size: width must be even");
+        config.margin = margin;
+        config.hfov = ig::degToRad(fovDeg);
+        config.horizons = parseHorizons(horizonsText);
+        config.models = parseModels(modelsText);
+        config.baseFrames = frames;
+        config.timingRepeats = repeats;
+        config.useSky = !noSky;
+        if (trajectories.empty()) {
+            const std::filesystem::path dir = std::filesystem::path(VIG_DATA_DIR) / "trajectories";
+            std::error_code ec;
+            for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+                if (e.path().extension() == ".csv") trajectories.push_back(e.path().string());
+            }
+            if (ec || trajectories.empty()) {
+                throw ig::InputError(dir.string() + ": no trajectory CSV files");
+            }
+            std::sort(trajectories.begin(), trajectories.end());
+        }
+        std::vector<sim::Trajectory> loaded;
+        for (const std::string& p : trajectories)
+            loaded.push_back(sim::Trajectory::loadCsv(p));
+
+        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        std::printf("terrain: %s\n", ig::describeTerrain(map).c_str());
+        const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
+        const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
+
+        std::vector<prp::EvalResult> parts;
+        nlohmann::json perTrajectory = nlohmann::json::array();
+        for (std::size_t i = 0; i < loaded.size(); ++i) {
+            const sim::Trajectory& tr = loaded[i];
+            const prp::EvalResult r = prp::evaluateWarps(
+                map, *fast, *reference, [&](double t) { return tr.poseAt(t); }, tr.startTime(),
+                tr.endTime(), config);
+            printTable(trajectories[i], r, config.horizons);
+            perTrajectory.push_back({{"trajectory", trajectories[i]},
+                                     {"base_frames", r.baseFrames},
+                                     {"rolled_truths", r.rolledTruths},
+                                     {"results", cellsJson(r)}});
+            parts.push_back(r);
+        }
+        const prp::EvalResult all = prp::combine(parts);
+        printTable("all trajectories", all, config.horizons);
+
+        if (!jsonPath.empty()) {
+            nlohmann::json j;
+            j["size"] = {config.width, config.height};
+            j["margin"] = config.margin;
+            j["fov_deg"] = fovDeg;
+            j["field_period_s"] = prp::kFieldPeriod;
+            j["terrain"] = ig::describeTerrain(map);
+            j["results"] = cellsJson(all);
+            j["trajectories"] = perTrajectory;
+            std::ofstream out(jsonPath);
+            out << j.dump(2) << "\n";
+            if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
+        }
+        if (!csvPath.empty()) {
+            std::ofstream out(csvPath);
+            out << "trajectory,model,horizon,psnr_db,mae_pct,ns_per_pixel,fallbacks,edge_"
+                   "fraction\n";
+            auto rows = [&](const std::string& name, const prp::EvalResult& r) {
+                for (const prp::EvalCell& c : r.cells) {
+                    out << name << ',' << prp::warpModelName(c.model) << ',' << c.horizon << ','
+                        << c.psnrDb << ',' << c.maePct << ',' << c.nsPerPixel << ',' << c.fallbacks
+                        << ',' << c.edgeFraction << '\n';
+                }
+            };
+            for (std::size_t i = 0; i < parts.size(); ++i)
+                rows(trajectories[i], parts[i]);
+            rows("all", all);
+            if (!out) throw ig::InputError("--csv " + csvPath + ": cannot write the file");
+        }
+        if (!plotPath.empty()) {
+            std::vector<sim::PlotSeries> series;
+            for (const prp::WarpModel m : config.models) {
+                sim::PlotSeries s;
+                double ns = 0;
+                int n = 0;
+                for (const prp::EvalCell& c : all.cells) {
+                    if (c.model != m) continue;
+                    s.x.push_back(c.horizon);
+                    s.y.push_back(c.maePct);
+                    ns += c.nsPerPixel;
+                    ++n;
+                }
+                char label[64];
+                std::snprintf(label, sizeof label, "%s  %.2f ns/px",
+                              std::string(prp::warpModelName(m)).c_str(), n ? ns / n : 0.0);
+                s.label = label;
+                series.push_back(std::move(s));
+            }
+            sim::PlotOptions po;
+            po.title = "Warp error against horizon, " + std::to_string(config.width) + "x" +
+                       std::to_string(config.height) + ", " + std::to_string(loaded.size()) +
+                       " trajectories";
+            po.xLabel = "horizon k (fields of 1001/60000 s)";
+            po.yLabel = "mean abs error %";
+            const auto px = sim::renderPlot(series, po);
+            std::string error;
+            if (io::writePng8(plotPath, po.width, po.height, 3, px, &error) != 0) {
+                throw ig::InputError(error);
+            }
+        }
+    } catch (const ig::InputError& e) {
+        std::fprintf(stderr, "warp-eval: %s\n", e.what());
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "warp-eval: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

@@ -1,0 +1,177 @@
+#include "sim/trajectory.hpp"
+
+#include "ig/error.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+namespace sim {
+
+namespace {
+
+constexpr std::string_view kHeader = "t,x,y,z,yaw_deg,pitch_deg,roll_deg";
+
+std::string_view trim(std::string_view s) {
+    while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
+        s.remove_prefix(1);
+    }
+    while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) {
+        s.remove_suffix(1);
+    }
+    return s;
+}
+
+std::string stripSpaces(std::string_view s) {
+    std::string r;
+    for (const char c : s) {
+        if (c != ' ' && c != '\t' && c != '\r') r += c;
+    }
+    return r;
+}
+
+// Nearest equivalent of `angle` to `reference` (shortest arc).
+double unwrapNear(double angle, double reference) {
+    constexpr double kTwoPi = 2.0 * std::numbers::pi;
+    return angle - kTwoPi * std::round((angle - reference) / kTwoPi);
+}
+
+// Cubic Hermite on [t0, t1] with tangents m0, m1 (per second).
+double hermite(double p0, double p1, double m0, double m1, double t0, double t1, double t) {
+    const double h = t1 - t0;
+    const double s = (t - t0) / h;
+    const double s2 = s * s, s3 = s2 * s;
+    return (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * m0 + (-2 * s3 + 3 * s2) * p1 +
+           (s3 - s2) * h * m1;
+}
+
+}  // namespace
+
+Trajectory Trajectory::loadCsv(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw ig::InputError("trajectory " + path + ": cannot open the file");
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (in.bad()) throw ig::InputError("trajectory " + path + ": read error");
+    return parseCsv(text.str(), path);
+}
+
+Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) {
+    std::vector<TrajectorySample> samples;
+    bool header = false;
+    int lineNo = 0;
+    while (!text.empty()) {
+        const std::size_t eol = text.find('\n');
+        std::string_view line = trim(text.substr(0, eol));
+        text.remove_prefix(eol == std::string_view::npos ? text.size() : eol + 1);
+        ++lineNo;
+        const std::string where = name + ":" + std::to_string(lineNo) + ": ";
+        if (line.empty() || line.front() == '#') continue;
+        if (!header) {
+            if (stripSpaces(line) != kHeader) {
+                throw ig::InputError(where + "expected the header '" + std::string(kHeader) +
+                                     "', found '" + std::string(line) + "'");
+            }
+            header = true;
+            continue;
+        }
+        double v[7];
+        int count = 0;
+        while (true) {
+            const std::size_t comma = line.find(',');
+            const std::string_view field = trim(line.substr(0, comma));
+            if (count == 7) {
+                throw ig::InputError(where + "more than 7 columns");
+            }
+            const char* end = field.data() + field.size();
+            const auto [ptr, ec] = std::from_chars(field.data(), end, v[count]);
+            if (field.empty() || ec != std::errc() || ptr != end) {
+                throw ig::InputError(where + "column " + std::to_string(count + 1) + " ('" +
+                                     std::string(field) + "') is not a number");
+            }
+            if (!std::isfinite(v[count])) {
+                throw ig::InputError(where + "column " + std::to_string(count + 1) +
+                                     " is not finite");
+            }
+            ++count;
+            if (comma == std::string_view::npos) break;
+            line.remove_prefix(comma + 1);
+        }
+        if (count != 7) {
+            throw ig::InputError(where + "expected 7 columns (" + std::string(kHeader) +
+                                 "), found " + std::to_string(count));
+        }
+        if (!samples.empty() && !(v[0] > samples.back().t)) {
+            throw ig::InputError(where + "time " + std::to_string(v[0]) +
+                                 " does not increase (previous " +
+                                 std::to_string(samples.back().t) + ")");
+        }
+        TrajectorySample s;
+        s.t = v[0];
+        s.pose.position = {v[1], v[2], v[3]};
+        s.pose.yaw = ig::degToRad(v[4]);
+        s.pose.pitch = ig::degToRad(v[5]);
+        s.pose.roll = ig::degToRad(v[6]);
+        samples.push_back(s);
+    }
+    if (!header) throw ig::InputError(name + ": no header line '" + std::string(kHeader) + "'");
+    if (samples.empty()) throw ig::InputError(name + ": no trajectory rows after the header");
+    return fromSamples(std::move(samples), name);
+}
+
+Trajectory Trajectory::fromSamples(std::vector<TrajectorySample> samples, const std::string& name) {
+    if (samples.empty()) throw ig::InputError(name + ": empty trajectory");
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!samples[i].pose.isFinite() || !std::isfinite(samples[i].t)) {
+            throw ig::InputError(name + ": sample " + std::to_string(i) + " is not finite");
+        }
+        if (i > 0) {
+            if (!(samples[i].t > samples[i - 1].t)) {
+                throw ig::InputError(name + ": sample " + std::to_string(i) +
+                                     ": time does not increase");
+            }
+            ig::Pose& p = samples[i].pose;
+            const ig::Pose& q = samples[i - 1].pose;
+            p.yaw = unwrapNear(p.yaw, q.yaw);
+            p.pitch = unwrapNear(p.pitch, q.pitch);
+            p.roll = unwrapNear(p.roll, q.roll);
+        }
+    }
+    Trajectory tr;
+    tr.samples_ = std::move(samples);
+    return tr;
+}
+
+ig::Pose Trajectory::poseAt(double t) const {
+    const auto& s = samples_;
+    if (s.size() == 1 || !(t > s.front().t)) return s.front().pose;
+    if (t >= s.back().t) return s.back().pose;
+    const std::size_t i1 = static_cast<std::size_t>(
+        std::upper_bound(s.begin(), s.end(), t,
+                         [](double v, const TrajectorySample& a) { return v < a.t; }) -
+        s.begin());
+    const std::size_t i0 = i1 - 1;
+    // Tangent at sample i: central difference over its neighbours (one-sided at the ends).
+    auto tangent = [&](std::size_t i, auto get) {
+        const std::size_t a = i == 0 ? 0 : i - 1;
+        const std::size_t b = i + 1 < s.size() ? i + 1 : i;
+        return (get(s[b].pose) - get(s[a].pose)) / (s[b].t - s[a].t);
+    };
+    auto interp = [&](auto get) {
+        return hermite(get(s[i0].pose), get(s[i1].pose), tangent(i0, get), tangent(i1, get),
+                       s[i0].t, s[i1].t, t);
+    };
+    ig::Pose p;
+    p.position.x = interp([](const ig::Pose& q) { return q.position.x; });
+    p.position.y = interp([](const ig::Pose& q) { return q.position.y; });
+    p.position.z = interp([](const ig::Pose& q) { return q.position.z; });
+    p.yaw = interp([](const ig::Pose& q) { return q.yaw; });
+    p.pitch = interp([](const ig::Pose& q) { return q.pitch; });
+    p.roll = interp([](const ig::Pose& q) { return q.roll; });
+    return p;
+}
+
+}  // namespace sim

@@ -1,0 +1,120 @@
+// One 720x243 NTSC field: the PRP's fused warp + UYVY against OpenCV's cv::remap.
+#include "prp/processor.hpp"
+#include "prp/warp_apply.hpp"
+#include "prp/warp_fit.hpp"
+
+#include <benchmark/benchmark.h>
+
+#if VIG_HAVE_OPENCV
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#endif
+
+#include <cmath>
+#include <vector>
+
+namespace {
+
+constexpr int kW = 720, kH = 486, kMargin = 48;
+constexpr int kSrcW = kW + 2 * kMargin, kSrcH = kH + 2 * kMargin;
+
+std::vector<ig::Rgb8> sourceImage() {
+    std::vector<ig::Rgb8> px(static_cast<std::size_t>(kSrcW) * kSrcH);
+    for (int y = 0; y < kSrcH; ++y) {
+        for (int x = 0; x < kSrcW; ++x) {
+            px[static_cast<std::size_t>(y) * kSrcW + x] = {
+                static_cast<std::uint8_t>(128 + 100 * std::sin(x * 0.05 + y * 0.02)),
+                static_cast<std::uint8_t>(128 + 100 * std::cos(x * 0.03 - y * 0.04)),
+                static_cast<std::uint8_t>((x ^ y) & 255)};
+        }
+    }
+    return px;
+}
+
+// A typical warp: small roll, zoom and perspective curvature.
+prp::Quadratic typicalWarp() {
+    prp::Quadratic q;
+    const double c = std::cos(0.05), s = std::sin(0.05);
+    q.a = {kMargin + 12.3, 1.01 * c, -s, 2e-6, 1e-5, -4e-6};
+    q.b = {kMargin - 7.9, s, 1.01 * c, -3e-6, 5e-6, 2e-5};
+    return q;
+}
+
+void BM_PrpWarpUyvyField(benchmark::State& state) {
+    const auto src = sourceImage();
+    const prp::Quadratic q = typicalWarp();
+    std::vector<std::uint8_t> out(static_cast<std::size_t>(kW) * 2 * (kH / 2));
+    const prp::FieldView view{
+        out.data(), static_cast<std::size_t>(kW) * 2, kW, 1, kH / 2, prp::PixelFormat::Uyvy};
+    for (auto _ : state) {
+        const prp::ApplyResult r =
+            prp::applyQuadratic({src.data(), kSrcW, kSrcH}, q, view, prp::kUnityGain, false);
+        benchmark::DoNotOptimize(r);
+        benchmark::DoNotOptimize(out.data());
+    }
+    const double pixels = static_cast<double>(kW) * (kH / 2);
+    state.counters["ns_per_px"] = benchmark::Counter(
+        pixels, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_PrpWarpUyvyField)->Unit(benchmark::kMicrosecond);
+
+void BM_PrpWarpRgbField(benchmark::State& state) {
+    const auto src = sourceImage();
+    const prp::Quadratic q = typicalWarp();
+    std::vector<std::uint8_t> out(static_cast<std::size_t>(kW) * 3 * (kH / 2));
+    const prp::FieldView view{
+        out.data(), static_cast<std::size_t>(kW) * 3, kW, 1, kH / 2, prp::PixelFormat::Rgb8};
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(
+            prp::applyQuadratic({src.data(), kSrcW, kSrcH}, q, view, prp::kUnityGain, false));
+    }
+    state.counters["ns_per_px"] = benchmark::Counter(
+        static_cast<double>(kW) * (kH / 2),
+        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_PrpWarpRgbField)->Unit(benchmark::kMicrosecond);
+
+#if VIG_HAVE_OPENCV
+// cv::remap with precomputed fixed-point maps (CV_16SC2 + CV_16UC1), bilinear, one thread,
+// to an RGB field of the same lines; optionally followed by OpenCV's YUV 4:2:2 conversion.
+void remapField(benchmark::State& state, bool toUyvy) {
+    cv::setNumThreads(1);
+    const auto src = sourceImage();
+    cv::Mat image(kSrcH, kSrcW, CV_8UC3, const_cast<ig::Rgb8*>(src.data()));
+    const prp::Quadratic q = typicalWarp();
+    cv::Mat mapX(kH / 2, kW, CV_32FC1), mapY(kH / 2, kW, CV_32FC1);
+    for (int line = 0; line < kH / 2; ++line) {
+        for (int x = 0; x < kW; ++x) {
+            const glm::dvec2 p = q({x + 0.5, 2 * line + 1 + 0.5});
+            mapX.at<float>(line, x) = static_cast<float>(p.x - 0.5);
+            mapY.at<float>(line, x) = static_cast<float>(p.y - 0.5);
+        }
+    }
+    cv::Mat fixedXY, fixedA;
+    cv::convertMaps(mapX, mapY, fixedXY, fixedA, CV_16SC2);
+    cv::Mat field(kH / 2, kW, CV_8UC3), yuv;
+    for (auto _ : state) {
+        cv::remap(image, field, fixedXY, fixedA, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+        if (toUyvy) {
+            // OpenCV has no RGB -> UYVY; the closest single call is RGB -> YUV 4:4:4.
+            cv::cvtColor(field, yuv, cv::COLOR_RGB2YUV);
+        }
+        benchmark::DoNotOptimize(field.data);
+    }
+    state.counters["ns_per_px"] = benchmark::Counter(
+        static_cast<double>(kW) * (kH / 2),
+        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+void BM_OpenCvRemapField(benchmark::State& state) {
+    remapField(state, false);
+}
+void BM_OpenCvRemapThenYuvField(benchmark::State& state) {
+    remapField(state, true);
+}
+BENCHMARK(BM_OpenCvRemapField)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_OpenCvRemapThenYuvField)->Unit(benchmark::kMicrosecond);
+#endif
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,222 @@
+#include "prp/warp_apply.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace prp {
+namespace {
+
+std::vector<ig::Rgb8> pattern(int w, int h, int seed) {
+    std::mt19937 rng(seed);
+    std::uniform_int_distribution<int> d(0, 255);
+    std::vector<ig::Rgb8> px(static_cast<std::size_t>(w) * h);
+    for (auto& p : px) {
+        p = {static_cast<std::uint8_t>(d(rng)), static_cast<std::uint8_t>(d(rng)),
+             static_cast<std::uint8_t>(d(rng))};
+    }
+    return px;
+}
+
+// Double-precision bilinear sample with edge clamping (the obviously-correct twin).
+void referenceSample(const std::vector<ig::Rgb8>& img, int w, int h, glm::dvec2 p, double out[3]) {
+    const double x = std::clamp(p.x - 0.5, 0.0, w - 1.0), y = std::clamp(p.y - 0.5, 0.0, h - 1.0);
+    const int x0 = std::min(static_cast<int>(x), w - 2), y0 = std::min(static_cast<int>(y), h - 2);
+    const double fx = x - x0, fy = y - y0;
+    auto at = [&](int xx, int yy, int c) {
+        const ig::Rgb8 v = img[static_cast<std::size_t>(yy) * w + xx];
+        return static_cast<double>(c == 0 ? v.r : c == 1 ? v.g : v.b);
+    };
+    for (int c = 0; c < 3; ++c) {
+        out[c] = (1 - fy) * ((1 - fx) * at(x0, y0, c) + fx * at(x0 + 1, y0, c)) +
+                 fy * ((1 - fx) * at(x0, y0 + 1, c) + fx * at(x0 + 1, y0 + 1, c));
+    }
+}
+
+struct Output {
+    std::vector<std::uint8_t> px;
+    FieldView view;
+    Output(int w, int frameH, int first, PixelFormat f) {
+        const int lines = (frameH - first + 1) / 2;
+        view = {nullptr, static_cast<std::size_t>(w) * bytesPerPixel(f), w, first, lines, f};
+        px.resize(view.stride * lines);
+        view.pixels = px.data();
+    }
+};
+
+TEST(WarpApply, IdentityCopiesTheWindowExactly) {
+    const int w = 48, h = 40, margin = 5;
+    const auto img = pattern(w, h, 1);
+    const SourceView src{img.data(), w, h};
+    for (const int first : {0, 1}) {
+        Output out(w - 2 * margin, h - 2 * margin, first, PixelFormat::Rgb8);
+        const Quadratic q = Quadratic::fromAffine({1, 0, 0, 1, margin, margin});
+        const ApplyResult r = applyQuadratic(src, q, out.view, kUnityGain, false);
+        EXPECT_EQ(r.edgeSamples, 0u);
+        for (int line = 0; line < out.view.lines; ++line) {
+            for (int x = 0; x < out.view.width; ++x) {
+                const ig::Rgb8 want =
+                    img[static_cast<std::size_t>(first + 2 * line + margin) * w + x + margin];
+                const std::uint8_t* got = &out.px[line * out.view.stride + 3 * x];
+                ASSERT_EQ(got[0], want.r);
+                ASSERT_EQ(got[1], want.g);
+                ASSERT_EQ(got[2], want.b);
+            }
+        }
+    }
+}
+
+TEST(WarpApply, ForwardDifferencesMatchDirectBilinearEvaluation) {
+    // Random quadratics over a 720-wide row: the fixed-point recurrence must stay within a
+    // level of a double-precision bilinear sample everywhere.
+    const int w = 760, h = 520;
+    const auto img = pattern(w, h, 2);
+    // Smooth the noise so a 1/256-pixel position error stays below one level.
+    std::vector<ig::Rgb8> smooth(img.size());
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            smooth[static_cast<std::size_t>(y) * w + x] = {
+                static_cast<std::uint8_t>(128 + 100 * std::sin(x * 0.05 + y * 0.02)),
+                static_cast<std::uint8_t>(128 + 100 * std::cos(x * 0.03 - y * 0.04)),
+                static_cast<std::uint8_t>((x + 2 * y) & 255)};
+        }
+    }
+    const SourceView src{smooth.data(), w, h};
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> d(-1.0, 1.0);
+    for (int trial = 0; trial < 6; ++trial) {
+        Quadratic q;
+        q.a = {20 + 5 * d(rng), 1 + 0.05 * d(rng), 0.05 * d(rng),
+               2e-5 * d(rng),   2e-5 * d(rng),     2e-5 * d(rng)};
+        q.b = {20 + 5 * d(rng), 0.05 * d(rng), 1 + 0.05 * d(rng),
+               2e-5 * d(rng),   2e-5 * d(rng), 2e-5 * d(rng)};
+        Output out(720, 486, trial % 2, PixelFormat::Rgb8);
+        applyQuadratic(src, q, out.view, kUnityGain, false);
+        int worst = 0;
+        for (int line = 0; line < out.view.lines; line += 7) {
+            for (int x = 0; x < 720; ++x) {
+                double want[3];
+                referenceSample(smooth, w, h, q({x + 0.5, out.view.firstLine + 2 * line + 0.5}),
+                                want);
+                for (int c = 0; c < 3; ++c) {
+                    const int got = out.px[line * out.view.stride + 3 * x + c];
+                    worst = std::max(worst, static_cast<int>(std::abs(got - want[c]) + 0.5));
+                }
+            }
+        }
+        EXPECT_LE(worst, 2) << trial;
+    }
+}
+
+TEST(WarpApply, HalfPixelShiftAverages) {
+    const int w = 8, h = 6;
+    std::vector<ig::Rgb8> img(w * h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x)
+            img[y * w + x] = {static_cast<std::uint8_t>(x * 20), 0, 0};
+    }
+    Output out(6, 6, 0, PixelFormat::Rgb8);
+    applyQuadratic({img.data(), w, h}, Quadratic::fromAffine({1, 0, 0, 1, 0.5, 0}), out.view,
+                   kUnityGain, false);
+    for (int x = 0; x < 6; ++x)
+        EXPECT_EQ(out.px[3 * x], x * 20 + 10);
+}
+
+TEST(WarpApply, OutsideSamplesRepeatTheEdgeAndAreCounted) {
+    const int w = 16, h = 12;
+    const auto img = pattern(w, h, 4);
+    for (const double shift : {-30.0, -3.0, 2.0, 25.0}) {
+        Output out(w, h, 1, PixelFormat::Rgb8);
+        const ApplyResult r =
+            applyQuadratic({img.data(), w, h}, Quadratic::fromAffine({1, 0, 0, 1, shift, 0}),
+                           out.view, kUnityGain, false);
+        const int outside = std::min(w, static_cast<int>(std::ceil(std::abs(shift))));
+        EXPECT_EQ(r.edgeSamples, static_cast<std::uint64_t>(outside * out.view.lines)) << shift;
+        // Left of the frame every sample shows column 0, right of it column w - 1.
+        for (int line = 0; line < out.view.lines; ++line) {
+            const int fy = 2 * line + 1;
+            const int x = shift < 0 ? 0 : w - 1;
+            const ig::Rgb8 edge = img[fy * w + (shift < 0 ? 0 : w - 1)];
+            EXPECT_NEAR(out.px[line * out.view.stride + 3 * x], edge.r, 1);
+        }
+    }
+}
+
+TEST(Bt601, PrimariesMatchTheStandard) {
+    // Rec. ITU-R BT.601 studio-range values of the 100% colour bars.
+    struct Case {
+        int r, g, b, y, cb, cr;
+    };
+    const Case cases[] = {{255, 255, 255, 235, 128, 128}, {0, 0, 0, 16, 128, 128},
+                          {255, 0, 0, 81, 90, 240},       {0, 255, 0, 145, 54, 34},
+                          {0, 0, 255, 41, 240, 110},      {255, 255, 0, 210, 16, 146},
+                          {0, 255, 255, 170, 166, 16},    {255, 0, 255, 106, 202, 222}};
+    for (const Case& c : cases) {
+        const YCbCr v = bt601(c.r, c.g, c.b);
+        EXPECT_EQ(v.y, c.y) << c.r << "," << c.g << "," << c.b;
+        EXPECT_EQ(v.cb, c.cb) << c.r << "," << c.g << "," << c.b;
+        EXPECT_EQ(v.cr, c.cr) << c.r << "," << c.g << "," << c.b;
+    }
+}
+
+TEST(Bt601, SweepAgreesWithTheFormula) {
+    for (int r = 0; r < 256; r += 15) {
+        for (int g = 0; g < 256; g += 15) {
+            for (int b = 0; b < 256; b += 15) {
+                const double y = 16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255;
+                const double cb = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255;
+                const double cr = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255;
+                const YCbCr v = bt601(r, g, b);
+                ASSERT_LE(std::abs(v.y - y), 0.51);
+                ASSERT_LE(std::abs(v.cb - cb), 0.51);
+                ASSERT_LE(std::abs(v.cr - cr), 0.51);
+            }
+        }
+    }
+}
+
+TEST(WarpApply, UyvyIsTheFusedBt601OfTheRgbWarp) {
+    const int w = 40, h = 30;
+    const auto img = pattern(w, h, 6);
+    const Quadratic q = Quadratic::fromAffine({0.9, 0.1, -0.1, 0.95, 3.3, 2.7});
+    Output rgb(w, h, 0, PixelFormat::Rgb8), uyvy(w, h, 0, PixelFormat::Uyvy),
+        grey(w, h, 0, PixelFormat::Y8);
+    applyQuadratic({img.data(), w, h}, q, rgb.view, kUnityGain, false);
+    applyQuadratic({img.data(), w, h}, q, uyvy.view, kUnityGain, false);
+    applyQuadratic({img.data(), w, h}, q, grey.view, kUnityGain, false);
+    for (int line = 0; line < rgb.view.lines; ++line) {
+        for (int x = 0; x < w; x += 2) {
+            const std::uint8_t* p = &rgb.px[line * rgb.view.stride + 3 * x];
+            const std::uint8_t* u = &uyvy.px[line * uyvy.view.stride + 2 * x];
+            EXPECT_EQ(u[1], bt601Luma(p[0], p[1], p[2]));
+            EXPECT_EQ(u[3], bt601Luma(p[3], p[4], p[5]));
+            std::uint8_t cb, cr;
+            bt601ChromaOfSum(p[0] + p[3], p[1] + p[4], p[2] + p[5], cb, cr);
+            EXPECT_EQ(u[0], cb);
+            EXPECT_EQ(u[2], cr);
+            EXPECT_EQ(grey.px[line * grey.view.stride + x], greyOf(p[0], p[1], p[2]));
+        }
+    }
+}
+
+TEST(WarpApply, HomographyAgreesWithAnEqualAffineQuadratic) {
+    const int w = 50, h = 40;
+    const auto img = pattern(w, h, 8);
+    const Affine2 m{0.97, 0.05, -0.04, 1.02, 4.2, 3.1};
+    Homography hm;
+    hm.h = {m.m00, m.m01, m.tx, m.m10, m.m11, m.ty, 0, 0, 1};
+    Output a(44, 34, 1, PixelFormat::Rgb8), b(44, 34, 1, PixelFormat::Rgb8);
+    const ApplyResult ra =
+        applyQuadratic({img.data(), w, h}, Quadratic::fromAffine(m), a.view, kUnityGain, false);
+    const ApplyResult rb = applyHomography({img.data(), w, h}, hm, b.view, kUnityGain, false);
+    EXPECT_EQ(ra.edgeSamples, rb.edgeSamples);
+    int worst = 0;
+    for (std::size_t i = 0; i < a.px.size(); ++i)
+        worst = std::max(worst, std::abs(a.px[i] - b.px[i]));
+    EXPECT_LE(worst, 1);
+}
+
+}  // namespace
+}  // namespace prp

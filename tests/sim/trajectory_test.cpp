@@ -1,0 +1,145 @@
+#include "sim/trajectory.hpp"
+
+#include "ig/error.hpp"
+#include "ig/terrain_io.hpp"
+#include "prp/evaluation.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <string>
+
+namespace sim {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+TEST(Trajectory, InterpolatesThroughItsRows) {
+    const Trajectory tr = Trajectory::parseCsv(
+        "# comment\n"
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
+        "0, 0, 0, 100, 0, -10, 0\n"
+        "1, 100, 0, 110, 10, -12, 5\n"
+        "\n"
+        "2.5, 200, 50, 120, 30, -8, -5\n",
+        "test");
+    ASSERT_EQ(tr.samples().size(), 3u);
+    EXPECT_EQ(tr.startTime(), 0.0);
+    EXPECT_EQ(tr.endTime(), 2.5);
+    for (const auto& s : tr.samples()) {
+        const ig::Pose p = tr.poseAt(s.t);
+        EXPECT_NEAR(p.position.x, s.pose.position.x, 1e-9);
+        EXPECT_NEAR(p.position.z, s.pose.position.z, 1e-9);
+        EXPECT_NEAR(p.yaw, s.pose.yaw, 1e-12);
+        EXPECT_NEAR(p.roll, s.pose.roll, 1e-12);
+    }
+    EXPECT_NEAR(tr.samples()[1].pose.yaw, 10 * kPi / 180, 1e-12);
+    // Clamped outside.
+    EXPECT_EQ(tr.poseAt(-5).position.x, 0.0);
+    EXPECT_EQ(tr.poseAt(9).position.y, 50.0);
+    // Continuous: small steps give small changes.
+    for (double t = 0; t < 2.5; t += 0.01) {
+        const ig::Pose a = tr.poseAt(t), b = tr.poseAt(t + 0.001);
+        EXPECT_LT(std::abs(a.position.x - b.position.x), 0.5);
+        EXPECT_LT(std::abs(a.yaw - b.yaw), 0.01);
+    }
+}
+
+TEST(Trajectory, StraightUniformFlightIsExact) {
+    // Catmull-Rom reproduces linear motion exactly.
+    const Trajectory tr = Trajectory::parseCsv(
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,0,0,500,0,0,0\n1,150,0,500,0,0,0\n"
+        "2,300,0,500,0,0,0\n3,450,0,500,0,0,0\n",
+        "line");
+    for (double t = 0; t <= 3; t += 0.1)
+        EXPECT_NEAR(tr.poseAt(t).position.x, 150 * t, 1e-9);
+}
+
+TEST(Trajectory, AnglesTakeTheShortestArc) {
+    const Trajectory tr = Trajectory::parseCsv(
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,0,0,0,350,0,-170\n1,0,0,0,10,0,170\n", "wrap");
+    const ig::Pose mid = tr.poseAt(0.5);
+    // Through north (0 / 360 deg), not back through south; roll through 180.
+    EXPECT_NEAR(std::remainder(mid.yaw, 2 * kPi), 0.0, 1e-9);
+    EXPECT_NEAR(std::abs(std::remainder(mid.roll, 2 * kPi)), kPi, 1e-9);
+    for (double t = 0; t <= 1; t += 0.05) {
+        const double yawDeg = std::remainder(tr.poseAt(t).yaw, 2 * kPi) * 180 / kPi;
+        EXPECT_LE(std::abs(yawDeg), 10.0 + 1e-9);
+    }
+}
+
+TEST(Trajectory, BadFilesNameTheLine) {
+    const std::string h = "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n";
+    struct Case {
+        std::string text, expect;
+    };
+    const Case cases[] = {
+        {"t,x,y,z,yaw,pitch,roll\n0,0,0,0,0,0,0\n", "bad.csv:1:"},
+        {h + "0,0,0,0,0,0\n", "bad.csv:2: expected 7 columns"},
+        {h + "0,0,0,0,0,0,0,0\n", "bad.csv:2: more than 7"},
+        {h + "0,0,0,0,0,0,0\n1,0,abc,0,0,0,0\n", "bad.csv:3: column 3"},
+        {h + "0,0,0,0,0,0,0\n0,1,0,0,0,0,0\n", "bad.csv:3: time"},
+        {h + "0,0,0,0,0,0,0\n1,nan,0,0,0,0,0\n", "bad.csv:3: column 2"},
+        {h + "0,0,0,0,0,0,0\n1,0,0,inf,0,0,0\n", "bad.csv:3: column 4"},
+        {h + "0,0,,0,0,0,0\n", "bad.csv:2: column 3"},
+        {h, "no trajectory rows"},
+        {"", "no header"},
+    };
+    for (const Case& c : cases) {
+        try {
+            Trajectory::parseCsv(c.text, "bad.csv");
+            ADD_FAILURE() << "accepted: " << c.text;
+        } catch (const ig::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos)
+                << e.what() << " / wanted " << c.expect;
+        }
+    }
+    EXPECT_THROW(Trajectory::loadCsv("no/such/file.csv"), ig::InputError);
+}
+
+TEST(Trajectory, ShippedTrajectoriesLoad) {
+    int count = 0;
+    for (const auto& entry : std::filesystem::directory_iterator("data/trajectories")) {
+        if (entry.path().extension() != ".csv") continue;
+        const Trajectory tr = Trajectory::loadCsv(entry.path().string());
+        EXPECT_GT(tr.endTime() - tr.startTime(), 1.0) << entry.path();
+        ++count;
+    }
+    EXPECT_GE(count, 5);
+}
+
+TEST(WarpEvalPugetSound, PolynomialBeatsHoldAtEveryHorizonOnEachTrajectory) {
+    const ig::TerrainMap map = ig::loadPugetSound();
+    const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
+    const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
+    prp::EvalConfig config;
+    config.width = 240;
+    config.height = 180;
+    config.margin = 24;
+    config.baseFrames = 2;
+    config.timingRepeats = 1;
+    config.models = {prp::WarpModel::Poly, prp::WarpModel::Hold};
+    int checked = 0;
+    for (const auto& entry : std::filesystem::directory_iterator("data/trajectories")) {
+        if (entry.path().extension() != ".csv") continue;
+        const Trajectory tr = Trajectory::loadCsv(entry.path().string());
+        const prp::EvalResult r = prp::evaluateWarps(
+            map, *fast, *reference, [&](double t) { return tr.poseAt(t); }, tr.startTime(),
+            tr.endTime(), config);
+        const std::size_t n = config.horizons.size();
+        ASSERT_EQ(r.cells.size(), 2 * n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const prp::EvalCell& poly = r.cells[i];
+            const prp::EvalCell& hold = r.cells[n + i];
+            EXPECT_LT(poly.maePct, hold.maePct) << entry.path() << " k=" << poly.horizon;
+            EXPECT_GT(poly.psnrDb, hold.psnrDb) << entry.path() << " k=" << poly.horizon;
+        }
+        ++checked;
+    }
+    EXPECT_GE(checked, 5);
+}
+
+}  // namespace
+}  // namespace sim
