@@ -4,6 +4,7 @@
 # Usage: expect_error.sh PATTERN WATCH program args...
 set -u
 pattern="$1"; watch="$2"; shift 2
+[ "$watch" != "-" ] && rm -f "$watch"
 err=$(mktemp)
 "$@" >/dev/null 2>"$err"
 rc=$?
