@@ -1,0 +1,342 @@
+// flythrough: flies an aircraft over terrain through the real-time pipeline and writes fields.
+#include "ig/caster.hpp"
+#include "ig/cli.hpp"
+#include "ig/error.hpp"
+#include "io/contact_sheet.hpp"
+#include "io/field_clock.hpp"
+#include "io/field_weaver.hpp"
+#include "io/frame_sink.hpp"
+#include "io/stick.hpp"
+#include "prp/field.hpp"
+#include "sim/pipeline.hpp"
+#include "sim/pose_source.hpp"
+#include "sim/scenario.hpp"
+#include "sim/trajectory.hpp"
+#include "sim/trajectory_poses.hpp"
+
+#include <unistd.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+
+namespace {
+
+constexpr const char* kDefaultOut = "y4m:out/flythrough.y4m";
+constexpr const char* kDefaultContact = "out/flythrough_contact.png";
+
+constexpr const char* kNotes =
+    R"(With no arguments: flies the built-in ~10 s scenario over the shipped Puget Sound
+terrain (a right turn, a climb, an aileron roll; data/scenarios/default.stick) and writes
+out/flythrough.y4m (interlaced NTSC, bottom field first) and out/flythrough_contact.png.
+
+Timing: a renderer thread renders as fast as it can (or --render-hz) into a latest-frame
+mailbox; every 1001/60000 s a field is warped from the newest frame to the pose at the field's
+own instant and handed to the output. --clock simulated runs the same loop without wall time,
+every render modelled as taking 1/--render-hz s (12 Hz when uncapped): reproducible output.
+
+Stick scripts: "TIME axis pitch|roll|yaw|throttle VALUE [ramp S]" or "TIME button trigger
+down|up" per line. Trajectory CSV: t,x,y,z,yaw_deg,pitch_deg,roll_deg.
+--start X,Y,Z,HEADING (metres, degrees; Z written +H is H metres above the terrain) sets where
+a stick flight begins (default: the scenario's start on Puget Sound, else over the south-west
+of the map heading north-east).)";
+
+std::string parentOf(const std::string& path) {
+    return std::filesystem::path(path).parent_path().string();
+}
+
+// "x,y,z,heading": z may be "+H" (above the terrain).
+sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
+                            const sim::FlightLimits& limits) {
+    std::stringstream ss(text);
+    std::string part[4];
+    for (int i = 0; i < 4; ++i) {
+        if (!std::getline(ss, part[i], ',')) {
+            throw ig::InputError("--start '" + text + "': expected X,Y,Z,HEADING");
+        }
+    }
+    std::string rest;
+    if (std::getline(ss, rest, ',')) {
+        throw ig::InputError("--start '" + text + "': expected X,Y,Z,HEADING");
+    }
+    // Reuse the pose parser (it knows "+H").
+    const ig::Pose p = ig::parsePose(
+        part[0] + "," + part[1] + "," + part[2] + "," + part[3] + ",0,0", map, "--start");
+    sim::FlightState s;
+    s.position = p.position;
+    s.heading = p.yaw;
+    s.speed = limits.cruiseSpeed;
+    return s;
+}
+
+void writeJson(const std::string& path, const nlohmann::json& j) {
+    if (path == "-") {
+        std::printf("%s\n", j.dump(2).c_str());
+        return;
+    }
+    std::ofstream out(path);
+    out << j.dump(2) << "\n";
+    out.close();
+    if (!out) throw ig::InputError("--json " + path + ": cannot write the file");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{
+        "Fly over a voxel terrain in real time: render, warp every NTSC field to its own "
+        "instant, and write interlaced video."};
+    app.footer(kNotes);
+    ig::TerrainOptions terrain;
+    ig::addTerrainOptions(app, terrain);
+    std::string trajectoryPath, stickSpec, startText;
+    std::optional<double> duration;
+    double renderHz = 0.0;
+    std::string outSpec = kDefaultOut;
+    std::string contactPath = kDefaultContact;
+    std::string sizeText = "720x486";
+    std::string formatText = "uyvy";
+    std::string warpText = "poly";
+    std::string clockText = "wall";
+    std::string jsonPath;
+    double fovDeg = 60.0;
+    int margin = 48;
+    int renderThreads = 0;
+    bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
+    bool terrainPointsOnly = false;
+
+    auto* trajectoryOpt =
+        app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
+    app.add_option("--stick", stickSpec, "script:FILE | gpiod:CHIP:OFFSETS[:active-low]")
+        ->excludes(trajectoryOpt);
+    app.add_option("--start", startText, "Stick flight start X,Y,Z,HEADING (metres, degrees)")
+        ->excludes(trajectoryOpt);
+    app.add_option("--duration", duration,
+                   "Seconds to fly (default: the scenario's 10 s, or the trajectory's span)");
+    app.add_option("--render-hz", renderHz, "Cap on the render rate (0: as fast as it can)")
+        ->capture_default_str();
+    app.add_option("--out", outSpec, "y4m:PATH | v4l2:/dev/videoN | png:DIR[:EVERY_N] | null")
+        ->capture_default_str();
+    app.add_option("--contact", contactPath, "Contact sheet PNG ('none': no sheet)")
+        ->capture_default_str();
+    app.add_option("--size", sizeText, "Output frame WxH (NTSC: 720x486 or 720x480)")
+        ->capture_default_str();
+    app.add_option("--format", formatText, "Output pixels: uyvy | y8 | rgb8")
+        ->capture_default_str();
+    app.add_option("--warp", warpText, "poly | affine | homography | depth | hold")
+        ->capture_default_str();
+    app.add_option("--clock", clockText, "wall | simulated")->capture_default_str();
+    app.add_option("--json", jsonPath, "Write the run's statistics as JSON ('-': stdout)");
+    app.add_option("--fov", fovDeg, "Horizontal field of view, degrees")->capture_default_str();
+    app.add_option("--margin", margin, "Pixels rendered beyond the window on every side")
+        ->capture_default_str();
+    app.add_flag("--fixed-margin", fixedMargin,
+                 "Keep --margin as it is (default: widen it with the roll so the rolled window "
+                 "stays inside the rendered frame)");
+    app.add_option("--render-threads", renderThreads, "Renderer worker threads (0: all cores)")
+        ->capture_default_str();
+    app.add_flag("--terrain-points-only", terrainPointsOnly,
+                 "Fit the warp to terrain control points only (default: sky directions too)");
+    app.add_flag("--agc", agc, "Automatic gain control");
+    app.add_flag("--anti-twitter", antiTwitter, "Vertical filter against interlace twitter");
+    app.add_flag("--quiet", quiet, "No progress line");
+    CLI11_PARSE(app, argc, argv);
+
+    std::unique_ptr<io::FrameSink> sink;
+    try {
+        // Flags first, so a mistake is reported before anything is loaded or opened.
+        if (duration && !(*duration > 0.0 && *duration <= 86400.0)) {
+            throw ig::InputError("--duration: must be more than 0 and at most 86400 seconds");
+        }
+        if (!(renderHz >= 0.0 && renderHz <= 1000.0)) {
+            throw ig::InputError("--render-hz: must be 0 (uncapped) or up to 1000");
+        }
+        if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
+            throw ig::InputError("--fov: must be between 0 and 179 degrees");
+        }
+        if (margin < 0 || margin > 2048) throw ig::InputError("--margin: must be 0..2048 pixels");
+        if (renderThreads < 0) throw ig::InputError("--render-threads: must be 0 or more");
+        const auto [width, height] = ig::parseSize(sizeText);
+        const std::optional<prp::PixelFormat> prpFormat = prp::parsePixelFormat(formatText);
+        if (!prpFormat) {
+            throw ig::InputError("--format '" + formatText + "': expected uyvy, y8 or rgb8");
+        }
+        const std::optional<prp::WarpModel> warp = prp::parseWarpModel(warpText);
+        if (!warp) {
+            throw ig::InputError("--warp '" + warpText +
+                                 "': expected poly, affine, homography, depth or hold");
+        }
+        if (clockText != "wall" && clockText != "simulated") {
+            throw ig::InputError("--clock '" + clockText + "': expected wall or simulated");
+        }
+        const bool simulated = clockText == "simulated";
+
+        std::string error;
+        sink = io::makeSink(outSpec, &error);
+        if (!sink) throw ig::InputError("--out " + error);
+
+        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
+
+        // Where the aircraft is: a trajectory, a stick, or the default scenario's script.
+        std::unique_ptr<sim::PoseSource> poses;
+        double flightSeconds = 10.0;
+        std::string flightName;
+        if (!trajectoryPath.empty()) {
+            sim::Trajectory trajectory = sim::Trajectory::loadCsv(trajectoryPath);
+            sim::checkTrajectoryClearance(trajectory, map, trajectoryPath);
+            flightSeconds = trajectory.endTime() - trajectory.startTime();
+            flightName = "trajectory " + trajectoryPath;
+            poses = std::make_unique<sim::TrajectoryPoses>(std::move(trajectory));
+        } else {
+            const sim::Scenario scenario = sim::defaultScenario();
+            std::unique_ptr<io::StickInput> stick;
+            if (stickSpec.empty()) {
+                stick = io::makeScriptedStick(scenario.stickScript, "default.stick", &error);
+                flightName = "default scenario";
+            } else {
+                stick = io::makeStick(stickSpec, &error);
+                flightName = "stick " + stickSpec;
+            }
+            if (!stick) throw ig::InputError("--stick: " + error);
+            sim::FlightState start =
+                shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
+            if (!startText.empty()) start = parseStart(startText, map, scenario.limits);
+            flightSeconds = scenario.duration;
+            poses =
+                std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, &map);
+        }
+        if (duration) flightSeconds = *duration;
+        if (!(flightSeconds > 0.0)) {
+            throw ig::InputError("--trajectory " + trajectoryPath +
+                                 ": spans no time; give --duration");
+        }
+
+        // Outputs: the default paths live in ./out, created here; other paths must exist.
+        if (outSpec == kDefaultOut || contactPath == kDefaultContact) {
+            std::error_code ec;
+            std::filesystem::create_directories("out", ec);
+            if (ec) throw ig::InputError("out: cannot create the folder: " + ec.message());
+        }
+        const bool wantContact = contactPath != "none" && !contactPath.empty();
+        if (wantContact) {
+            const std::string dir = parentOf(contactPath);
+            if (!dir.empty() && !std::filesystem::is_directory(dir)) {
+                throw ig::InputError("--contact " + contactPath + ": folder " + dir +
+                                     " does not exist");
+            }
+        }
+        io::VideoFormat format;
+        format.width = width;
+        format.height = height;
+        format.format = sim::toIo(*prpFormat);
+        if (sink->open(format, &error) != 0) throw ig::InputError("--out " + error);
+        const io::VideoFormat opened = sink->format();  // a copy: it outlives the sink
+
+        sim::PipelineOptions options;
+        options.duration = flightSeconds;
+        options.clock = simulated ? sim::ClockMode::Simulated : sim::ClockMode::Wall;
+        options.renderHz = renderHz;
+        options.renderThreads = renderThreads;
+        options.prp.model = *warp;
+        options.prp.agc = agc;
+        options.prp.antiTwitter = antiTwitter;
+        // Sky control points are directions: exact for the sky, and they keep a full
+        // quadratic fit when the horizon is in view (terrain alone may leave too few points).
+        options.prp.useSky = !terrainPointsOnly;
+
+        // Contact sheet: twelve woven frames spread evenly over the run (only the fields of
+        // the chosen frames are woven).
+        constexpr int kSheetColumns = 4, kSheetRows = 3;
+        std::unique_ptr<io::ContactSheet> sheet;
+        std::unique_ptr<io::FieldWeaver> weaver;
+        const std::uint64_t fields =
+            static_cast<std::uint64_t>(std::round(flightSeconds / prp::kFieldPeriod));
+        const std::uint64_t sheetEvery = std::max<std::uint64_t>(
+            1, ((fields + 1) / 2 + kSheetColumns * kSheetRows - 1) / (kSheetColumns * kSheetRows));
+        if (wantContact) {
+            sheet = std::make_unique<io::ContactSheet>(kSheetColumns, kSheetRows, 240);
+            weaver = std::make_unique<io::FieldWeaver>(opened);
+            options.onField = [&](const prp::Field&, const io::FieldBuffer& buffer) {
+                if ((buffer.index / 2) % sheetEvery != 0) return;
+                weaver->add(buffer, [&](const std::uint8_t* frame, std::size_t stride) {
+                    sheet->offer(opened, frame, stride);
+                });
+            };
+        }
+        const bool live = !quiet && isatty(STDERR_FILENO);
+        if (live) {
+            options.progress = [](const std::string& line) {
+                std::fprintf(stderr, "\r%s\033[K", line.c_str());
+            };
+        }
+
+        // The rendered frame: the output window at --fov plus margins, square pixels. The
+        // renderer's threads live in the pipeline's own arena (--render-threads).
+        sim::RenderGeometry geometry;
+        geometry.windowWidth = opened.width;
+        geometry.windowHeight = opened.height;
+        geometry.hfov = ig::degToRad(fovDeg);
+        geometry.margin = margin;
+        geometry.coverRoll = !fixedMargin;
+        const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
+        sim::FrameRenderer renderer = sim::makeCasterRenderer(map, geometry);
+        std::unique_ptr<io::FieldClock> clock =
+            simulated ? io::makeSimulatedClock() : io::makeWallClock();
+
+        std::fprintf(stderr,
+                     "flythrough: %s over %s, %.2f s, %dx%d %s fields, renders %dx%d level%s\n",
+                     flightName.c_str(), ig::describeTerrain(map).c_str(), flightSeconds,
+                     opened.width, opened.height, io::pixelFormatName(opened.format), level.width,
+                     level.height, geometry.coverRoll ? " (wider when banked)" : "");
+
+        sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
+        const sim::PipelineResult result = pipeline.run();
+        if (live) std::fprintf(stderr, "\n");
+
+        // A failed run drops its output (the sink discards it); a good one is closed, and a
+        // file appears only when it is complete.
+        if (!result.ok()) throw std::runtime_error(result.error);
+        const int closed = sink->close(&error);
+        sink.reset();
+        if (closed != 0) throw std::runtime_error(error);
+        std::fprintf(stderr, "%s", sim::formatSummary(result.stats).c_str());
+        // Where things went: stdout, unless stdout carries the JSON.
+        std::FILE* report = jsonPath == "-" ? stderr : stdout;
+        const bool file = outSpec.rfind("y4m:", 0) == 0 || outSpec.rfind("png:", 0) == 0;
+        std::fprintf(report, "video: %s\n", file ? outSpec.substr(4).c_str() : outSpec.c_str());
+        if (sheet) {
+            if (sheet->write(contactPath, &error) != 0) throw std::runtime_error(error);
+            std::fprintf(report, "contact sheet: %s (%d frames)\n", contactPath.c_str(),
+                         sheet->count());
+        }
+        if (!jsonPath.empty()) {
+            nlohmann::json j = sim::toJson(result.stats);
+            j["output"] = outSpec;
+            j["width"] = opened.width;
+            j["height"] = opened.height;
+            j["render_width_level"] = level.width;
+            j["render_height_level"] = level.height;
+            j["margin"] = margin;
+            j["roll_margin"] = geometry.coverRoll;
+            j["warp"] = warpText;
+            j["render_hz_cap"] = renderHz;
+            writeJson(jsonPath, j);
+        }
+    } catch (const ig::InputError& e) {
+        std::fprintf(stderr, "flythrough: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "flythrough: error: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

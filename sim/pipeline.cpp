@@ -1,0 +1,336 @@
+#include "sim/pipeline.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_scheduler_observer.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <thread>
+
+namespace sim {
+
+// Why it is built this way (docs/design/pipeline.md has the long form):
+// - The renderer publishes complete frames into a triple buffer; the field loop takes the newest
+//   with one atomic exchange, so a field never waits for a frame and never sees a torn one.
+// - Field slots are absolute clock times c0 + n * period (no drift from sleeping "a period").
+// - The simulated clock runs the same field loop; the renderer runs inline instead of on its
+//   own thread, with each render modelled as taking a fixed time, so every frame's
+//   availability, and so every frame age, is reproducible.
+// - Each render is aimed at the time it is expected to complete, so a fresh frame's age is
+//   about zero and ages grow while the next render runs.
+
+io::FieldParity toIo(prp::Parity parity) {
+    return parity == prp::Parity::Top ? io::FieldParity::Top : io::FieldParity::Bottom;
+}
+
+io::PixelFormat toIo(prp::PixelFormat format) {
+    switch (format) {
+        case prp::PixelFormat::Rgb8:
+            return io::PixelFormat::Rgb8;
+        case prp::PixelFormat::Y8:
+            return io::PixelFormat::Y8;
+        case prp::PixelFormat::Uyvy:
+            return io::PixelFormat::Uyvy;
+    }
+    return io::PixelFormat::Uyvy;
+}
+
+prp::PixelFormat toPrp(io::PixelFormat format) {
+    switch (format) {
+        case io::PixelFormat::Rgb8:
+            return prp::PixelFormat::Rgb8;
+        case io::PixelFormat::Y8:
+            return prp::PixelFormat::Y8;
+        case io::PixelFormat::Uyvy:
+            return prp::PixelFormat::Uyvy;
+    }
+    return prp::PixelFormat::Uyvy;
+}
+
+io::FieldBuffer toFieldBuffer(const prp::Field& field) {
+    io::FieldBuffer b;
+    b.index = field.index;
+    b.parity = toIo(field.parity);
+    b.time = field.time;
+    b.data = field.pixels.data();
+    b.stride = field.stride;
+    b.lines = field.lines;
+    return b;
+}
+
+int marginForRoll(int windowWidth, int windowHeight, double roll, double allowance, int margin) {
+    // Half extents of the window rolled by phi: (W|cos| + H|sin|) / 2 and (W|sin| + H|cos|) / 2;
+    // the worst phi within [|roll| - allowance, |roll| + allowance] (or any, past 90 degrees).
+    const double w = windowWidth, h = windowHeight;
+    const double a = std::abs(std::remainder(roll, std::numbers::pi));  // [0, pi/2]
+    const double lo = std::max(a - allowance, 0.0);
+    const double hi = std::min(a + allowance, std::numbers::pi / 2);
+    auto need = [&](double phi) {
+        const double c = std::cos(phi), s = std::sin(phi);
+        return std::max(0.5 * (w * c + h * s) - 0.5 * w, 0.5 * (w * s + h * c) - 0.5 * h);
+    };
+    double extra = std::max(need(lo), need(hi));
+    // The vertical need peaks inside the range where tan(phi) = w / h.
+    const double peak = std::atan2(w, h);
+    if (peak > lo && peak < hi) extra = std::max(extra, need(peak));
+    const double full = 0.5 * std::hypot(w, h) - 0.5 * std::min(w, h);
+    extra = std::min(extra, full);
+    const int total = margin + static_cast<int>(std::ceil(std::max(extra, 0.0)));
+    return (total + 7) / 8 * 8;
+}
+
+ig::Intrinsics renderIntrinsics(const RenderGeometry& geometry, const ig::Pose& pose) {
+    const int margin = geometry.coverRoll
+                           ? marginForRoll(geometry.windowWidth, geometry.windowHeight, pose.roll,
+                                           geometry.rollAllowance, geometry.margin)
+                           : geometry.margin;
+    return ig::Intrinsics::fromFov(geometry.windowWidth, geometry.windowHeight, geometry.hfov,
+                                   margin);
+}
+
+FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                 ig::CasterKind kind, const ig::RenderOptions& options) {
+    std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, options);
+    return [caster, &map, geometry](const ig::Pose& pose, double time, std::uint64_t sequence) {
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        return ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time,
+                               sequence);
+    };
+}
+
+namespace {
+
+// Lowers the priority of every thread that works in the renderer's arena, so the field loop
+// gets a processor as soon as it wakes, even with the renderer using every core.
+class NiceObserver final : public tbb::task_scheduler_observer {
+  public:
+    NiceObserver(tbb::task_arena& arena, int nice)
+        : tbb::task_scheduler_observer(arena), nice_(nice) {
+        if (nice_ != 0) observe(true);
+    }
+    ~NiceObserver() override { observe(false); }
+    void on_scheduler_entry(bool) override { setNice(nice_); }
+    void on_scheduler_exit(bool worker) override {
+        if (worker) setNice(0);  // workers may serve other arenas later (may be refused)
+    }
+    static void setNice(int nice) { setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice); }
+
+  private:
+    int nice_;
+};
+
+// Raises the calling thread's priority for the field loop and puts it back afterwards.
+class FieldPriority {
+  public:
+    explicit FieldPriority(bool raise) {
+        if (!raise) return;
+        pthread_t self = pthread_self();
+        if (pthread_getschedparam(self, &oldPolicy_, &oldParam_) == 0) {
+            sched_param param{};
+            param.sched_priority = std::min(20, sched_get_priority_max(SCHED_FIFO));
+            if (pthread_setschedparam(self, SCHED_FIFO, &param) == 0) {
+                realtime_ = true;
+                return;
+            }
+        }
+        errno = 0;
+        oldNice_ = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+        if (errno == 0 && setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), -10) == 0) {
+            niced_ = true;
+        }
+    }
+    ~FieldPriority() {
+        if (realtime_) pthread_setschedparam(pthread_self(), oldPolicy_, &oldParam_);
+        if (niced_) setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), oldNice_);
+    }
+    FieldPriority(const FieldPriority&) = delete;
+    FieldPriority& operator=(const FieldPriority&) = delete;
+
+  private:
+    int oldPolicy_ = SCHED_OTHER;
+    sched_param oldParam_{};
+    int oldNice_ = 0;
+    bool realtime_ = false, niced_ = false;
+};
+
+}  // namespace
+
+Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sink,
+                   io::FieldClock& clock, const PipelineOptions& options)
+    : poses_(poses),
+      renderer_(std::move(renderer)),
+      sink_(sink),
+      clock_(clock),
+      options_(options),
+      fieldCount_(static_cast<std::uint64_t>(
+          std::max(0.0, std::round(options.duration / prp::kFieldPeriod)))) {
+    options_.prp.outWidth = sink.format().width;
+    options_.prp.outHeight = sink.format().height;
+    options_.prp.format = toPrp(sink.format().format);
+}
+
+Pipeline::~Pipeline() = default;
+
+ig::RenderedFrame Pipeline::renderAt(double poseTime, std::uint64_t sequence) {
+    return renderer_(poses_.predict(poseTime), poseTime, sequence);
+}
+
+void Pipeline::publish(ig::RenderedFrame&& frame) {
+    frames_.back() = std::move(frame);
+    frames_.publish();
+}
+
+void Pipeline::renderLoop() {
+    tbb::task_arena arena(options_.renderThreads > 0 ? options_.renderThreads
+                                                     : tbb::task_arena::automatic);
+    arena.initialize();
+    NiceObserver nice(arena, options_.renderNice);
+    if (options_.renderNice != 0) NiceObserver::setNice(options_.renderNice);
+    std::uint64_t sequence = 1;
+    std::uint64_t slot = 1;
+    try {
+        while (!stop_.load(std::memory_order_acquire)) {
+            double start = clock_.now();
+            if (options_.renderHz > 0.0) {
+                // Capped: renders start on a fixed grid of slots; an overrun skips to the next.
+                const double period = 1.0 / options_.renderHz;
+                const double behind = std::ceil((start - c0_) / period - 1e-9);
+                slot = std::max<std::uint64_t>(slot,
+                                               static_cast<std::uint64_t>(std::max(behind, 0.0)));
+                const double at = c0_ + static_cast<double>(slot) * period;
+                ++slot;
+                if (at > start) {
+                    clock_.sleepUntil(at);
+                    if (stop_.load(std::memory_order_acquire)) break;
+                    start = clock_.now();
+                }
+            }
+            const double poseTime = t0_ + (start - c0_) + renderEstimate_;
+            ig::RenderedFrame frame;
+            arena.execute([&] { frame = renderAt(poseTime, sequence); });
+            if (options_.renderStall) {
+                const double stall = options_.renderStall(sequence);
+                if (stall > 0.0) clock_.sleepUntil(clock_.now() + stall);
+            }
+            const double took = clock_.now() - start;
+            renderEstimate_ = 0.75 * renderEstimate_ + 0.25 * took;
+            stats_.addFrame(took * 1e3);
+            publish(std::move(frame));
+            ++sequence;
+        }
+    } catch (...) {
+        renderError_ = std::current_exception();
+        renderFailed_.store(true, std::memory_order_release);
+    }
+    renderEndClock_ = clock_.now();
+}
+
+void Pipeline::renderSimulatedUntil(double t) {
+    const double period =
+        1.0 / (options_.renderHz > 0.0 ? options_.renderHz : options_.simulatedRenderHz);
+    constexpr double kEps = 1e-9;
+    for (;;) {
+        if (pending_) {
+            if (pendingCompletion_ > t + kEps) return;
+            publish(std::move(pendingFrame_));
+            pending_ = false;
+            nextRenderStart_ = pendingCompletion_;
+        }
+        if (nextRenderStart_ > t + kEps) return;
+        // A render starting now (simulated): aimed at its nominal completion; a stall makes
+        // it late without the renderer knowing beforehand.
+        const double aim = nextRenderStart_ + period;
+        pendingFrame_ = renderAt(aim, nextSequence_);
+        const double stall = options_.renderStall ? options_.renderStall(nextSequence_) : 0.0;
+        pendingCompletion_ = aim + std::max(stall, 0.0);
+        stats_.addFrame((pendingCompletion_ - nextRenderStart_) * 1e3);
+        pending_ = true;
+        ++nextSequence_;
+    }
+}
+
+PipelineResult Pipeline::run() {
+    PipelineResult result;
+    const bool simulated = options_.clock == ClockMode::Simulated;
+    prp::PostRenderingProcessor processor(options_.prp);
+    stats_.reserve(fieldCount_);
+
+    // Frame 0 is rendered before the first slot, at the start pose, so field 0 has a frame.
+    t0_ = poses_.startTime();
+    const double before = clock_.now();
+    publish(renderAt(t0_, 0));
+    frames_.fetch();
+    renderEstimate_ = clock_.now() - before;
+    c0_ = clock_.now() + (simulated ? 0.0 : options_.startDelay);
+    nextRenderStart_ = t0_;
+    renderStartClock_ = c0_;
+
+    // The renderer thread stops and is joined on every way out of this function.
+    struct RendererThread {
+        std::atomic<bool>& stop;
+        std::thread thread;
+        ~RendererThread() { join(); }
+        void join() {
+            stop.store(true, std::memory_order_release);
+            if (thread.joinable()) thread.join();
+        }
+    } renderer{stop_, {}};
+    if (!simulated) renderer.thread = std::thread([this] { renderLoop(); });
+    const FieldPriority priority(!simulated && options_.raiseFieldPriority);
+
+    prp::Field field;
+    double nextProgress = c0_;
+    std::uint64_t missed = 0;
+    for (std::uint64_t n = 0; n < fieldCount_; ++n) {
+        const double deadline = c0_ + static_cast<double>(n) * prp::kFieldPeriod;
+        clock_.sleepUntil(deadline);
+        if (renderFailed_.load(std::memory_order_acquire)) break;
+        const double t = prp::fieldTime(t0_, n);
+        if (simulated) renderSimulatedUntil(t);
+        const ig::Pose pose = poses_.advanceTo(t);
+        frames_.fetch();
+        processor.process(frames_.front(), pose, t, n, field);
+        const io::FieldBuffer buffer = toFieldBuffer(field);
+        const int rc = sink_.writeField(buffer);
+        const double handoff = clock_.now();
+        if (rc < 0) {
+            result.sinkError = rc;
+            result.error = "the output refused field " + std::to_string(n) + " (error " +
+                           std::to_string(-rc) + ")";
+            break;
+        }
+        stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
+                         field.frameSequence});
+        if (handoff > deadline + prp::kFieldPeriod) ++missed;
+        if (options_.onField) options_.onField(field, buffer);
+        if (options_.progress && handoff >= nextProgress) {
+            nextProgress = handoff + 0.25;
+            const std::size_t done = stats_.records().size();
+            const double elapsed = std::max(handoff - c0_, 1e-9);
+            char line[200];
+            std::snprintf(line, sizeof line,
+                          "field %zu/%llu  t %.2f s  missed %llu  frame age %.0f ms  "
+                          "render %.1f fps",
+                          done, static_cast<unsigned long long>(fieldCount_), t - t0_,
+                          static_cast<unsigned long long>(missed), field.frameAge * 1e3,
+                          static_cast<double>(stats_.framesRendered()) / elapsed);
+            options_.progress(line);
+        }
+    }
+
+    renderer.join();
+    if (renderError_) std::rethrow_exception(renderError_);
+    if (simulated) renderEndClock_ = clock_.now();
+    result.stats = stats_.summarize(renderEndClock_ - renderStartClock_, simulated);
+    return result;
+}
+
+}  // namespace sim

@@ -1,0 +1,136 @@
+// The real-time loop: async renderer -> latest-frame mailbox -> field loop on deadlines -> sink.
+#pragma once
+
+#include "ig/caster.hpp"
+#include "ig/frame.hpp"
+#include "io/field_clock.hpp"
+#include "io/frame_sink.hpp"
+#include "prp/processor.hpp"
+#include "sim/mailbox.hpp"
+#include "sim/pose_source.hpp"
+#include "sim/stats.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace sim {
+
+enum class ClockMode { Wall, Simulated };
+
+// Renders one frame for simulation time `time`. `pose` is the full predicted pose, roll
+// included: the frame itself is rendered at roll 0 (the PRP applies roll), and the roll may
+// size its margins. One thread at a time.
+using FrameRenderer =
+    std::function<ig::RenderedFrame(const ig::Pose& pose, double time, std::uint64_t sequence)>;
+
+// What the renderer renders: the output window at a horizontal field of view, with margins.
+struct RenderGeometry {
+    int windowWidth = 720;
+    int windowHeight = 486;
+    double hfov = 1.0471975511965976;  // 60 degrees
+    int margin = 48;                   // for motion between a frame and its fields
+    // Widen the margin with |roll| so the rolled window stays inside the frame.
+    bool coverRoll = true;
+    double rollAllowance = 0.05;  // radians of roll change a frame should still cover
+};
+
+// Margin that keeps a window rolled by up to |roll| + allowance inside the rendered frame, plus
+// `margin` (rounded up to a multiple of 8; never more than covering every roll needs).
+int marginForRoll(int windowWidth, int windowHeight, double roll, double allowance, int margin);
+// Intrinsics a frame at `pose` gets.
+ig::Intrinsics renderIntrinsics(const RenderGeometry& geometry, const ig::Pose& pose);
+
+// A caster over `map` rendering `geometry` (the map must outlive the renderer).
+FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                 ig::CasterKind kind = ig::CasterKind::Fast,
+                                 const ig::RenderOptions& options = {});
+
+struct PipelineOptions {
+    double duration = 10.0;  // simulated seconds; fields = round(duration / field period)
+    ClockMode clock = ClockMode::Wall;
+    double renderHz = 0.0;  // cap on the render rate; 0: as fast as it can
+    // Simulated clock with no cap: a render is modelled as taking 1 / simulatedRenderHz.
+    double simulatedRenderHz = 12.0;
+    int renderThreads = 0;  // worker threads of the renderer's own task arena; 0: default
+    // Nice value for the renderer's threads (0: leave them be).
+    int renderNice = 0;
+    // Wall clock: run the field loop at real-time priority (SCHED_FIFO) when the system allows
+    // it, else at a raised nice when allowed; restored after the run.
+    bool raiseFieldPriority = true;
+    double startDelay = 0.05;  // wall clock: seconds from the first frame to the first field slot
+    prp::PrpOptions prp;
+    // Extra seconds render `sequence` takes (wall: it sleeps; simulated: added to its time).
+    std::function<double(std::uint64_t sequence)> renderStall;
+    // After the sink took a field (field thread).
+    std::function<void(const prp::Field&, const io::FieldBuffer&)> onField;
+    // About four times a second with a one-line status (field thread).
+    std::function<void(const std::string&)> progress;
+};
+
+struct PipelineResult {
+    StatsSummary stats;
+    int sinkError = 0;  // first error a sink call returned (-errno), 0 if none
+    std::string error;  // what stopped the run early, empty when it ran to the end
+    bool ok() const { return error.empty(); }
+};
+
+// Renders asynchronously into a mailbox and emits round(duration / field period) fields, each
+// warped to its own instant (docs/design/pipeline.md). One run per object.
+class Pipeline {
+  public:
+    // `sink` must be open; its format is the output format (the PRP's size and pixel format
+    // follow it). Nothing is started before run().
+    Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sink, io::FieldClock& clock,
+             const PipelineOptions& options);
+    ~Pipeline();
+    Pipeline(const Pipeline&) = delete;
+    Pipeline& operator=(const Pipeline&) = delete;
+
+    // Runs every field. A render that throws (ig::InputError for a bad pose) ends the run and
+    // is rethrown here once the renderer has stopped.
+    PipelineResult run();
+
+    std::uint64_t fieldCount() const { return fieldCount_; }
+    const StatsCollector& stats() const { return stats_; }
+
+  private:
+    void renderLoop();
+    void renderSimulatedUntil(double t);
+    ig::RenderedFrame renderAt(double poseTime, std::uint64_t sequence);
+    void publish(ig::RenderedFrame&& frame);
+
+    PoseSource& poses_;
+    FrameRenderer renderer_;
+    io::FrameSink& sink_;
+    io::FieldClock& clock_;
+    PipelineOptions options_;
+    std::uint64_t fieldCount_;
+    double t0_ = 0.0;              // simulation time of field 0
+    double c0_ = 0.0;              // clock time of field 0's slot
+    double renderEstimate_ = 0.0;  // seconds a render is expected to take (wall)
+    StatsCollector stats_;
+    Mailbox<ig::RenderedFrame> frames_;
+    std::atomic<bool> stop_{false};
+    std::exception_ptr renderError_;
+    std::atomic<bool> renderFailed_{false};
+    double renderStartClock_ = 0.0, renderEndClock_ = 0.0;
+
+    // Simulated clock renderer state.
+    std::uint64_t nextSequence_ = 1;
+    double nextRenderStart_ = 0.0;
+    bool pending_ = false;
+    double pendingCompletion_ = 0.0;
+    ig::RenderedFrame pendingFrame_;
+};
+
+// prp / io conversions (the two modules do not know each other).
+io::FieldParity toIo(prp::Parity parity);
+io::PixelFormat toIo(prp::PixelFormat format);
+prp::PixelFormat toPrp(io::PixelFormat format);
+io::FieldBuffer toFieldBuffer(const prp::Field& field);
+
+}  // namespace sim

@@ -1,0 +1,132 @@
+#include "sim/stats.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace sim {
+
+Percentiles percentiles(std::vector<double> values) {
+    Percentiles p;
+    if (values.empty()) return p;
+    std::sort(values.begin(), values.end());
+    const auto rank = [&](double q) {
+        const double r = std::ceil(q * static_cast<double>(values.size()));
+        const std::size_t i = static_cast<std::size_t>(std::max(r, 1.0)) - 1;
+        return values[std::min(i, values.size() - 1)];
+    };
+    p.p50 = rank(0.50);
+    p.p99 = rank(0.99);
+    p.max = values.back();
+    return p;
+}
+
+void StatsCollector::addFrame(double renderMs) {
+    frames_.fetch_add(1, std::memory_order_relaxed);
+    const double us = std::max(renderMs, 0.0) * 1000.0;
+    renderMicros_.fetch_add(static_cast<std::uint64_t>(us + 0.5), std::memory_order_relaxed);
+}
+
+StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock) const {
+    StatsSummary s;
+    s.simulatedClock = simulatedClock;
+    s.fields = records_.size();
+    s.framesRendered = frames_.load();
+    if (s.framesRendered > 0) {
+        s.renderMsMean = static_cast<double>(renderMicros_.load()) / 1000.0 /
+                         static_cast<double>(s.framesRendered);
+    }
+    if (renderSeconds > 0.0) s.renderFps = static_cast<double>(s.framesRendered) / renderSeconds;
+
+    std::vector<double> intervals, jitter, lateness, ages, warps;
+    intervals.reserve(records_.size());
+    jitter.reserve(records_.size());
+    lateness.reserve(records_.size());
+    ages.reserve(records_.size());
+    warps.reserve(records_.size());
+    std::uint64_t lastSequence = ~std::uint64_t{0};
+    for (std::size_t i = 0; i < records_.size(); ++i) {
+        const FieldRecord& r = records_[i];
+        if (i > 0) {
+            const double interval = r.handoff - records_[i - 1].handoff;
+            intervals.push_back(interval * 1e3);
+            jitter.push_back(std::abs(interval - prp::kFieldPeriod) * 1e3);
+        }
+        lateness.push_back((r.handoff - r.deadline) * 1e3);
+        if (r.handoff > r.deadline + prp::kFieldPeriod) ++s.missedDeadlines;
+        ages.push_back(r.frameAge * 1e3);
+        warps.push_back(r.warpMs);
+        if (r.fallback != prp::Fallback::None) {
+            ++s.fallbacks;
+        }
+        ++s.fallbacksByKind[static_cast<std::size_t>(r.fallback)];
+        if (r.frameSequence != lastSequence) {
+            ++s.framesShown;
+            lastSequence = r.frameSequence;
+        }
+    }
+    if (!records_.empty()) s.elapsedSeconds = records_.back().handoff - records_.front().deadline;
+    s.fieldIntervalMs = percentiles(std::move(intervals));
+    s.jitterMs = percentiles(std::move(jitter));
+    s.latenessMs = percentiles(std::move(lateness));
+    s.frameAgeMs = percentiles(std::move(ages));
+    s.warpMs = percentiles(std::move(warps));
+    return s;
+}
+
+namespace {
+nlohmann::json toJson(const Percentiles& p) {
+    return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}};
+}
+}  // namespace
+
+nlohmann::json toJson(const StatsSummary& s) {
+    nlohmann::json byKind = nlohmann::json::object();
+    for (prp::Fallback f : {prp::Fallback::Affine, prp::Fallback::Rotation, prp::Fallback::Hold}) {
+        byKind[std::string(prp::fallbackName(f))] = s.fallbacksByKind[static_cast<std::size_t>(f)];
+    }
+    return {
+        {"fields", s.fields},
+        {"missed_deadlines", s.missedDeadlines},
+        {"field_interval_ms", toJson(s.fieldIntervalMs)},
+        {"field_jitter_ms", toJson(s.jitterMs)},
+        {"field_lateness_ms", toJson(s.latenessMs)},
+        {"frame_age_ms", toJson(s.frameAgeMs)},
+        {"warp_ms", toJson(s.warpMs)},
+        {"render_fps", s.renderFps},
+        {"render_ms_mean", s.renderMsMean},
+        {"frames_rendered", s.framesRendered},
+        {"frames_shown", s.framesShown},
+        {"fallbacks", s.fallbacks},
+        {"fallbacks_by_kind", byKind},
+        {"elapsed_s", s.elapsedSeconds},
+        {"clock", s.simulatedClock ? "simulated" : "wall"},
+    };
+}
+
+std::string formatSummary(const StatsSummary& s) {
+    char buf[1024];
+    std::snprintf(buf, sizeof buf,
+                  "fields          %llu in %.2f s (%s clock), missed deadlines %llu\n"
+                  "field interval  p50 %.3f  p99 %.3f  max %.3f ms (jitter p99 %.3f  max %.3f ms)\n"
+                  "frame age       p50 %.1f  p99 %.1f  max %.1f ms\n"
+                  "renderer        %.1f fps, %.1f ms per frame, %llu frames (%llu shown)\n"
+                  "warp            p50 %.2f  p99 %.2f  max %.2f ms, fallbacks %llu "
+                  "(affine %llu, rotation %llu, hold %llu)\n",
+                  static_cast<unsigned long long>(s.fields), s.elapsedSeconds,
+                  s.simulatedClock ? "simulated" : "wall",
+                  static_cast<unsigned long long>(s.missedDeadlines), s.fieldIntervalMs.p50,
+                  s.fieldIntervalMs.p99, s.fieldIntervalMs.max, s.jitterMs.p99, s.jitterMs.max,
+                  s.frameAgeMs.p50, s.frameAgeMs.p99, s.frameAgeMs.max, s.renderFps, s.renderMsMean,
+                  static_cast<unsigned long long>(s.framesRendered),
+                  static_cast<unsigned long long>(s.framesShown), s.warpMs.p50, s.warpMs.p99,
+                  s.warpMs.max, static_cast<unsigned long long>(s.fallbacks),
+                  static_cast<unsigned long long>(s.fallbacksByKind[1]),
+                  static_cast<unsigned long long>(s.fallbacksByKind[2]),
+                  static_cast<unsigned long long>(s.fallbacksByKind[3]));
+    return buf;
+}
+
+}  // namespace sim

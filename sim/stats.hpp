@@ -1,0 +1,79 @@
+// Pipeline statistics: per-field records, percentiles, the end-of-run summary, progress and JSON.
+#pragma once
+
+#include "prp/field.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sim {
+
+struct Percentiles {
+    double p50 = 0.0;
+    double p99 = 0.0;
+    double max = 0.0;
+};
+// Nearest-rank percentiles of `values` (all zero when empty).
+Percentiles percentiles(std::vector<double> values);
+
+// What the field loop records for one field. Times in clock seconds.
+struct FieldRecord {
+    double deadline = 0.0;  // when the field's slot began (the loop woke for it)
+    double handoff = 0.0;   // when the sink had it
+    double frameAge = 0.0;  // field time - frame pose time, seconds
+    double warpMs = 0.0;
+    prp::Fallback fallback = prp::Fallback::None;
+    std::uint64_t frameSequence = 0;
+};
+
+struct StatsSummary {
+    std::uint64_t fields = 0;
+    std::uint64_t missedDeadlines = 0;  // fields handed over after their slot ended
+    std::uint64_t framesRendered = 0;
+    std::uint64_t framesShown = 0;                   // distinct frames the fields came from
+    std::uint64_t fallbacks = 0;                     // fields whose warp fell back
+    std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
+    Percentiles fieldIntervalMs;                     // between successive hand-offs
+    Percentiles jitterMs;                            // |interval - field period|
+    Percentiles latenessMs;                          // hand-off - slot start
+    Percentiles frameAgeMs;
+    Percentiles warpMs;
+    double renderFps = 0.0;
+    double renderMsMean = 0.0;
+    double elapsedSeconds = 0.0;  // clock seconds from the first slot to the last hand-off
+    bool simulatedClock = false;
+};
+
+// Collects field records (field thread) and frame counts (renderer thread).
+class StatsCollector {
+  public:
+    void reserve(std::size_t fields) { records_.reserve(fields); }
+    // Field thread; allocation-free while within the reserved size.
+    void addField(const FieldRecord& record) { records_.push_back(record); }
+    // Renderer thread.
+    void addFrame(double renderMs);
+
+    const std::vector<FieldRecord>& records() const { return records_; }
+    std::uint64_t framesRendered() const { return frames_.load(std::memory_order_relaxed); }
+
+    // renderSeconds: clock seconds over which frames were rendered (for the frame rate).
+    StatsSummary summarize(double renderSeconds, bool simulatedClock) const;
+
+  private:
+    std::vector<FieldRecord> records_;
+    std::atomic<std::uint64_t> frames_{0};
+    std::atomic<std::uint64_t> renderMicros_{0};
+};
+
+// `{"fields": n, "missed_deadlines": n, "field_interval_ms": {...}, "frame_age_ms": {...},
+//   "render_fps": x, "fallbacks": n, ...}`.
+nlohmann::json toJson(const StatsSummary& summary);
+// Several human-readable lines.
+std::string formatSummary(const StatsSummary& summary);
+
+}  // namespace sim

@@ -1,0 +1,332 @@
+#include "sim/pipeline.hpp"
+
+#include "ig/error.hpp"
+#include "ig/synthetic.hpp"
+#include "io/field_clock.hpp"
+#include "io/stick.hpp"
+#include "sim/pose_source.hpp"
+#include "sim/scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace {
+
+constexpr double kPeriod = 1001.0 / 60000.0;
+
+// Remembers what every field looked like when it reached the sink.
+class RecordingSink final : public io::FrameSink {
+  public:
+    struct Seen {
+        std::uint64_t index;
+        io::FieldParity parity;
+        double time;
+        int lines;
+        std::uint64_t checksum;
+    };
+
+    int open(const io::VideoFormat& format, std::string*) override {
+        format_ = format;
+        return 0;
+    }
+    int writeField(const io::FieldBuffer& field) override {
+        if (failAt >= 0 && field.index == static_cast<std::uint64_t>(failAt)) return -28;  // ENOSPC
+        std::uint64_t sum = 1469598103934665603ull;
+        for (int l = 0; l < field.lines; ++l) {
+            const std::uint8_t* row = field.data + l * field.stride;
+            for (std::size_t i = 0; i < field.stride; ++i)
+                sum = (sum ^ row[i]) * 1099511628211ull;
+        }
+        seen.push_back({field.index, field.parity, field.time, field.lines, sum});
+        return 0;
+    }
+    int close(std::string*) override { return 0; }
+    const io::VideoFormat& format() const override { return format_; }
+
+    std::vector<Seen> seen;
+    int failAt = -1;
+
+  private:
+    io::VideoFormat format_;
+};
+
+// Records the instants the field loop asks the simulation for.
+class RecordingPoses final : public sim::PoseSource {
+  public:
+    explicit RecordingPoses(sim::PoseSource& inner) : inner_(inner) {}
+    ig::Pose advanceTo(double t) override {
+        fieldTimes.push_back(t);
+        return inner_.advanceTo(t);
+    }
+    ig::Pose predict(double t) override { return inner_.predict(t); }
+    double startTime() const override { return inner_.startTime(); }
+    std::vector<double> fieldTimes;
+
+  private:
+    sim::PoseSource& inner_;
+};
+
+// A small map (3.8 km square) and a slow aircraft over its south-west, heading north-east.
+struct World {
+    ig::TerrainMap map = ig::makeSyntheticTerrain(128, 11, 30.0);
+    sim::FlightLimits limits;
+    sim::FlightState start;
+
+    World() {
+        limits.cruiseSpeed = 120.0;
+        start = sim::startOverMap(map, limits);
+    }
+
+    std::unique_ptr<sim::StickFlight> flight(std::string_view script) {
+        std::string error;
+        auto stick = io::makeScriptedStick(script, "test.stick", &error);
+        EXPECT_TRUE(stick) << error;
+        return std::make_unique<sim::StickFlight>(std::move(stick), start, limits, &map);
+    }
+
+    sim::FrameRenderer renderer() {
+        sim::RenderGeometry geometry;
+        geometry.windowWidth = 128;
+        geometry.windowHeight = 96;
+        geometry.margin = 8;
+        return sim::makeCasterRenderer(map, geometry);
+    }
+};
+
+constexpr std::string_view kGentleScript =
+    "0.5 axis roll 0.3 ramp 0.2\n"
+    "1.0 axis roll 0 ramp 0.2\n"
+    "2.0 axis pitch 0.3\n"
+    "3.0 axis pitch 0\n";
+
+struct PipelineRun {
+    sim::PipelineResult result;
+    std::vector<RecordingSink::Seen> seen;
+    std::vector<double> fieldTimes;
+    std::vector<sim::FieldRecord> records;
+    std::vector<double> frameTimes;  // per field: the pose time of the frame it came from
+};
+
+PipelineRun runPipeline(World& world, sim::PipelineOptions options, std::string_view script) {
+    auto flight = world.flight(script);
+    RecordingPoses poses(*flight);
+    RecordingSink sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
+    std::unique_ptr<io::FieldClock> clock =
+        options.clock == sim::ClockMode::Simulated ? io::makeSimulatedClock() : io::makeWallClock();
+    PipelineRun run;
+    options.onField = [&](const prp::Field& field, const io::FieldBuffer&) {
+        run.frameTimes.push_back(field.frameTime);
+    };
+    sim::Pipeline pipeline(poses, world.renderer(), sink, *clock, options);
+    run.result = pipeline.run();
+    run.seen = sink.seen;
+    run.fieldTimes = poses.fieldTimes;
+    run.records = pipeline.stats().records();
+    return run;
+}
+
+TEST(Pipeline, SimulatedTenSecondsGivesEveryFieldAtItsInstant) {
+    World world;
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 10.0;
+    options.simulatedRenderHz = 6.0;  // few renders: this test is about the fields
+    const PipelineRun run = runPipeline(world, options, kGentleScript);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+
+    const std::size_t expected = static_cast<std::size_t>(std::lround(10.0 * 60000.0 / 1001.0));
+    ASSERT_EQ(expected, 599u);
+    ASSERT_EQ(run.seen.size(), expected);
+    ASSERT_EQ(run.fieldTimes.size(), expected);
+    EXPECT_EQ(run.result.stats.fields, expected);
+    EXPECT_EQ(run.result.stats.missedDeadlines, 0u);
+    const double t0 = world.start.time;
+    const double renderPeriod = 1.0 / options.simulatedRenderHz;
+    for (std::size_t n = 0; n < expected; ++n) {
+        SCOPED_TRACE(n);
+        EXPECT_EQ(run.seen[n].index, n);
+        EXPECT_EQ(run.seen[n].parity, n % 2 == 0 ? io::FieldParity::Bottom : io::FieldParity::Top);
+        EXPECT_EQ(run.seen[n].lines, 48);
+        const double want = t0 + static_cast<double>(n) * kPeriod;
+        EXPECT_NEAR(run.seen[n].time, want, 1e-9);
+        EXPECT_NEAR(run.fieldTimes[n], want, 1e-9);  // the pose is the field's own instant
+        // Each render aims at its completion, so a frame is never older than one render.
+        const double age = run.seen[n].time - run.frameTimes[n];
+        EXPECT_GE(age, -1e-9);
+        EXPECT_LT(age, renderPeriod + 1e-9);
+        EXPECT_NEAR(run.records[n].frameAge, age, 1e-9);
+        // Simulated time: every field leaves exactly at its slot.
+        EXPECT_NEAR(run.records[n].handoff - run.records[n].deadline, 0.0, 1e-12);
+    }
+    // Six renders a second, every one of them shown.
+    EXPECT_NEAR(static_cast<double>(run.result.stats.framesRendered), 10.0 * 6.0, 1.0);
+    EXPECT_GE(run.result.stats.framesShown, run.result.stats.framesRendered);
+}
+
+TEST(Pipeline, SimulatedRunsAreReproducible) {
+    World world;
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 1.5;
+    options.renderHz = 20.0;
+    const PipelineRun a = runPipeline(world, options, kGentleScript);
+    const PipelineRun b = runPipeline(world, options, kGentleScript);
+    ASSERT_EQ(a.seen.size(), b.seen.size());
+    for (std::size_t n = 0; n < a.seen.size(); ++n) {
+        EXPECT_EQ(a.seen[n].checksum, b.seen[n].checksum) << n;
+        EXPECT_EQ(a.records[n].frameSequence, b.records[n].frameSequence) << n;
+        EXPECT_EQ(a.records[n].frameAge, b.records[n].frameAge) << n;
+    }
+    // Capped at 20 Hz: frames are never older than 1/20 s.
+    for (const sim::FieldRecord& r : a.records)
+        EXPECT_LT(r.frameAge, 0.05 + 1e-9);
+}
+
+TEST(Pipeline, StalledRendererNeverDelaysAField) {
+    World world;
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 4.0;
+    const std::uint64_t stalled = 20;  // starts at 19/12 s, about 1.6 s in
+    options.renderStall = [&](std::uint64_t sequence) { return sequence == stalled ? 0.5 : 0.0; };
+    const PipelineRun run = runPipeline(world, options, kGentleScript);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    const std::size_t expected = static_cast<std::size_t>(std::lround(4.0 / kPeriod));
+    ASSERT_EQ(run.seen.size(), expected);
+    EXPECT_EQ(run.result.stats.missedDeadlines, 0u);
+
+    const double renderPeriod = 1.0 / options.simulatedRenderHz;
+    double maxAge = 0.0;
+    std::size_t staleFields = 0;
+    for (std::size_t n = 0; n < run.records.size(); ++n) {
+        const sim::FieldRecord& r = run.records[n];
+        EXPECT_NEAR(r.handoff, r.deadline, 1e-12) << n;  // on time, stall or not
+        EXPECT_NEAR(run.seen[n].time, static_cast<double>(n) * kPeriod, 1e-9);
+        maxAge = std::max(maxAge, r.frameAge);
+        if (r.frameAge > renderPeriod + 1e-9) ++staleFields;
+    }
+    // The stall shows as old frames: up to the stall plus one render, for as long (the stalled
+    // frame itself arrives 0.5 s after the instant it was aimed at).
+    EXPECT_GE(maxAge, 0.5);
+    EXPECT_LT(maxAge, 0.5 + renderPeriod + 1e-9);
+    EXPECT_NEAR(static_cast<double>(staleFields) * kPeriod, 0.5 + renderPeriod, 2 * kPeriod);
+    EXPECT_NEAR(run.result.stats.frameAgeMs.max, maxAge * 1e3, 1e-6);
+}
+
+TEST(Pipeline, WallClockRendererStallShowsInFrameAge) {
+    // Same loop on the wall clock with a real renderer thread. Only structure is asserted (the
+    // machine may be busy): every field out in order, and the stall visible in the frame age.
+    World world;
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Wall;
+    options.duration = 0.6;
+    options.renderThreads = 1;
+    options.renderStall = [](std::uint64_t sequence) { return sequence == 3 ? 0.3 : 0.0; };
+    const PipelineRun run = runPipeline(world, options, kGentleScript);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    const std::size_t expected = static_cast<std::size_t>(std::lround(0.6 / kPeriod));
+    ASSERT_EQ(run.seen.size(), expected);
+    for (std::size_t n = 0; n < expected; ++n) {
+        EXPECT_EQ(run.seen[n].index, n);
+        EXPECT_NEAR(run.fieldTimes[n], static_cast<double>(n) * kPeriod, 1e-9);
+        if (n > 0) {
+            EXPECT_GE(run.records[n].handoff, run.records[n - 1].handoff);
+        }
+        EXPECT_GE(run.records[n].handoff, run.records[n].deadline);
+    }
+    EXPECT_GE(run.result.stats.frameAgeMs.max, 250.0);
+    EXPECT_GE(run.result.stats.framesRendered, 3u);
+}
+
+TEST(Pipeline, SinkErrorStopsTheRun) {
+    World world;
+    auto flight = world.flight("");
+    RecordingSink sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Y8}, &error);
+    sink.failAt = 10;
+    auto clock = io::makeSimulatedClock();
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 1.0;
+    sim::Pipeline pipeline(*flight, world.renderer(), sink, *clock, options);
+    const sim::PipelineResult result = pipeline.run();
+    EXPECT_FALSE(result.ok());
+    EXPECT_EQ(result.sinkError, -28);
+    EXPECT_NE(result.error.find("field 10"), std::string::npos) << result.error;
+    EXPECT_EQ(sink.seen.size(), 10u);
+}
+
+TEST(Pipeline, RenderFailureIsReported) {
+    World world;
+    auto flight = world.flight("");
+    RecordingSink sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
+    auto clock = io::makeSimulatedClock();
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 1.0;
+    sim::FrameRenderer inner = world.renderer();
+    sim::FrameRenderer failing = [&](const ig::Pose& pose, double t, std::uint64_t sequence) {
+        if (sequence == 4) throw ig::InputError("test renderer: frame 4 refused");
+        return inner(pose, t, sequence);
+    };
+    sim::Pipeline pipeline(*flight, failing, sink, *clock, options);
+    EXPECT_THROW(pipeline.run(), ig::InputError);
+}
+
+TEST(Pipeline, BadFrameFromTheRendererThreadStopsTheRunCleanly) {
+    // The PRP refuses a frame whose buffers do not match its intrinsics; with a live renderer
+    // thread the run must still stop, join it and report (not terminate).
+    World world;
+    auto flight = world.flight("");
+    RecordingSink sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
+    auto clock = io::makeWallClock();
+    sim::PipelineOptions options;
+    options.duration = 0.5;
+    options.raiseFieldPriority = false;
+    sim::FrameRenderer inner = world.renderer();
+    sim::FrameRenderer broken = [&](const ig::Pose& pose, double t, std::uint64_t sequence) {
+        ig::RenderedFrame frame = inner(pose, t, sequence);
+        if (sequence >= 1) frame.color.resize(frame.color.size() / 2);
+        return frame;
+    };
+    sim::Pipeline pipeline(*flight, broken, sink, *clock, options);
+    EXPECT_THROW(pipeline.run(), ig::InputError);
+}
+
+TEST(FieldConversion, EnumsAndBuffersMatch) {
+    EXPECT_EQ(sim::toIo(prp::Parity::Top), io::FieldParity::Top);
+    EXPECT_EQ(sim::toIo(prp::Parity::Bottom), io::FieldParity::Bottom);
+    for (prp::PixelFormat f :
+         {prp::PixelFormat::Rgb8, prp::PixelFormat::Y8, prp::PixelFormat::Uyvy}) {
+        EXPECT_EQ(sim::toPrp(sim::toIo(f)), f);
+        EXPECT_EQ(io::bytesPerPixel(sim::toIo(f)), prp::bytesPerPixel(f));
+    }
+    prp::Field field;
+    field.index = 7;
+    field.parity = prp::Parity::Top;
+    field.time = 1.25;
+    field.lines = 3;
+    field.stride = 10;
+    field.pixels.resize(30);
+    const io::FieldBuffer b = sim::toFieldBuffer(field);
+    EXPECT_EQ(b.index, 7u);
+    EXPECT_EQ(b.parity, io::FieldParity::Top);
+    EXPECT_EQ(b.time, 1.25);
+    EXPECT_EQ(b.lines, 3);
+    EXPECT_EQ(b.stride, 10u);
+    EXPECT_EQ(b.data, field.pixels.data());
+}
+
+}  // namespace

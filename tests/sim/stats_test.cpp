@@ -1,0 +1,71 @@
+#include "sim/stats.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+namespace {
+
+TEST(Percentiles, NearestRankOnKnownSets) {
+    for (int n : {1, 2, 10, 100, 1000}) {
+        std::vector<double> v;
+        for (int i = 1; i <= n; ++i)
+            v.push_back(i);
+        std::shuffle(v.begin(), v.end(), std::mt19937(n));
+        const sim::Percentiles p = sim::percentiles(v);
+        EXPECT_EQ(p.max, n);
+        EXPECT_EQ(p.p50, std::ceil(0.5 * n));
+        EXPECT_EQ(p.p99, std::ceil(0.99 * n));
+        EXPECT_LE(p.p50, p.p99);
+    }
+    const sim::Percentiles empty = sim::percentiles({});
+    EXPECT_EQ(empty.max, 0.0);
+}
+
+TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
+    sim::StatsCollector c;
+    const double T = prp::kFieldPeriod;
+    const int n = 200;
+    for (int i = 0; i < n; ++i) {
+        sim::FieldRecord r;
+        r.deadline = i * T;
+        // Every 50th field is handed over 1.5 periods late (a miss); others 1 ms after the slot.
+        r.handoff = r.deadline + (i % 50 == 49 ? 1.5 * T : 0.001);
+        r.frameAge = 0.01 * (i % 5);
+        r.warpMs = 2.0;
+        r.frameSequence = static_cast<std::uint64_t>(i / 5);
+        r.fallback = i % 40 == 0 ? prp::Fallback::Affine : prp::Fallback::None;
+        c.addField(r);
+    }
+    for (int i = 0; i < 10; ++i)
+        c.addFrame(50.0);
+    const sim::StatsSummary s = c.summarize(2.0, true);
+    EXPECT_EQ(s.fields, static_cast<std::uint64_t>(n));
+    EXPECT_EQ(s.missedDeadlines, static_cast<std::uint64_t>(n / 50));
+    EXPECT_EQ(s.framesShown, static_cast<std::uint64_t>(n / 5));
+    EXPECT_EQ(s.fallbacks, static_cast<std::uint64_t>(n / 40));
+    EXPECT_EQ(s.fallbacksByKind[static_cast<int>(prp::Fallback::Affine)], s.fallbacks);
+    EXPECT_NEAR(s.fieldIntervalMs.p50, T * 1e3, 1e-9);
+    EXPECT_NEAR(s.fieldIntervalMs.max, (T + 1.5 * T - 0.001) * 1e3, 1e-9);
+    EXPECT_NEAR(s.frameAgeMs.max, 40.0, 1e-9);
+    EXPECT_NEAR(s.renderFps, 5.0, 1e-12);
+    EXPECT_NEAR(s.renderMsMean, 50.0, 1e-9);
+
+    const nlohmann::json j = sim::toJson(s);
+    for (const char* key : {"fields", "missed_deadlines", "field_interval_ms", "frame_age_ms",
+                            "render_fps", "fallbacks"}) {
+        EXPECT_TRUE(j.contains(key)) << key;
+    }
+    EXPECT_EQ(j["fields"].get<int>(), n);
+    EXPECT_EQ(j["missed_deadlines"].get<int>(), n / 50);
+    for (const char* key : {"p50", "p99", "max"})
+        EXPECT_TRUE(j["field_interval_ms"].contains(key));
+    for (const char* key : {"p50", "p99"})
+        EXPECT_TRUE(j["frame_age_ms"].contains(key));
+    EXPECT_FALSE(sim::formatSummary(s).empty());
+}
+
+}  // namespace
