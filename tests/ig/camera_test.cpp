@@ -1,8 +1,8 @@
 // Pose and image conventions, each a check a reader can follow.
 #include "ig/camera.hpp"
 
-#include <glm/geometric.hpp>
 #include <gtest/gtest.h>
+#include <glm/geometric.hpp>
 
 #include <cmath>
 #include <numbers>
