@@ -25,10 +25,22 @@ struct SkyModel {
     double hazeDistance = 0.0;
 };
 
+inline constexpr int kLevelsAuto = -1;
+
 struct RenderOptions {
     SkyModel sky;
     int threads = 0;  // 0: the library's default
+    // Fast caster: coarser display levels used where a voxel's footprint falls below a pixel.
+    // kLevelsAuto: as many as the map has; 0: single level (exact on the bilinear surface, the
+    // default, matching the reference caster); n > 0: at most n coarser levels.
+    int levels = 0;
+    // Fast caster: rays per pixel stacked vertically (1..8), averaged; for shallow pitch, where a
+    // pixel's footprint stretches along the view. Depth is the nearest of them.
+    int supersample = 1;
 };
+
+// Parses --levels: "auto" or a count >= 0; throws InputError otherwise.
+int parseLevels(std::string_view text);
 
 // A ray caster over one terrain map. Implementations keep no per-frame state, so one caster
 // may render several frames concurrently.
@@ -36,8 +48,9 @@ class Caster {
   public:
     virtual ~Caster() = default;
     virtual CasterKind kind() const = 0;
-    // Renders colour and depth of `camera` into `frame` (sized from the camera's intrinsics)
-    // and fills frame.stats. The reference and naive casters honour any roll; the fast caster
+    // Renders colour and depth of `camera` into `frame`, whose color and depth must already hold
+    // width * height pixels of the camera's intrinsics (renderFrame does that), and fills
+    // frame.stats. The reference and naive casters honour any roll; the fast caster
     // requires roll == 0 (CHECKed).
     virtual void render(const Camera& camera, RenderedFrame& frame) const = 0;
 };

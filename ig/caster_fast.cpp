@@ -6,30 +6,166 @@
 // only where it is provably safe: where this ray's climb over the ray below outruns the most the
 // terrain can rise across the gap between their tracks (the map's maximum slope bounds it).
 // Elsewhere (near the nadir, where tracks fan widely or turn behind the camera, or on very steep
-// maps) the ray is marched from where it enters the map. See docs/design/ray_casting.md.
+// maps) the ray starts afresh: it descends the max-height pyramid to the first node it may reach
+// (hierarchical first hit), then marches. See docs/design/ray_casting.md.
+//
+// Multiresolution (RenderOptions::levels): up to the distance d0 where a level-0 voxel shrinks
+// to a pixel the march is exact on level 0; beyond it the ray steps over coarser display levels,
+// adjacent levels blended by distance. See docs/design/multires.md.
 #include "ig/caster_impl.hpp"
+#include "ig/error.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/multires_march.hpp"
+#include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 #include <glm/geometric.hpp>
 
+#include <charconv>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <stdexcept>
+#include <string>
 
 namespace ig {
+
+int parseLevels(std::string_view text) {
+    if (text == "auto") return kLevelsAuto;
+    int n = -1;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
+    if (ec != std::errc() || end != text.data() + text.size() || n < 0 || n > 30) {
+        throw InputError("--levels '" + std::string(text) + "': expected auto or a count 0..30");
+    }
+    return n;
+}
+
 namespace {
+
+// A restarted ray descends the max-height pyramid only when its way through the map box spans
+// more cells than this; shorter ones (near the nadir) are cheaper to march.
+constexpr double kSkipMinCells = 16.0;
 
 struct ColumnCounters {
     std::uint64_t steps = 0;
     std::uint64_t restarts = 0;
 };
 
+// The eye in grid units (x / spacingX, y / spacingY; z in metres), and whether it is over the map.
+struct EyeGrid {
+    double gx, gy, z;
+    bool inside;
+};
+
+// Outcome of a coherent column march: a level-0 hit at u (cell and local coordinates for the
+// colour), a stop at u (the ray left the map: sky), climbing above the map's highest point at
+// u (sky, and so is every coherent ray above it in the column), the level-0 distance
+// reached at u (go on with the multiresolution march), or a start outside the map (cast fresh).
+struct ColumnMarch {
+    enum Kind { kHit, kStop, kAbove, kFar, kFresh };
+    Kind kind = kHit;
+    double u = 0.0;
+    int cx = 0, cy = 0;
+    double fx = 0.0, fy = 0.0;
+};
+
+// Nearest integer (halves away from zero), inline (std::llround is a library call).
+inline std::int64_t roundToInt64(double v) {
+    return static_cast<std::int64_t>(v >= 0.0 ? v + 0.5 : v - 0.5);
+}
+
+// floor(v) for |v| < 2^62, inline (without SSE4.1 std::floor is a library call).
+inline long floorToLong(double v) {
+    const long t = static_cast<long>(v);
+    return t > v ? t - 1 : t;
+}
+
+// a / b for a >= 0, b > 0, through a double division corrected to the exact integer quotient
+// (a 64-bit integer division is several times slower).
+inline std::int64_t exactQuotient(std::int64_t a, std::int64_t b) {
+    std::int64_t q = static_cast<std::int64_t>(static_cast<double>(a) / static_cast<double>(b));
+    while (q > 0 && q * b > a)
+        --q;
+    while ((q + 1) * b <= a)
+        ++q;
+    return q;
+}
+
+inline Rgb8 quantize(const float c[3]) {
+    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
+    return Rgb8{q(c[0]), q(c[1]), q(c[2])};
+}
+
+// Exact solve of one march step (the ray between major grid lines m and m + sgn, in minor cells
+// ca..cb) on the level-0 bilinear surface, in the major-axis parameter s in [sBegin, sEnd].
+template <bool kMajorX>
+struct StepSolver {
+    const std::uint16_t* heights;
+    const std::uint16_t* cellMax;
+    int width;
+    double scale, offset;
+    int sgn;
+    double rn, rz, ez;
+
+    bool piece(long m, int mc, int cn, std::int64_t n, double u, double s0, double s1,
+               ColumnMarch& out) const {
+        if (!(s0 < s1)) return false;
+        const int cx = kMajorX ? mc : cn, cy = kMajorX ? cn : mc;
+        // The step's bound covered both its cells; this piece may lie above its own cell.
+        const double za = ez + rz * (u + s0);
+        const double zLow = rz >= 0.0 ? za : za + rz * (s1 - s0);
+        if (zLow > cellMax[static_cast<std::size_t>(cy) * (width - 1) + cx] * scale + offset) {
+            return false;
+        }
+        const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
+        const double majorLocal = static_cast<double>(m - mc);
+        const std::uint16_t* s00 = heights + static_cast<std::size_t>(cy) * width + cx;
+        const double h00 = s00[0] * scale + offset, h10 = s00[1] * scale + offset;
+        const double h01 = s00[width] * scale + offset, h11 = s00[width + 1] * scale + offset;
+        const double am = majorLocal + sgn * s0, an = nD + rn * s0 - cn;
+        const double r = kMajorX
+                             ? solveBilinear(h00, h10, h01, h11, am, an, sgn, rn, za, rz, s1 - s0)
+                             : solveBilinear(h00, h10, h01, h11, an, am, rn, sgn, za, rz, s1 - s0);
+        if (r < 0.0) return false;
+        const double sh = s0 + r;
+        out.kind = ColumnMarch::kHit;
+        out.u = u + sh;
+        out.cx = cx;
+        out.cy = cy;
+        const double fm = majorLocal + sgn * sh, fn = nD + rn * sh - cn;
+        out.fx = kMajorX ? fm : fn;
+        out.fy = kMajorX ? fn : fm;
+        return true;
+    }
+
+    // Split where the step crosses the minor grid line between ca and cb.
+    bool solve(long m, int mc, int ca, int cb, std::int64_t n, double u, double sBegin, double sEnd,
+               ColumnMarch& out) const {
+        if (ca == cb) return piece(m, mc, ca, n, u, sBegin, sEnd, out);
+        const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
+        const double line = ca < cb ? cb : ca;
+        const double sSplit = std::clamp((line - nD) / rn, 0.0, sEnd);
+        return piece(m, mc, ca, n, u, std::max(sBegin, 0.0), sSplit, out) ||
+               piece(m, mc, cb, n, u, std::max(sBegin, sSplit), sEnd, out);
+    }
+};
+
 class FastCaster final : public Caster {
   public:
-    FastCaster(const TerrainMap& map, const RenderOptions& options)
-        : map_(map), options_(options) {}
+    FastCaster(const TerrainMap& map, const RenderOptions& options) : map_(map), options_(options) {
+        if (options_.supersample < 1 || options_.supersample > 8) {
+            throw InputError("supersample " + std::to_string(options_.supersample) +
+                             ": expected 1..8 rays per pixel");
+        }
+        if (options_.levels < kLevelsAuto) {
+            throw InputError("levels " + std::to_string(options_.levels) +
+                             ": expected auto or a count >= 0");
+        }
+        pyramid_ = std::make_unique<TerrainPyramid>(map, options_.levels);
+        topLevel_ = pyramid_->levelCount() - 1;
+    }
     CasterKind kind() const override { return CasterKind::Fast; }
 
     void render(const Camera& camera, RenderedFrame& frame) const override {
@@ -38,12 +174,17 @@ class FastCaster final : public Caster {
                 "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
         }
         const int w = camera.intrinsics().width;
+        // Level 0 is used out to where a voxel spans one pixel across the view.
+        const double d0 =
+            topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
+                          : std::numeric_limits<double>::infinity();
         tbb::combinable<ColumnCounters> counters;
         runWithThreads(options_.threads, [&] {
-            // The image is a pool of columns; idle workers take the next one.
+            // The image is a pool of columns; idle workers take the next one. Each column is
+            // independent, so the image does not depend on the thread count.
             tbb::parallel_for(0, w, [&](int x) {
                 ColumnCounters& c = counters.local();
-                renderColumn(camera, x, frame, c);
+                renderColumn(camera, d0, x, frame, c);
             });
         });
         const ColumnCounters total = counters.combine([](ColumnCounters a, ColumnCounters b) {
@@ -51,14 +192,71 @@ class FastCaster final : public Caster {
         });
         frame.stats.steps = total.steps;
         frame.stats.restarts = total.restarts;
-        frame.stats.rays = static_cast<std::uint64_t>(w) * camera.intrinsics().height;
+        frame.stats.rays = static_cast<std::uint64_t>(w) * camera.intrinsics().height *
+                           static_cast<std::uint64_t>(options_.supersample);
     }
 
   private:
-    void renderColumn(const Camera& camera, int x, RenderedFrame& frame,
+    // The fresh (t-parameterised) path: box clip, hierarchical skip where worthwhile, exact
+    // level-0 march out to tNear, multiresolution march beyond. Returns the hit (t < 0: none)
+    // and sets tStop to where the ray stopped (its hit, or where it left the map box).
+    // The bottom ray always descends the max-height pyramid (hierarchical first hit); a restart
+    // only when its way through the map box is long (near the nadir a march is cheaper).
+    LevelHit castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom, double& tStop,
+                       std::uint64_t& steps) const {
+        LevelHit hit;
+        double t0, t1;
+        tStop = 0.0;
+        if (!clipToMapBox(map_, ray, t0, t1)) return hit;
+        double tStart = t0;
+        if (bottom || std::max(std::abs(ray.gdx), std::abs(ray.gdy)) * (t1 - t0) > kSkipMinCells) {
+            tStart = skipEmptySpace(*pyramid_, ray, t0, t1, steps);
+        }
+        if (tStart >= 0.0) hit = castFrom(ray, horiz, d0, tStart, t1, steps);
+        tStop = hit.t >= 0.0 ? hit.t : t1;
+        return hit;
+    }
+
+    LevelHit castFrom(const TerrainRay& ray, double horiz, double d0, double tStart, double t1,
+                      std::uint64_t& steps) const {
+        LevelHit hit;
+        const double tNear = horiz > 0.0 ? d0 / horiz : t1;
+        if (tStart < tNear) {
+            hit.t = marchRay(map_, ray, tStart, std::min(tNear, t1), steps);
+            hit.level = -1;  // level 0, colour from the map
+        }
+        if (hit.t < 0.0 && tNear < t1) {
+            hit = marchLevels(*pyramid_, ray, horiz, d0, topLevel_, std::max(tStart, tNear), t1,
+                              steps);
+        }
+        return hit;
+    }
+
+    Rgb8 shadeLevelHit(const LevelHit& hit, const glm::dvec3& p) const {
+        float rgb[3];
+        if (hit.level < 0) {
+            map_.surfaceColor(p.x, p.y, rgb);
+        } else {
+            levelHitColor(*pyramid_, hit, p.x, p.y, rgb);
+        }
+        return haze(rgb, hit.t);
+    }
+
+    Rgb8 haze(float rgb[3], double t) const {
+        const SkyModel& sky = options_.sky;
+        if (sky.hazeDistance > 0.0) {
+            const float k = static_cast<float>(1.0 - std::exp(-t / sky.hazeDistance));
+            rgb[0] += (sky.horizon.r - rgb[0]) * k;
+            rgb[1] += (sky.horizon.g - rgb[1]) * k;
+            rgb[2] += (sky.horizon.b - rgb[2]) * k;
+        }
+        return quantize(rgb);
+    }
+
+    void renderColumn(const Camera& camera, double d0, int x, RenderedFrame& frame,
                       ColumnCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
-        // Ray direction of row y: base + (y + 0.5) * down (unnormalised, linear in y).
+        // Ray direction of image row y: base + y * down (unnormalised, linear in y).
         const CameraBasis& b = camera.basis();
         const double focal = camera.intrinsics().focal;
         const glm::dvec3 base = focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
@@ -66,58 +264,272 @@ class FastCaster final : public Caster {
         const glm::dvec3 down = -b.up;
         const glm::dvec3 eye = camera.pose().position;
         const double maxSlope = map_.maxSlope();
+        const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
+        const bool eyeInside =
+            eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
+        const EyeGrid eg{eye.x * invSx, eye.y * invSy, eye.z, eyeInside};
+        const int sub = options_.supersample;
+        const double subStep = 1.0 / sub;
+        const SkyModel& sky = options_.sky;
+        const bool multires = topLevel_ > 0;
 
-        bool havePrev = false;
-        double prevDist = 0.0;   // horizontal distance of the ray below's hit (or exit)
-        double prevSlope = 0.0;  // its rise per horizontal metre
-        glm::dvec2 prevTrack{0.0};
+        // The ray below, in major-axis form: it and this ray share the major coordinate at equal
+        // u (major grid units travelled from the eye), so coherence compares them there.
+        bool havePrev = false, prevMajorX = false, prevAbove = false;
+        int prevSgn = 0;
+        double prevRn = 0.0, prevRz = 0.0, prevU = 0.0;
         std::uint64_t steps = 0, restarts = 0;
         for (int y = h - 1; y >= 0; --y) {
-            const TerrainRay ray(map_, eye, base + (y + 0.5) * down);
-            const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-            const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-            const glm::dvec2 track =
-                horiz > 1e-12 ? glm::dvec2{ray.dir.x, ray.dir.y} / horiz : glm::dvec2{0.0};
-            const double slope = horiz > 1e-12 ? ray.dir.z / horiz : 0.0;
-            double t0, t1, t = -1.0;
-            if (clipToMapBox(map_, ray, t0, t1)) {
-                double tStart = t0;
-                if (havePrev && horiz > 1e-9) {
-                    // At horizontal distance D this ray is (slope - prevSlope) * D above the ray
-                    // below, and its track is at most |track - prevTrack| * D to the side, where
-                    // the terrain is at most maxSlope times that higher. So it cannot meet the
-                    // terrain before the ray below did when the rise beats the possible climb.
-                    const double rise = slope - prevSlope;
-                    const double lateral = glm::length(track - prevTrack);
-                    if (glm::dot(track, prevTrack) > 0.0 && rise >= maxSlope * lateral) {
-                        tStart = std::max(t0, prevDist / horiz);
-                    } else {
-                        ++restarts;
+            int sum[3] = {0, 0, 0};
+            float nearest = kSkyDepth;
+            for (int s = sub - 1; s >= 0; --s) {
+                const glm::dvec3 d = base + (y + (s + 0.5) * subStep) * down;
+                const double gx = d.x * invSx, gy = d.y * invSy;
+                const bool majorX = std::abs(gx) >= std::abs(gy);
+                const double gm = majorX ? gx : gy, gn = majorX ? gy : gx;
+                const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+                Rgb8 c;
+                double tHit = -1.0;
+                bool resolved = false;
+                if (std::abs(gm) > 1e-9 * len) {
+                    const double inv = 1.0 / std::abs(gm);
+                    const int sgn = gm > 0 ? 1 : -1;
+                    const double rn = gn * inv, rz = d.z * inv, lenPerU = len * inv;
+                    const double sMinor = majorX ? map_.spacingY() : map_.spacingX();
+                    // At equal u this ray is (rz - prevRz) * u higher than the ray below and
+                    // |rn - prevRn| * u minor cells to the side, where the terrain is at most
+                    // maxSlope times that higher: when the climb wins, it cannot meet the
+                    // terrain before the ray below stopped.
+                    const bool coherent = havePrev && prevMajorX == majorX && prevSgn == sgn &&
+                                          rz - prevRz >= maxSlope * std::abs(rn - prevRn) * sMinor;
+                    if (havePrev && !coherent) ++restarts;
+                    if (coherent && prevAbove) {
+                        // The ray below climbed above the map's highest point before meeting
+                        // anything; this one climbs faster: sky.
+                        c = skyColor(sky, d.z / len);
+                        resolved = true;
+                    } else if (prevAbove = false; coherent) {
+                        // Level 0 reaches out to horizontal distance d0.
+                        double uNear = std::numeric_limits<double>::infinity();
+                        if (multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
+                        const ColumnMarch r =
+                            majorX ? marchCoherent<true>(eg, sgn, rn, rz, prevU, uNear, steps)
+                                   : marchCoherent<false>(eg, sgn, rn, rz, prevU, uNear, steps);
+                        if (r.kind == ColumnMarch::kHit) {
+                            tHit = r.u * lenPerU;
+                            float rgb[3];
+                            cellColor(r.cx, r.cy, r.fx, r.fy, rgb);
+                            c = haze(rgb, tHit);
+                            prevU = r.u;
+                            resolved = true;
+                        } else if (r.kind == ColumnMarch::kStop || r.kind == ColumnMarch::kAbove) {
+                            c = skyColor(sky, d.z / len);
+                            prevU = r.u;
+                            prevAbove = r.kind == ColumnMarch::kAbove;
+                            resolved = true;
+                        } else if (r.kind == ColumnMarch::kFar) {
+                            const TerrainRay ray(map_, eye, d);
+                            const double horiz =
+                                std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
+                            double t0, t1;
+                            LevelHit hit;
+                            double tStop = 0.0;
+                            if (clipToMapBox(map_, ray, t0, t1)) {
+                                hit = castFrom(ray, horiz, d0, std::max(t0, r.u * lenPerU), t1,
+                                               steps);
+                                tStop = hit.t >= 0.0 ? hit.t : t1;
+                            }
+                            if (hit.t >= 0.0) {
+                                tHit = hit.t;
+                                c = shadeLevelHit(hit, ray.at(hit.t));
+                            } else {
+                                c = skyColor(sky, ray.dir.z);
+                            }
+                            prevU = std::max(tStop / lenPerU, r.u);
+                            resolved = true;
+                        }
                     }
+                    prevMajorX = majorX;
+                    prevSgn = sgn;
+                    prevRn = rn;
+                    prevRz = rz;
+                    if (!resolved) {
+                        // Bottom ray, restart, or a coherent start outside the map.
+                        const TerrainRay ray(map_, eye, d);
+                        const double horiz =
+                            std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
+                        double tStop = 0.0;
+                        const LevelHit hit = castFresh(ray, horiz, d0, !havePrev, tStop, steps);
+                        if (hit.t >= 0.0) {
+                            tHit = hit.t;
+                            c = shadeLevelHit(hit, ray.at(hit.t));
+                        } else {
+                            c = skyColor(sky, ray.dir.z);
+                        }
+                        prevU = tStop / lenPerU;
+                    }
+                    havePrev = true;
+                } else {
+                    // Straight down or up: no major axis.
+                    const TerrainRay ray(map_, eye, d);
+                    double tStop = 0.0;
+                    const LevelHit hit = castFresh(ray, 0.0, d0, !havePrev, tStop, steps);
+                    if (hit.t >= 0.0) {
+                        tHit = hit.t;
+                        c = shadeLevelHit(hit, ray.at(hit.t));
+                    } else {
+                        c = skyColor(sky, ray.dir.z);
+                    }
+                    havePrev = false;
+                    prevAbove = false;
                 }
-                t = marchRay(map_, ray, tStart, t1, steps);
-                prevDist = (t >= 0.0 ? t : t1) * horiz;
-            } else {
-                prevDist = 0.0;
+                if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
+                sum[0] += c.r;
+                sum[1] += c.g;
+                sum[2] += c.b;
             }
-            havePrev = horiz > 1e-9;
-            prevTrack = track;
-            prevSlope = slope;
-            if (t >= 0.0) {
-                const glm::dvec3 p = ray.at(t);
-                frame.color[idx] = terrainColor(map_, options_.sky, p.x, p.y, t);
-                frame.depth[idx] = static_cast<float>(t);
+            const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+            if (sub == 1) {
+                frame.color[idx] =
+                    Rgb8{static_cast<std::uint8_t>(sum[0]), static_cast<std::uint8_t>(sum[1]),
+                         static_cast<std::uint8_t>(sum[2])};
             } else {
-                frame.color[idx] = skyColor(options_.sky, ray.dir.z);
-                frame.depth[idx] = kSkyDepth;
+                const int half = sub / 2;
+                frame.color[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
+                                        static_cast<std::uint8_t>((sum[1] + half) / sub),
+                                        static_cast<std::uint8_t>((sum[2] + half) / sub)};
             }
+            frame.depth[idx] = nearest;
         }
         counters.steps += steps;
         counters.restarts += restarts;
     }
 
+    // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy).
+    void cellColor(int cx, int cy, double fx, double fy, float rgb[3]) const {
+        fx = std::clamp(fx, 0.0, 1.0);
+        fy = std::clamp(fy, 0.0, 1.0);
+        const Rgb8* row0 = map_.colors().data() + map_.index(cx, cy);
+        const Rgb8* row1 = row0 + map_.width();
+        const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
+                     w11 = fx * fy;
+        rgb[0] = static_cast<float>(w00 * row0[0].r + w10 * row0[1].r + w01 * row1[0].r +
+                                    w11 * row1[1].r);
+        rgb[1] = static_cast<float>(w00 * row0[0].g + w10 * row0[1].g + w01 * row1[0].g +
+                                    w11 * row1[1].g);
+        rgb[2] = static_cast<float>(w00 * row0[0].b + w10 * row0[1].b + w01 * row1[0].b +
+                                    w11 * row1[1].b);
+    }
+
+    // The coherent march of one ray in major-axis form from u = uStart: grid line by grid line
+    // (as marchRay), the minor coordinate in 32.32 fixed point, z incremental; the reachable
+    // step solved exactly. No per-ray box clip, normalisation or division beyond the ray's one.
+    template <bool kMajorX>
+    ColumnMarch marchCoherent(const EyeGrid& eg, int sgn, double rn, double rz, double uStart,
+                              double uNear, std::uint64_t& steps) const {
+        const std::uint16_t* __restrict__ cellMax = map_.cellMaxData();
+        const std::uint16_t* __restrict__ heights = map_.rawHeights().data();
+        const int w = map_.width(), h = map_.height();
+        const std::size_t stride = static_cast<std::size_t>(w - 1);
+        const int majorCount = kMajorX ? w : h, minorCount = kMajorX ? h : w;
+        const int lastMinorCell = minorCount - 2;
+        const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
+        const double scale = map_.heightScale(), offset = map_.heightOffset();
+        ColumnMarch out;
+        out.u = uStart;
+        // The grid line at or before the start (in the direction of travel).
+        const double gm0 = em + sgn * uStart;
+        long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
+        if (m < 0 || m > majorCount - 1) {
+            const bool ahead = sgn > 0 ? m < 0 : m > majorCount - 1;
+            out.kind = ahead || !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
+            return out;
+        }
+        double u = (m - em) * sgn;
+        constexpr double kFix = 4294967296.0;  // 2^32
+        std::int64_t n = roundToInt64((en + rn * u) * kFix);
+        const std::int64_t dn = roundToInt64(rn * kFix);
+        const std::int64_t minorLimit = static_cast<std::int64_t>(minorCount - 1) << 32;
+        const double invScale = 1.0 / scale;
+        double zr = (eg.z + rz * u - offset) * invScale;
+        const double dzr = rz * invScale;
+        const double maxRaw = (map_.maxHeight() - offset) * invScale;
+        const bool rising = dzr >= 0.0;
+        if (n < 0 || n > minorLimit) {
+            out.kind = !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
+            return out;
+        }
+        // Whole steps before the ray reaches the major end, the level-0 distance, or leaves the
+        // minor range (then one last partial step), so the hot loop tests nothing else.
+        constexpr std::int64_t kMany = std::int64_t{1} << 40;
+        const std::int64_t majorSteps = sgn > 0 ? majorCount - 1 - m : m;
+        const std::int64_t nearSteps =
+            uNear < 1e12
+                ? std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(uNear - u)))
+                : kMany;
+        const std::int64_t minorSteps = dn > 0   ? exactQuotient(minorLimit - n, dn)
+                                        : dn < 0 ? exactQuotient(n, -dn)
+                                                 : kMany;
+        std::int64_t left = std::min({majorSteps, nearSteps, minorSteps});
+        const std::int64_t total = left;
+        // The first step is solved from uStart on: before it the ray is known to be clear (and
+        // the grid line may lie behind the eye).
+        double sBegin = uStart - u;
+        StepSolver<kMajorX> solver{heights, cellMax, w, scale, offset, sgn, rn, rz, eg.z};
+        while (left > 0) {
+            const int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
+            const int cb = std::min(static_cast<int>((n + dn) >> 32), lastMinorCell);
+            const int mc = static_cast<int>(sgn > 0 ? m : m - 1);
+            const std::size_t ia = kMajorX ? static_cast<std::size_t>(ca) * stride + mc
+                                           : static_cast<std::size_t>(mc) * stride + ca;
+            const std::size_t ib = kMajorX ? static_cast<std::size_t>(cb) * stride + mc
+                                           : static_cast<std::size_t>(mc) * stride + cb;
+            const int bound = std::max(cellMax[ia], cellMax[ib]);
+            const double zLow = rising ? zr : zr + dzr;
+            if (zLow <= bound) {
+                if (solver.solve(m, mc, ca, cb, n, u, sBegin, 1.0, out)) {
+                    steps += static_cast<std::uint64_t>(total - left + 1);
+                    return out;
+                }
+            } else if (rising && zr > maxRaw) {
+                steps += static_cast<std::uint64_t>(total - left + 1);
+                out.kind = ColumnMarch::kAbove;
+                out.u = u;
+                return out;
+            }
+            m += sgn;
+            n += dn;
+            zr += dzr;
+            u += 1.0;
+            sBegin = 0.0;
+            --left;
+        }
+        steps += static_cast<std::uint64_t>(total);
+        out.u = u;
+        if (total == nearSteps && nearSteps < majorSteps + 1) {
+            out.kind = ColumnMarch::kFar;
+            return out;
+        }
+        out.kind = ColumnMarch::kStop;
+        if (total == majorSteps) return out;
+        // The ray leaves through a minor edge part-way through this step: solve up to there.
+        ++steps;
+        const double edge = n + dn < 0 ? 0.0 : minorCount - 1.0;
+        const double nD = static_cast<double>(n) * (1.0 / kFix);
+        const double sEnd = std::clamp((edge - nD) / rn, 0.0, 1.0);
+        const int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
+        const int cb = n + dn < 0 ? 0 : lastMinorCell;
+        const int mc = static_cast<int>(sgn > 0 ? m : m - 1);
+        if (solver.solve(m, mc, ca, cb, n, u, sBegin, sEnd, out)) return out;
+        out.kind = ColumnMarch::kStop;
+        out.u = u;
+        return out;
+    }
+
     const TerrainMap& map_;
     RenderOptions options_;
+    std::unique_ptr<TerrainPyramid> pyramid_;
+    int topLevel_ = 0;
 };
 
 }  // namespace

@@ -1,9 +1,36 @@
 #include "ig/terrain.hpp"
 
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
+
+#ifndef MADV_COLLAPSE
+#define MADV_COLLAPSE 25  // Linux 6.1; older C libraries lack the name
+#endif
 
 namespace ig {
+
+namespace {
+std::atomic<bool> gHugePageAdvice{true};
+}  // namespace
+
+void setHugePageAdvice(bool enabled) {
+    gHugePageAdvice.store(enabled);
+}
+
+void adviseHugePages(const void* data, std::size_t bytes) {
+    constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+    if (!gHugePageAdvice.load() || bytes < 2 * kHuge) return;
+    // Only whole 2 MiB pages inside the range; the kernel ignores what it cannot honour.
+    const auto begin = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+    const auto end = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
+    if (end <= begin) return;
+    void* p = reinterpret_cast<void*>(begin);
+    if (madvise(p, end - begin, MADV_HUGEPAGE) == 0) madvise(p, end - begin, MADV_COLLAPSE);
+}
 
 TerrainMap::TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
                        double heightOffset)
@@ -46,6 +73,9 @@ void TerrainMap::updateRange() {
     const double b = *hi * heightScale_ + heightOffset_;
     minHeight_ = std::min(a, b);
     maxHeight_ = std::max(a, b);
+    adviseHugePages(heights_.data(), heights_.size() * sizeof(std::uint16_t));
+    adviseHugePages(colors_.data(), colors_.size() * sizeof(Rgb8));
+    adviseHugePages(cellMax_.data(), cellMax_.size() * sizeof(std::uint16_t));
 }
 
 namespace {

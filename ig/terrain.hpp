@@ -84,4 +84,11 @@ class TerrainMap {
     std::vector<std::uint16_t> cellMax_;
 };
 
+// Asks the kernel to back [data, data + bytes) with transparent huge pages, collapsing what is
+// already populated, where the kernel supports it; a no-op for small ranges or when turned off.
+// Large maps are marched from DRAM, where 4 KiB pages make nearly every step a TLB miss.
+void adviseHugePages(const void* data, std::size_t bytes);
+// Turns adviseHugePages on or off process-wide (on by default; for measurements).
+void setHugePageAdvice(bool enabled);
+
 }  // namespace ig

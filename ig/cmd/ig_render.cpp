@@ -2,6 +2,7 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/stereo.hpp"
 #include "io/image_file.hpp"
 
 #include <CLI/CLI.hpp>
@@ -11,6 +12,9 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
 
 namespace {
 
@@ -26,6 +30,140 @@ constexpr const char* kConventions = R"(Conventions:
   The fast caster renders roll = 0 (the post-rendering processor applies roll as a 2D rotation);
   the naive and reference casters honour any roll.
   A path of '-' writes to standard output.)";
+
+// ---- Stereo (--stereo): left eye by the fast caster, right eye reprojected or cast. ----------
+
+struct StereoFlags {
+    double separation = std::numeric_limits<double>::quiet_NaN();
+    std::string right = "reproject";
+    std::string variant = "wan";
+    bool noAbuffer = false;
+    double gapThreshold = 2.0;
+    std::string outLeft, outRight, outSbs, outAnaglyph, outMask;
+
+    bool enabled() const { return !std::isnan(separation); }
+};
+
+void addStereoFlags(CLI::App& app, StereoFlags& s) {
+    app.add_option("--stereo", s.separation,
+                   "Render a stereo pair with this eye separation, metres (right eye along the "
+                   "camera's right); needs --out-left and --out-right");
+    app.add_option("--right", s.right, "Right eye: reproject (from the left) | raycast")
+        ->capture_default_str();
+    app.add_option("--stereo-variant", s.variant,
+                   "Reprojection: wan (right to left, A-buffer) | adelson-hodges (left-to-right "
+                   "overwrite, integer placement)")
+        ->capture_default_str();
+    app.add_flag("--no-abuffer", s.noAbuffer, "Integer placement instead of the 1x8 A-buffer");
+    app.add_option("--gap-threshold", s.gapThreshold,
+                   "Gaps up to this many pixels are interpolated, wider ones ray cast")
+        ->capture_default_str();
+    app.add_option("--out-left", s.outLeft, "Stereo: left eye PNG");
+    app.add_option("--out-right", s.outRight, "Stereo: right eye PNG");
+    app.add_option("--out-sbs", s.outSbs, "Stereo: side-by-side PNG (left | right)");
+    app.add_option("--out-anaglyph", s.outAnaglyph, "Stereo: red-cyan anaglyph PNG");
+    app.add_option("--out-raycast-mask", s.outMask,
+                   "Stereo: the right eye in grey with its ray-cast pixels in red");
+}
+
+void writeRgb(const std::string& path, const std::string& flag, int w, int h,
+              const std::vector<ig::Rgb8>& pixels) {
+    if (path.empty()) return;
+    std::string error;
+    const auto* bytes = reinterpret_cast<const std::uint8_t*>(pixels.data());
+    if (io::writePng8(path, w, h, 3, {bytes, pixels.size() * 3}, &error) != 0) {
+        throw ig::InputError(flag + " " + error);
+    }
+}
+
+// Renders and writes the stereo outputs; fills the stereo fields of `j`.
+void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& pose,
+               const ig::Intrinsics& intr, const ig::RenderOptions& options,
+               const std::string& depthPath, nlohmann::json& j) {
+    if (s.outLeft.empty() || s.outRight.empty()) {
+        throw ig::InputError("--stereo: give --out-left and --out-right");
+    }
+    ig::StereoOptions so;
+    so.eyeSeparation = s.separation;
+    so.method = ig::parseRightEyeMethod(s.right);
+    if (s.variant == "adelson-hodges") {
+        so.variant = ig::ReprojectVariant::AdelsonHodges;
+    } else if (s.variant != "wan") {
+        throw ig::InputError("--stereo-variant '" + s.variant +
+                             "': expected wan or adelson-hodges");
+    }
+    so.abuffer = !s.noAbuffer;
+    so.gapThreshold = s.gapThreshold;
+    const ig::StereoFrame f = ig::renderStereo(map, pose, intr, so, options);
+    const int w = f.left.width(), h = f.left.height();
+    writeRgb(s.outLeft, "--out-left", w, h, f.left.color);
+    writeRgb(s.outRight, "--out-right", w, h, f.right.color);
+    if (!s.outSbs.empty())
+        writeRgb(s.outSbs, "--out-sbs", 2 * w, h, ig::sideBySide(f.left, f.right));
+    if (!s.outAnaglyph.empty()) {
+        writeRgb(s.outAnaglyph, "--out-anaglyph", w, h, ig::anaglyph(f.left, f.right));
+    }
+    if (!s.outMask.empty()) {
+        writeRgb(s.outMask, "--out-raycast-mask", w, h, ig::rayCastMask(f.right, f.source));
+    }
+    std::string error;
+    if (!depthPath.empty() && io::writePfm(depthPath, w, h, f.left.depth, &error) != 0) {
+        throw ig::InputError("--depth " + error);
+    }
+    const double pixels = static_cast<double>(w) * h;
+    j["stereo"] = {{"eye_separation_m", s.separation},
+                   {"right", s.right},
+                   {"reproject", s.variant},
+                   {"abuffer", !s.noAbuffer},
+                   {"gap_threshold_px", s.gapThreshold}};
+    j["left_ms"] = f.stats.leftMs;
+    j["right_ms"] = f.stats.rightMs;
+    j["right_over_left"] = f.stats.leftMs > 0.0 ? f.stats.rightMs / f.stats.leftMs : 0.0;
+    j["reproject_ms"] = f.stats.reprojectMs;
+    j["cast_ms"] = f.stats.castMs;
+    j["reprojected_fraction"] = f.stats.reprojected / pixels;
+    j["interpolated_fraction"] = f.stats.interpolated / pixels;
+    j["ray_cast_fraction"] = f.stats.rayCast / pixels;
+    j["sky_without_cast"] = f.stats.skyWithoutCast;
+    std::fprintf(stderr,
+                 "stereo %dx%d, e = %g m: left %.1f ms, right (%s) %.1f ms = %.1f%% of left; "
+                 "right pixels %.2f%% reprojected, %.2f%% interpolated, %.2f%% ray cast\n",
+                 w, h, s.separation, f.stats.leftMs, s.right.c_str(), f.stats.rightMs,
+                 100.0 * j["right_over_left"].get<double>(), 100.0 * f.stats.reprojected / pixels,
+                 100.0 * f.stats.interpolated / pixels, 100.0 * f.stats.rayCast / pixels);
+}
+
+// The --stereo path of main: the pair, its images and its JSON.
+int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::TerrainMap& map,
+                     const ig::Pose& pose, const ig::Intrinsics& intr,
+                     const ig::RenderOptions& options, const std::string& depthPath,
+                     const std::string& jsonPath) {
+    if (kind != ig::CasterKind::Fast) {
+        throw ig::InputError("--stereo: the pair is rendered by the fast caster; drop --caster");
+    }
+    nlohmann::json j;
+    j["caster"] = "fast";
+    j["width"] = intr.width;
+    j["height"] = intr.height;
+    j["margin"] = intr.margin;
+    j["focal_px"] = intr.focal;
+    j["pose"] = {{"x", pose.position.x},
+                 {"y", pose.position.y},
+                 {"z", pose.position.z},
+                 {"yaw_deg", ig::radToDeg(pose.yaw)},
+                 {"pitch_deg", ig::radToDeg(pose.pitch)},
+                 {"roll_deg", ig::radToDeg(pose.roll)}};
+    j["terrain"] = ig::describeTerrain(map);
+    runStereo(s, map, pose, intr, options, depthPath, j);
+    if (jsonPath == "-") {
+        std::cout << j.dump(2) << "\n";
+    } else if (!jsonPath.empty()) {
+        std::ofstream out(jsonPath);
+        out << j.dump(2) << "\n";
+        if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
+    }
+    return 0;
+}
 
 }  // namespace
 
@@ -43,6 +181,8 @@ int main(int argc, char** argv) {
     std::string depthPath, jsonPath;
     int threads = 0;
     double haze = 0.0;
+    std::string levelsText = "auto";
+    int supersample = 1;
     app.add_option("--pose", poseText, "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H)")
         ->capture_default_str();
     app.add_option("--fov", fovDeg, "Horizontal field of view of the window, degrees")
@@ -57,6 +197,16 @@ int main(int argc, char** argv) {
     app.add_option("--threads", threads, "Worker threads (0: all cores)")->capture_default_str();
     app.add_option("--haze", haze, "Distance haze: metres for 63% blend to the horizon (0: off)")
         ->capture_default_str();
+    // Multiresolution (fast caster).
+    app.add_option("--levels", levelsText,
+                   "Coarser levels beyond the distance where a voxel shrinks below a pixel: auto "
+                   "(all) | 0 (single level, exact) | N (at most N)")
+        ->capture_default_str();
+    app.add_option("--supersample", supersample,
+                   "Fast caster: rays per pixel stacked vertically, 1..8 (for shallow pitch)")
+        ->capture_default_str();
+    StereoFlags stereo;
+    addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
 
     try {
@@ -79,6 +229,13 @@ int main(int argc, char** argv) {
         ig::RenderOptions options;
         options.threads = threads;
         options.sky.hazeDistance = haze;
+        options.levels = ig::parseLevels(levelsText);
+        if (supersample < 1 || supersample > 8) {
+            throw ig::InputError("--supersample: must be 1..8 rays per pixel");
+        }
+        options.supersample = supersample;
+        if (stereo.enabled())
+            return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
         const auto caster = ig::makeCaster(kind, map, options);
         const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr);
 
@@ -103,6 +260,8 @@ int main(int argc, char** argv) {
         j["ns_per_pixel"] = frame.stats.renderMs * 1e6 / pixels;
         j["steps_per_pixel"] = static_cast<double>(frame.stats.steps) / pixels;
         j["coherence_restarts"] = frame.stats.restarts;
+        j["levels"] = levelsText;
+        j["supersample"] = supersample;
         j["pose"] = {{"x", pose.position.x},
                      {"y", pose.position.y},
                      {"z", pose.position.z},

@@ -3,8 +3,8 @@
 #include "ig/error.hpp"
 #include "ig/image_compare.hpp"
 
-#include <glm/geometric.hpp>
 #include <gtest/gtest.h>
+#include <glm/geometric.hpp>
 
 #include <cmath>
 #include <functional>
@@ -128,9 +128,9 @@ TEST(CasterAnalytic, OneCellSpikeIsNotSkippedAtSteepPitch) {
                     ++spikePixels;
                     if (std::abs(got.depth[i] - ref.depth[i]) > 0.01 * ref.depth[i]) {
                         ++missed;
-                        ADD_FAILURE() << "pitch " << pitch << " yaw " << yaw << " dx " << dx
-                                      << " pixel " << x << "," << y << " ref " << ref.depth[i]
-                                      << " fast " << got.depth[i];
+                        ADD_FAILURE()
+                            << "pitch " << pitch << " yaw " << yaw << " dx " << dx << " pixel " << x
+                            << "," << y << " ref " << ref.depth[i] << " fast " << got.depth[i];
                     }
                 }
             }

@@ -1,0 +1,169 @@
+// Display levels: each sample is the [1 2 1] x [1 2 1] / 16 weighted mean of the finer level's
+// 3x3 neighbourhood around the same point (indices clamped at the edges), so level-k samples
+// stay on level-0 grid lines (Cohen-Or sec. 2: "samples stay on grid lines"). Max nodes: see the
+// header; built bottom-up from the cells below and top-down from the coarser display levels.
+#include "ig/pyramid.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+
+namespace ig {
+namespace {
+
+inline int ceilHalf(int n) {
+    return (n + 1) / 2;
+}
+
+void fillCellMax(PyramidLevel& level, std::vector<std::uint16_t>& cellMax) {
+    const int cw = level.width - 1, ch = level.height - 1;
+    cellMax.resize(static_cast<std::size_t>(cw) * ch);
+    tbb::parallel_for(tbb::blocked_range<int>(0, ch), [&](const tbb::blocked_range<int>& rows) {
+        for (int cy = rows.begin(); cy < rows.end(); ++cy) {
+            const std::uint16_t* a = level.heights + level.index(0, cy);
+            const std::uint16_t* b = level.heights + level.index(0, cy + 1);
+            std::uint16_t* out = cellMax.data() + static_cast<std::size_t>(cy) * cw;
+            for (int cx = 0; cx < cw; ++cx) {
+                out[cx] = std::max(std::max(a[cx], a[cx + 1]), std::max(b[cx], b[cx + 1]));
+            }
+        }
+    });
+    adviseHugePages(cellMax.data(), cellMax.size() * sizeof(std::uint16_t));
+    level.cellMax = cellMax.data();
+}
+
+}  // namespace
+
+TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map) {
+    PyramidLevel base;
+    base.width = map.width();
+    base.height = map.height();
+    base.heights = map.rawHeights().data();
+    base.colors = map.colors().data();
+    base.cellMax = map.cellMaxData();
+    levels_.push_back(base);
+    store_.emplace_back();
+    if (map.width() < 2 || map.height() < 2) return;
+
+    // Display levels.
+    while (maxLevels < 0 || levelCount() <= maxLevels) {
+        const PyramidLevel& fine = levels_.back();
+        const int cw = ceilHalf(fine.width - 1), ch = ceilHalf(fine.height - 1);
+        if (cw < 2 || ch < 2) break;
+        PyramidLevel coarse;
+        coarse.width = cw + 1;
+        coarse.height = ch + 1;
+        coarse.shift = fine.shift + 1;
+        LevelStore s;
+        const std::size_t n = static_cast<std::size_t>(coarse.width) * coarse.height;
+        s.heights.resize(n);
+        s.colors.resize(n);
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, coarse.height), [&](const tbb::blocked_range<int>& rows) {
+                for (int j = rows.begin(); j < rows.end(); ++j) {
+                    int ys[3];
+                    for (int b = 0; b < 3; ++b)
+                        ys[b] = std::clamp(2 * j + b - 1, 0, fine.height - 1);
+                    for (int i = 0; i < coarse.width; ++i) {
+                        unsigned acc = 0, r = 0, g = 0, bl = 0;
+                        for (int b = 0; b < 3; ++b) {
+                            const unsigned wb = b == 1 ? 2 : 1;
+                            for (int a = 0; a < 3; ++a) {
+                                const unsigned wgt = wb * (a == 1 ? 2 : 1);
+                                const std::size_t idx =
+                                    fine.index(std::clamp(2 * i + a - 1, 0, fine.width - 1), ys[b]);
+                                acc += wgt * fine.heights[idx];
+                                const Rgb8 c = fine.colors[idx];
+                                r += wgt * c.r;
+                                g += wgt * c.g;
+                                bl += wgt * c.b;
+                            }
+                        }
+                        const std::size_t o = coarse.index(i, j);
+                        s.heights[o] = static_cast<std::uint16_t>((acc + 8) / 16);
+                        s.colors[o] = Rgb8{static_cast<std::uint8_t>((r + 8) / 16),
+                                           static_cast<std::uint8_t>((g + 8) / 16),
+                                           static_cast<std::uint8_t>((bl + 8) / 16)};
+                    }
+                }
+            });
+        adviseHugePages(s.heights.data(), s.heights.size() * sizeof(std::uint16_t));
+        adviseHugePages(s.colors.data(), s.colors.size() * sizeof(Rgb8));
+        coarse.heights = s.heights.data();
+        coarse.colors = s.colors.data();
+        fillCellMax(coarse, s.cellMax);
+        store_.push_back(std::move(s));
+        levels_.push_back(coarse);
+    }
+
+    // Max nodes, bottom-up: the cells below and the display level of the same size.
+    const int cells0X = map.width() - 1, cells0Y = map.height() - 1;
+    nodes_.emplace_back();
+    nodeW_.push_back(cells0X);
+    nodeH_.push_back(cells0Y);
+    while (nodeW_.back() > 1 || nodeH_.back() > 1 || nodes_.size() < 2) {
+        const int j = static_cast<int>(nodes_.size());
+        const int nw = ceilHalf(nodeW_.back()), nh = ceilHalf(nodeH_.back());
+        const int fw = nodeW_.back(), fh = nodeH_.back();
+        std::vector<std::uint16_t> node(static_cast<std::size_t>(nw) * nh);
+        auto finer = [&](int fx, int fy) -> std::uint16_t {
+            return j == 1 ? map.cellMaxRaw(fx, fy)
+                          : nodes_[j - 1][static_cast<std::size_t>(fy) * fw + fx];
+        };
+        const bool haveLevel = j < levelCount();
+        tbb::parallel_for(tbb::blocked_range<int>(0, nh), [&](const tbb::blocked_range<int>& rows) {
+            for (int ny = rows.begin(); ny < rows.end(); ++ny) {
+                for (int nx = 0; nx < nw; ++nx) {
+                    std::uint16_t m = 0;
+                    for (int fy = 2 * ny; fy < std::min(2 * ny + 2, fh); ++fy) {
+                        for (int fx = 2 * nx; fx < std::min(2 * nx + 2, fw); ++fx) {
+                            m = std::max(m, finer(fx, fy));
+                        }
+                    }
+                    if (haveLevel) m = std::max(m, levels_[j].cellMaxRaw(nx, ny));
+                    node[static_cast<std::size_t>(ny) * nw + nx] = m;
+                }
+            }
+        });
+        nodes_.push_back(std::move(node));
+        nodeW_.push_back(nw);
+        nodeH_.push_back(nh);
+    }
+
+    // Top-down: a node also lies inside one cell of every coarser display level.
+    std::vector<std::uint16_t> up, upFiner;  // bound from display levels coarser than j
+    for (int j = nodeLevelCount() - 1; j >= 1; --j) {
+        const int nw = nodeW_[j], nh = nodeH_[j];
+        upFiner.assign(static_cast<std::size_t>(nw) * nh, 0);
+        if (j + 1 < nodeLevelCount()) {
+            const bool haveLevel = j + 1 < levelCount();
+            const int pw = nodeW_[j + 1];
+            for (int ny = 0; ny < nh; ++ny) {
+                for (int nx = 0; nx < nw; ++nx) {
+                    const int px = nx >> 1, py = ny >> 1;
+                    std::uint16_t m = up[static_cast<std::size_t>(py) * pw + px];
+                    if (haveLevel) m = std::max(m, levels_[j + 1].cellMaxRaw(px, py));
+                    upFiner[static_cast<std::size_t>(ny) * nw + nx] = m;
+                }
+            }
+        }
+        std::vector<std::uint16_t>& node = nodes_[j];
+        for (std::size_t i = 0; i < node.size(); ++i)
+            node[i] = std::max(node[i], upFiner[i]);
+        up.swap(upFiner);
+    }
+}
+
+std::size_t TerrainPyramid::bytes() const {
+    std::size_t total = 0;
+    for (const LevelStore& s : store_) {
+        total += s.heights.size() * sizeof(std::uint16_t) + s.colors.size() * sizeof(Rgb8) +
+                 s.cellMax.size() * sizeof(std::uint16_t);
+    }
+    for (const auto& n : nodes_)
+        total += n.size() * sizeof(std::uint16_t);
+    return total;
+}
+
+}  // namespace ig

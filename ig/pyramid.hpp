@@ -1,0 +1,70 @@
+// Multiresolution terrain: a display pyramid (mean height and colour per level, each half the
+// previous) and a conservative max-height pyramid that bounds every display level, for skipping
+// empty space.
+#pragma once
+
+#include "ig/terrain.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace ig {
+
+// One display level, viewed flat. Level k sample (i, j) sits on level-0 sample (i << k, j << k);
+// heights are raw units of the map (same scale and offset at every level).
+struct PyramidLevel {
+    int width = 0, height = 0;  // samples
+    int shift = 0;              // k: level-0 samples per sample = 1 << k
+    const std::uint16_t* heights = nullptr;
+    const Rgb8* colors = nullptr;
+    const std::uint16_t* cellMax = nullptr;  // four-sample maxima, (width - 1) per row
+
+    std::size_t index(int ix, int iy) const {
+        return static_cast<std::size_t>(iy) * static_cast<std::size_t>(width) + ix;
+    }
+    std::uint16_t raw(int ix, int iy) const { return heights[index(ix, iy)]; }
+    std::uint16_t cellMaxRaw(int cx, int cy) const {
+        return cellMax[static_cast<std::size_t>(cy) * static_cast<std::size_t>(width - 1) + cx];
+    }
+};
+
+class TerrainPyramid {
+  public:
+    // Builds coarser levels until a level has fewer than 2 cells along either axis, at most
+    // `maxLevels` of them (-1: no limit). Level 0 is a view of `map`, which must outlive this.
+    explicit TerrainPyramid(const TerrainMap& map, int maxLevels = -1);
+
+    const TerrainMap& map() const { return map_; }
+    // Display levels, level 0 (the map itself) included.
+    int levelCount() const { return static_cast<int>(levels_.size()); }
+    const PyramidLevel& level(int k) const { return levels_[k]; }
+
+    // Max-height nodes: node (nx, ny) of node level j (1 <= j < nodeLevelCount()) covers level-0
+    // cells [nx << j, (nx + 1) << j) x [ny << j, (ny + 1) << j) (clipped to the map) and bounds,
+    // in raw units, the bilinear surface of EVERY display level over that region — and hence
+    // any blend of them.
+    int nodeLevelCount() const { return static_cast<int>(nodes_.size()); }
+    int nodesX(int j) const { return nodeW_[j]; }
+    int nodesY(int j) const { return nodeH_[j]; }
+    std::uint16_t nodeMaxRaw(int j, int nx, int ny) const {
+        return nodes_[j][static_cast<std::size_t>(ny) * static_cast<std::size_t>(nodeW_[j]) + nx];
+    }
+
+    // Bytes held by the coarser levels and the nodes (level 0 belongs to the map).
+    std::size_t bytes() const;
+
+  private:
+    struct LevelStore {
+        std::vector<std::uint16_t> heights;
+        std::vector<Rgb8> colors;
+        std::vector<std::uint16_t> cellMax;
+    };
+
+    const TerrainMap& map_;
+    std::vector<PyramidLevel> levels_;
+    std::vector<LevelStore> store_;                  // store_[k] backs levels_[k], k >= 1
+    std::vector<std::vector<std::uint16_t>> nodes_;  // nodes_[0] unused
+    std::vector<int> nodeW_, nodeH_;
+};
+
+}  // namespace ig

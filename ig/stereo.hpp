@@ -1,0 +1,97 @@
+// Stereo pairs: the right eye reprojected from the left eye's colour and depth (Wan et al.,
+// Adelson-Hodges), the gaps ray cast in a second pass, and the pair's composite images.
+#pragma once
+
+#include "ig/caster.hpp"
+#include "ig/frame.hpp"
+#include "ig/terrain.hpp"
+
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace ig {
+
+// How the right eye is made: reprojected from the left, or fully ray cast (the reference).
+enum class RightEyeMethod { Reproject, Raycast };
+// Visibility rule of the reprojection: Wan's right-to-left pass keeping the left-most
+// reprojection, or Adelson-Hodges' left-to-right overwrite with gap clearing.
+enum class ReprojectVariant { Wan, AdelsonHodges };
+
+std::string_view rightEyeMethodName(RightEyeMethod method);
+// Parses "reproject" | "raycast"; throws InputError otherwise.
+RightEyeMethod parseRightEyeMethod(std::string_view name);
+
+struct StereoOptions {
+    double eyeSeparation = 0.065;  // metres; the right eye is this far along the camera's right
+    RightEyeMethod method = RightEyeMethod::Reproject;
+    ReprojectVariant variant = ReprojectVariant::Wan;
+    bool abuffer = true;        // 1x8 sub-pixel coverage; false: integer placement
+    double gapThreshold = 2.0;  // pixels; wider gaps between reprojections are ray cast (Wan only)
+};
+
+// Throws InputError for a negative or non-finite separation or gap threshold.
+void validateStereoOptions(const StereoOptions& options);
+
+// Where a right-eye pixel's colour came from.
+enum class RightPixelSource : std::uint8_t {
+    Reprojected,   // a reprojected left pixel's footprint covers part of it
+    Interpolated,  // only slots interpolated between reprojections up to the threshold apart
+    RayCast,       // cast in the second pass (sky found without casting included)
+};
+
+struct StereoStats {
+    double leftMs = 0.0;       // left eye by the fast caster
+    double reprojectMs = 0.0;  // reprojection pass
+    double castMs = 0.0;       // second pass over the marked pixels
+    double rightMs = 0.0;      // reprojectMs + castMs, or the full cast of the right eye
+    // CPU time of the calling thread over the reprojection and second pass: all of the work
+    // when RenderOptions::threads == 1, immune to other processes' load.
+    double rightCpuMs = 0.0;
+    std::uint64_t reprojected = 0, interpolated = 0, rayCast = 0;
+    std::uint64_t skyWithoutCast = 0;  // marked pixels above a column's last hit, not cast
+    std::uint64_t steps = 0;           // grid steps of the second pass
+    std::uint64_t restarts = 0;        // second-pass rays marched from the map entry
+};
+
+struct StereoFrame {
+    RenderedFrame left;
+    RenderedFrame right;
+    std::vector<RightPixelSource> source;  // per right pixel (empty for a fully cast right eye)
+    StereoStats stats;
+};
+
+// The right eye's pose: `left` moved `eyeSeparation` metres along its camera right vector, same
+// orientation (parallel, coplanar image planes).
+Pose rightEyePose(const Pose& left, double eyeSeparation);
+
+// CPU time consumed by the calling thread so far, milliseconds.
+double threadCpuMs();
+
+// Horizontal disparity of a left pixel (x, y) (integer indices) seen at Euclidean distance
+// `depth`: the right image shows it at x + 0.5 - disparity on the same row. 0 for sky (+inf).
+double stereoDisparity(const Intrinsics& intrinsics, int x, int y, double depth,
+                       double eyeSeparation);
+
+// Renders a stereo pair: the left eye by the fast caster (roll must be 0), the right eye as
+// `options` say (reprojected, or fully cast by the fast caster). Throws InputError for bad
+// options, a rolled pose, or either eye on or below the terrain.
+StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
+                         const StereoOptions& options, const RenderOptions& renderOptions = {});
+
+// The right eye reprojected from a rendered left frame (pose.roll == 0), gaps cast over `map`.
+// Fills `source` (per right pixel) and the right-eye fields of `stats`.
+RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
+                                const StereoOptions& options, const RenderOptions& renderOptions,
+                                std::vector<RightPixelSource>& source, StereoStats& stats);
+
+// Composite images, RGB8 rows top first.
+// Left and right side by side (2W x H).
+std::vector<Rgb8> sideBySide(const RenderedFrame& left, const RenderedFrame& right);
+// Red-cyan anaglyph: red from the left eye, green and blue from the right.
+std::vector<Rgb8> anaglyph(const RenderedFrame& left, const RenderedFrame& right);
+// The right eye dimmed to grey with its ray-cast pixels in pure red (Wan fig. 8c).
+std::vector<Rgb8> rayCastMask(const RenderedFrame& right,
+                              const std::vector<RightPixelSource>& source);
+
+}  // namespace ig

@@ -1,0 +1,377 @@
+// Renderer at full speed: naive vs single-level fast vs multiresolution fast on large synthetic
+// maps, output sensitivity (4096^2 vs the 16384^2 map it is a crop of), thread scaling, vertical
+// supersampling, huge pages, and the frame-to-frame difference along a slow flight.
+//
+//   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
+//                [--cache DIR] [--caster K] [--levels auto|N]
+//   sections: speed sensitivity threads supersample flight quality frame (default: speed)
+//
+// Timings are wall-clock, best of --repeat frames; the machine's load affects them (state it).
+#include "ig/caster.hpp"
+#include "ig/image_compare.hpp"
+#include "ig/synthetic.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Config {
+    std::string cache;  // folder for raw copies of generated maps (fast to load under valgrind)
+    std::string caster = "fast";
+    int levels = 0;
+    int size = 16384;
+    int width = 1920, height = 1080;
+    int repeat = 3;
+    std::vector<std::string> sections;
+};
+
+double secondsSince(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string gCache;
+
+// Loads a raw copy of the map from the cache folder, if there is one.
+bool loadCached(const std::string& path, ig::TerrainMap& map) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return false;
+    const bool ok = std::fread(map.rawHeights().data(), sizeof(std::uint16_t),
+                               map.rawHeights().size(), f) == map.rawHeights().size() &&
+                    std::fread(map.colors().data(), sizeof(ig::Rgb8), map.colors().size(), f) ==
+                        map.colors().size();
+    std::fclose(f);
+    if (ok) map.updateRange();
+    return ok;
+}
+
+void saveCached(const std::string& path, const ig::TerrainMap& map) {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) {
+        std::fprintf(stderr, "bench-render: --cache: cannot write %s\n", path.c_str());
+        return;
+    }
+    std::fwrite(map.rawHeights().data(), sizeof(std::uint16_t), map.rawHeights().size(), f);
+    std::fwrite(map.colors().data(), sizeof(ig::Rgb8), map.colors().size(), f);
+    std::fclose(f);
+}
+
+const ig::TerrainMap& syntheticMap(int size) {
+    static std::map<int, std::unique_ptr<ig::TerrainMap>> maps;
+    auto& slot = maps[size];
+    if (!slot) {
+        const auto start = Clock::now();
+        const std::string path =
+            gCache.empty() ? "" : gCache + "/synthetic-" + std::to_string(size) + "-seed1-10m.raw";
+        slot = std::make_unique<ig::TerrainMap>(size, size, 10.0, 10.0, ig::kSyntheticHeightScale,
+                                                ig::kSyntheticHeightOffset);
+        if (path.empty() || !loadCached(path, *slot)) {
+            *slot = ig::makeSyntheticTerrain(size, 1, 10.0);
+            if (!path.empty()) saveCached(path, *slot);
+        }
+        std::printf("# synthetic %d^2 map (seed 1, 10 m): ready in %.1f s\n", size,
+                    secondsSince(start));
+    }
+    return *slot;
+}
+
+// The issue's camera: x = y = 20 km, 300 m above the ground, heading 45 deg, pitch -10 deg.
+ig::Pose issuePose(const ig::TerrainMap& map, double pitchDeg = -10.0) {
+    ig::Pose p;
+    p.position = {20000.0, 20000.0, 0.0};
+    p.position.z = map.surfaceHeight(p.position.x, p.position.y) + 300.0;
+    p.yaw = ig::degToRad(45.0);
+    p.pitch = ig::degToRad(pitchDeg);
+    return p;
+}
+
+struct Timed {
+    double ms = 0.0;
+    ig::RenderedFrame frame;
+};
+
+Timed timeFrames(const ig::Caster& caster, const ig::TerrainMap& map, const ig::Pose& pose,
+                 const ig::Intrinsics& in, int repeat) {
+    Timed best;
+    best.ms = 1e300;
+    for (int i = 0; i < repeat; ++i) {
+        ig::RenderedFrame f = ig::renderFrame(caster, map, pose, in);
+        if (f.stats.renderMs < best.ms) {
+            best.ms = f.stats.renderMs;
+            best.frame = std::move(f);
+        }
+    }
+    return best;
+}
+
+std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& map, int levels,
+                                   int threads, int supersample = 1) {
+    ig::RenderOptions o;
+    o.levels = levels;
+    o.threads = threads;
+    o.supersample = supersample;
+    const auto start = Clock::now();
+    auto c = ig::makeCaster(kind, map, o);
+    if (kind == ig::CasterKind::Fast && levels != 0) {
+        std::printf("# pyramid built in %.2f s\n", secondsSince(start));
+    }
+    return c;
+}
+
+void printRow(const char* name, const Timed& t, double pixels, double baselineMs = 0.0) {
+    std::printf("| %-26s | %9.1f | %8.2f | %8.2f | %9.3f |", name, t.ms, t.ms * 1e6 / pixels,
+                static_cast<double>(t.frame.stats.steps) / pixels,
+                static_cast<double>(t.frame.stats.restarts) / pixels);
+    if (baselineMs > 0.0) std::printf(" %8.2fx |", baselineMs / t.ms);
+    std::printf("\n");
+}
+
+void header(bool speedup) {
+    std::printf("| %-26s | %9s | %8s | %8s | %9s |%s\n", "caster", "frame ms", "ns/px", "steps/px",
+                "restart/px", speedup ? "  speed-up |" : "");
+    std::printf("|----------------------------|-----------|----------|----------|------------|%s\n",
+                speedup ? "-----------|" : "");
+}
+
+void speed(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    const ig::Pose pose = issuePose(map);
+    std::printf("\n## speed: %dx%d, synthetic %d^2, issue camera, one thread\n", c.width, c.height,
+                c.size);
+    const auto naive = caster(ig::CasterKind::Naive, map, 0, 1);
+    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
+    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    const Timed n = timeFrames(*naive, map, pose, in, 1);
+    const Timed s = timeFrames(*single, map, pose, in, c.repeat);
+    const Timed m = timeFrames(*multi, map, pose, in, c.repeat);
+    header(true);
+    printRow("naive", n, pixels, n.ms);
+    printRow("fast, --levels 0", s, pixels, n.ms);
+    printRow("fast, --levels auto", m, pixels, n.ms);
+    std::printf(
+        "multires vs single-level: %.2fx; MAE single vs naive %.3f %%, multires vs single "
+        "%.3f %%\n",
+        s.ms / m.ms, ig::meanAbsErrorPct(s.frame.color, n.frame.color),
+        ig::meanAbsErrorPct(m.frame.color, s.frame.color));
+}
+
+void sensitivity(const Config& c) {
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf("\n## output sensitivity: %dx%d, issue camera, one thread\n", c.width, c.height);
+    header(false);
+    std::map<std::pair<int, int>, double> ms;
+    for (int size : {4096, c.size}) {
+        const ig::TerrainMap& map = syntheticMap(size);
+        for (int levels : {0, ig::kLevelsAuto}) {
+            const auto fast = caster(ig::CasterKind::Fast, map, levels, 1);
+            const Timed t = timeFrames(*fast, map, issuePose(map), in, c.repeat);
+            const std::string name = std::to_string(size) + "^2, levels " +
+                                     (levels == 0 ? std::string("0") : std::string("auto"));
+            printRow(name.c_str(), t, pixels);
+            ms[{size, levels}] = t.ms;
+        }
+    }
+    std::printf("frame time %d^2 / 4096^2: levels 0 %.2fx, levels auto %.2fx\n", c.size,
+                ms[{c.size, 0}] / ms[{4096, 0}],
+                ms[{c.size, ig::kLevelsAuto}] / ms[{4096, ig::kLevelsAuto}]);
+}
+
+void threads(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf("\n## threads: %dx%d, synthetic %d^2, issue camera, levels auto\n", c.width,
+                c.height, c.size);
+    header(true);
+    double one = 0.0;
+    for (int n : {1, 2}) {
+        const auto fast = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, n);
+        const Timed t = timeFrames(*fast, map, issuePose(map), in, c.repeat + 2);
+        if (n == 1) one = t.ms;
+        printRow((std::to_string(n) + " thread(s)").c_str(), t, pixels, one);
+    }
+}
+
+std::vector<ig::Rgb8> supersampledReference(const ig::TerrainMap& map, const ig::Pose& pose, int w,
+                                            int h, int f) {
+    const auto ref = ig::makeCaster(ig::CasterKind::Reference, map);
+    const ig::Intrinsics fine = ig::Intrinsics::fromFov(w * f, h * f, ig::degToRad(60.0));
+    const ig::RenderedFrame big = ig::renderFrame(*ref, map, pose, fine);
+    std::vector<ig::Rgb8> out(static_cast<std::size_t>(w) * h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            int s[3] = {0, 0, 0};
+            for (int b = 0; b < f; ++b) {
+                for (int a = 0; a < f; ++a) {
+                    const ig::Rgb8 px =
+                        big.color[static_cast<std::size_t>(y * f + b) * w * f + x * f + a];
+                    s[0] += px.r;
+                    s[1] += px.g;
+                    s[2] += px.b;
+                }
+            }
+            const int n = f * f;
+            out[static_cast<std::size_t>(y) * w + x] =
+                ig::Rgb8{static_cast<std::uint8_t>((s[0] + n / 2) / n),
+                         static_cast<std::uint8_t>((s[1] + n / 2) / n),
+                         static_cast<std::uint8_t>((s[2] + n / 2) / n)};
+        }
+    }
+    return out;
+}
+
+// Speed against error: each variant's time at the full size and its error against a 4x4
+// supersampled reference at an eighth of the size (same field of view).
+void quality(const Config& c, double pitchDeg, const char* title) {
+    const int size = std::min(c.size, 4096);
+    const ig::TerrainMap& map = syntheticMap(size);
+    const ig::Pose pose = issuePose(map, pitchDeg);
+    const int qw = c.width / 8, qh = c.height / 8;
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const ig::Intrinsics small = ig::Intrinsics::fromFov(qw, qh, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## %s: synthetic %d^2, pitch %.0f deg, time at %dx%d (one thread), error at "
+        "%dx%d vs 4x4 supersampled reference\n",
+        title, size, pitchDeg, c.width, c.height, qw, qh);
+    const auto ref = supersampledReference(map, pose, qw, qh, 4);
+    std::printf("| %-22s | %9s | %8s | %8s | %8s |\n", "variant", "frame ms", "ns/px", "steps/px",
+                "MAE %");
+    std::printf("|------------------------|-----------|----------|----------|----------|\n");
+    for (int levels : {0, ig::kLevelsAuto}) {
+        for (int ss : {1, 2, 4}) {
+            const auto fast = caster(ig::CasterKind::Fast, map, levels, 1, ss);
+            const Timed t = timeFrames(*fast, map, pose, in, c.repeat);
+            const auto q = ig::renderFrame(*fast, map, pose, small);
+            const std::string name = std::string("levels ") + (levels == 0 ? "0" : "auto") +
+                                     ", supersample " + std::to_string(ss);
+            std::printf("| %-22s | %9.1f | %8.2f | %8.2f | %8.3f |\n", name.c_str(), t.ms,
+                        t.ms * 1e6 / pixels, static_cast<double>(t.frame.stats.steps) / pixels,
+                        ig::meanAbsErrorPct(q.color, ref));
+        }
+    }
+}
+
+// One frame of --caster at --levels, one thread: for instruction counts under callgrind
+// (--toggle-collect='ig::renderFrame*').
+void frame(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const auto r = caster(ig::parseCasterKind(c.caster), map, c.levels, 1);
+    const ig::RenderedFrame f = ig::renderFrame(*r, map, issuePose(map), in);
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf("frame: %s, levels %d, %dx%d, synthetic %d^2: %.1f ms, %.2f steps/px\n",
+                c.caster.c_str(), c.levels, c.width, c.height, c.size, f.stats.renderMs,
+                static_cast<double>(f.stats.steps) / pixels);
+}
+
+void flight(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(std::min(c.size, 4096));
+    const int w = c.width / 2, h = c.height / 2;
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(w, h, ig::degToRad(60.0));
+    std::printf(
+        "\n## slow flight: synthetic %d^2, %dx%d, 300 m AGL at the start, heading 45 deg, "
+        "pitch -5 deg, 5 m per frame; frame-to-frame MAE %%\n",
+        map.width(), w, h);
+    const auto single = caster(ig::CasterKind::Fast, map, 0, 0);
+    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 0);
+    std::vector<ig::Rgb8> prevS, prevM;
+    std::printf("| frame | levels 0 | levels auto |\n|---|---|---|\n");
+    const double z = map.surfaceHeight(20000.0, 20000.0) + 300.0;
+    for (int i = 0; i <= 60; ++i) {
+        ig::Pose pose = issuePose(map, -5.0);
+        pose.position.x += 5.0 * i * 0.7071067811865476;
+        pose.position.y += 5.0 * i * 0.7071067811865476;
+        pose.position.z = z;
+        const auto s = ig::renderFrame(*single, map, pose, in);
+        const auto m = ig::renderFrame(*multi, map, pose, in);
+        if (i > 0) {
+            std::printf("| %d | %.3f | %.3f |\n", i, ig::meanAbsErrorPct(s.color, prevS),
+                        ig::meanAbsErrorPct(m.color, prevM));
+        }
+        prevS = s.color;
+        prevM = m.color;
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Config c;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto next = [&]() -> std::string {
+            if (i + 1 >= argc) {
+                std::fprintf(stderr, "bench-render: %s needs a value\n", a.c_str());
+                std::exit(2);
+            }
+            return argv[++i];
+        };
+        if (a == "--size") {
+            c.size = std::atoi(next().c_str());
+        } else if (a == "--image") {
+            const std::string v = next();
+            if (std::sscanf(v.c_str(), "%dx%d", &c.width, &c.height) != 2 || c.width < 8 ||
+                c.height < 8) {
+                std::fprintf(stderr, "bench-render: --image %s: expected WxH\n", v.c_str());
+                return 2;
+            }
+        } else if (a == "--repeat") {
+            c.repeat = std::max(1, std::atoi(next().c_str()));
+        } else if (a == "--cache") {
+            c.cache = next();
+        } else if (a == "--caster") {
+            c.caster = next();
+        } else if (a == "--levels") {
+            try {
+                c.levels = ig::parseLevels(next());
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "bench-render: %s\n", e.what());
+                return 2;
+            }
+        } else if (a == "--no-hugepages") {
+            ig::setHugePageAdvice(false);
+        } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
+                   a == "flight" || a == "quality" || a == "frame") {
+            c.sections.push_back(a);
+        } else {
+            std::fprintf(
+                stderr,
+                "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
+                "[sensitivity] [threads] [supersample] [quality] [flight] [frame] [--size N] "
+                "[--image WxH] [--repeat N] [--no-hugepages] [--cache DIR] "
+                "[--caster fast|naive|reference] [--levels auto|N]\n",
+                a.c_str());
+            return 2;
+        }
+    }
+    if (c.sections.empty()) c.sections.push_back("speed");
+    gCache = c.cache;
+    try {
+        for (const std::string& s : c.sections) {
+            if (s == "speed") speed(c);
+            if (s == "sensitivity") sensitivity(c);
+            if (s == "threads") threads(c);
+            if (s == "quality") quality(c, -10.0, "quality");
+            if (s == "supersample") quality(c, -1.0, "supersampling at shallow pitch");
+            if (s == "flight") flight(c);
+            if (s == "frame") frame(c);
+        }
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "bench-render: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

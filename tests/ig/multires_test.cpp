@@ -1,0 +1,410 @@
+// Terrain pyramid, hierarchical first hit, and the multiresolution fast caster: bounds,
+// agreement with the plain march, thread independence, error against a supersampled reference,
+// and temporal stability along a slow flight.
+#include "ig/caster.hpp"
+#include "ig/error.hpp"
+#include "ig/image_compare.hpp"
+#include "ig/multires_march.hpp"
+#include "ig/pose_sweep.hpp"
+#include "ig/pyramid.hpp"
+#include "ig/shading.hpp"
+#include "ig/synthetic.hpp"
+#include "ig/terrain_io.hpp"
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <vector>
+
+namespace {
+
+using ig::CasterKind;
+using ig::Intrinsics;
+using ig::Pose;
+using ig::TerrainMap;
+using ig::TerrainPyramid;
+
+const TerrainMap& synthetic512() {
+    static const TerrainMap map = ig::makeSyntheticTerrain(512, 7, 10.0);
+    return map;
+}
+
+const TerrainMap& synthetic1024() {
+    static const TerrainMap map = ig::makeSyntheticTerrain(1024, 7, 10.0);
+    return map;
+}
+
+const TerrainMap& puget() {
+    static const TerrainMap map = ig::loadPugetSound();
+    return map;
+}
+
+// Bilinear height (raw units) of display level k at level-0 grid coordinates (gx, gy).
+double levelRawAt(const ig::PyramidLevel& l, double gx, double gy) {
+    const double s = 1.0 / (1 << l.shift);
+    const double x = std::clamp(gx * s, 0.0, l.width - 1.0);
+    const double y = std::clamp(gy * s, 0.0, l.height - 1.0);
+    const int ix = std::min(static_cast<int>(x), l.width - 2);
+    const int iy = std::min(static_cast<int>(y), l.height - 2);
+    const double fx = x - ix, fy = y - iy;
+    return (l.raw(ix, iy) * (1 - fx) + l.raw(ix + 1, iy) * fx) * (1 - fy) +
+           (l.raw(ix, iy + 1) * (1 - fx) + l.raw(ix + 1, iy + 1) * fx) * fy;
+}
+
+std::vector<ig::Rgb8> boxDownsample(const std::vector<ig::Rgb8>& src, int w, int h, int f) {
+    std::vector<ig::Rgb8> out(static_cast<std::size_t>(w) * h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            int s[3] = {0, 0, 0};
+            for (int b = 0; b < f; ++b) {
+                for (int a = 0; a < f; ++a) {
+                    const ig::Rgb8 c =
+                        src[static_cast<std::size_t>(y * f + b) * (w * f) + x * f + a];
+                    s[0] += c.r;
+                    s[1] += c.g;
+                    s[2] += c.b;
+                }
+            }
+            const int n = f * f;
+            out[static_cast<std::size_t>(y) * w + x] =
+                ig::Rgb8{static_cast<std::uint8_t>((s[0] + n / 2) / n),
+                         static_cast<std::uint8_t>((s[1] + n / 2) / n),
+                         static_cast<std::uint8_t>((s[2] + n / 2) / n)};
+        }
+    }
+    return out;
+}
+
+TEST(TerrainPyramid, LevelsHalveAndStayOnGridLines) {
+    for (int n : {2, 3, 17, 64, 65, 100}) {
+        TerrainMap map(n, n + 7, 10.0, 10.0, 1.0, 0.0);
+        map.updateRange();
+        const TerrainPyramid pyr(map);
+        ASSERT_GE(pyr.levelCount(), 1);
+        for (int k = 1; k < pyr.levelCount(); ++k) {
+            const ig::PyramidLevel& fine = pyr.level(k - 1);
+            const ig::PyramidLevel& l = pyr.level(k);
+            EXPECT_EQ(l.shift, k);
+            EXPECT_EQ(l.width - 1, (fine.width - 1 + 1) / 2) << "n " << n << " level " << k;
+            EXPECT_EQ(l.height - 1, (fine.height - 1 + 1) / 2) << "n " << n << " level " << k;
+            // The coarse grid covers the whole map.
+            EXPECT_GE((l.width - 1) << k, n - 1);
+            EXPECT_GE(l.width - 1, 2);
+        }
+    }
+}
+
+TEST(TerrainPyramid, MeanPreservesPlanesAndConstants) {
+    // A plane stays the plane at every level away from the clamped border; a constant colour
+    // stays that colour everywhere.
+    const int n = 129;
+    TerrainMap map(n, n, 5.0, 5.0, 1.0, 0.0);
+    for (int iy = 0; iy < n; ++iy) {
+        for (int ix = 0; ix < n; ++ix) {
+            map.setRaw(ix, iy, static_cast<std::uint16_t>(100 + 3 * ix + 5 * iy));
+            map.setColor(ix, iy, ig::Rgb8{40, 90, 200});
+        }
+    }
+    map.updateRange();
+    const TerrainPyramid pyr(map);
+    ASSERT_GE(pyr.levelCount(), 5);
+    for (int k = 1; k < pyr.levelCount(); ++k) {
+        const ig::PyramidLevel& l = pyr.level(k);
+        for (int j = 0; j < l.height; ++j) {
+            for (int i = 0; i < l.width; ++i) {
+                EXPECT_EQ(l.colors[l.index(i, j)], (ig::Rgb8{40, 90, 200}));
+                const int border = (1 << k);  // samples whose filter support is clamped
+                const int x0 = i << k, y0 = j << k;
+                if (x0 < border || y0 < border || x0 > n - 1 - border || y0 > n - 1 - border) {
+                    continue;
+                }
+                EXPECT_EQ(l.raw(i, j), 100 + 3 * x0 + 5 * y0) << "level " << k;
+            }
+        }
+    }
+}
+
+TEST(TerrainPyramid, NodesBoundEveryLevelsSurface) {
+    const TerrainMap& map = synthetic512();
+    const TerrainPyramid pyr(map);
+    ASSERT_GE(pyr.levelCount(), 6);
+    ASSERT_GE(pyr.nodeLevelCount(), 9);
+    EXPECT_EQ(pyr.nodesX(pyr.nodeLevelCount() - 1), 1);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> ux(0.0, map.width() - 1.0), uy(0.0, map.height() - 1.0);
+    for (int i = 0; i < 3000; ++i) {
+        const double gx = ux(rng), gy = uy(rng);
+        const int cx = std::min(static_cast<int>(gx), map.width() - 2);
+        const int cy = std::min(static_cast<int>(gy), map.height() - 2);
+        for (int k = 0; k < pyr.levelCount(); ++k) {
+            const double h = levelRawAt(pyr.level(k), gx, gy);
+            for (int j = 1; j < pyr.nodeLevelCount(); ++j) {
+                ASSERT_LE(h, pyr.nodeMaxRaw(j, cx >> j, cy >> j) + 1e-9)
+                    << "level " << k << " node level " << j << " at " << gx << "," << gy;
+            }
+            // Each level's own cell maxima bound its surface.
+            const ig::PyramidLevel& l = pyr.level(k);
+            const double s = 1.0 / (1 << k);
+            const int lx = std::min(static_cast<int>(gx * s), l.width - 2);
+            const int ly = std::min(static_cast<int>(gy * s), l.height - 2);
+            ASSERT_LE(h, l.cellMaxRaw(lx, ly) + 1e-9);
+        }
+    }
+    // Coarse means stay within the map's range.
+    const ig::PyramidLevel& top = pyr.level(pyr.levelCount() - 1);
+    for (int j = 0; j < top.height; ++j) {
+        for (int i = 0; i < top.width; ++i) {
+            const double z = top.raw(i, j) * map.heightScale() + map.heightOffset();
+            EXPECT_GE(z, map.minHeight());
+            EXPECT_LE(z, map.maxHeight());
+        }
+    }
+}
+
+// Bottom rays (and a few rows above) of every column: the hierarchical first hit equals the
+// plain march, over a pose sweep.
+void expectHierarchicalAgrees(const TerrainMap& map, int poses) {
+    const TerrainPyramid pyr(map);
+    const Intrinsics in = Intrinsics::fromFov(160, 90, ig::degToRad(60));
+    int hits = 0, misses = 0;
+    for (const Pose& pose : ig::sweepPoses(map, poses)) {
+        const ig::Camera cam(pose, in);
+        for (int row : {in.height - 1, in.height / 2, in.height / 4}) {
+            for (int x = 0; x < in.width; ++x) {
+                const ig::TerrainRay ray(map, pose.position, cam.rayDirection(x + 0.5, row + 0.5));
+                double t0, t1;
+                if (!ig::clipToMapBox(map, ray, t0, t1)) continue;
+                std::uint64_t s0 = 0, s1 = 0;
+                const double plain = ig::marchRay(map, ray, t0, t1, s0);
+                const double hier = ig::hierarchicalFirstHit(pyr, ray, t0, t1, s1);
+                ASSERT_EQ(plain >= 0.0, hier >= 0.0)
+                    << "column " << x << " row " << row << " plain " << plain << " hier " << hier;
+                if (plain >= 0.0) {
+                    ASSERT_NEAR(hier, plain, 1e-9 * plain + 1e-6) << "column " << x;
+                    ++hits;
+                } else {
+                    ++misses;
+                }
+            }
+        }
+    }
+    EXPECT_GT(hits, 1000);
+    EXPECT_GT(misses, 100);
+}
+
+TEST(HierarchicalFirstHit, AgreesWithPlainMarchOnSynthetic) {
+    expectHierarchicalAgrees(synthetic512(), 24);
+}
+
+TEST(HierarchicalFirstHit, AgreesWithPlainMarchOnPugetSound) {
+    expectHierarchicalAgrees(puget(), 24);
+}
+
+TEST(HierarchicalFirstHit, SkipsEmptySpaceCheaply) {
+    // A ray high above a flat map's low plain toward a single peak: the skip takes few nodes.
+    const int n = 1025;
+    TerrainMap map(n, n, 10.0, 10.0, 1.0, 0.0);
+    map.setRaw(900, 512, 500);
+    map.updateRange();
+    const TerrainPyramid pyr(map);
+    const ig::TerrainRay ray(map, {100.0, 5120.0, 400.0}, {1.0, 0.0, -0.04});
+    double t0, t1;
+    ASSERT_TRUE(ig::clipToMapBox(map, ray, t0, t1));
+    std::uint64_t plainSteps = 0, hierSteps = 0;
+    const double plain = ig::marchRay(map, ray, t0, t1, plainSteps);
+    const double hier = ig::hierarchicalFirstHit(pyr, ray, t0, t1, hierSteps);
+    ASSERT_GE(plain, 0.0);
+    EXPECT_NEAR(hier, plain, 1e-6);
+    EXPECT_LT(hierSteps * 4, plainSteps);
+}
+
+ig::RenderedFrame renderWith(const TerrainMap& map, const Pose& pose, const Intrinsics& in,
+                             int levels, int threads, int supersample = 1) {
+    ig::RenderOptions options;
+    options.levels = levels;
+    options.threads = threads;
+    options.supersample = supersample;
+    const auto caster = ig::makeCaster(CasterKind::Fast, map, options);
+    return ig::renderFrame(*caster, map, pose, in);
+}
+
+TEST(MultiresCaster, IdenticalImagesForAnyThreadCount) {
+    const TerrainMap& map = synthetic512();
+    const Intrinsics in = Intrinsics::fromFov(200, 120, ig::degToRad(60), 4);
+    for (const Pose& pose : ig::sweepPoses(map, 4)) {
+        for (int levels : {0, ig::kLevelsAuto}) {
+            for (int sub : {1, 2}) {
+                const auto one = renderWith(map, pose, in, levels, 1, sub);
+                for (int threads : {2, 4}) {
+                    const auto many = renderWith(map, pose, in, levels, threads, sub);
+                    ASSERT_TRUE(one.color == many.color) << threads << " threads";
+                    ASSERT_EQ(0, std::memcmp(one.depth.data(), many.depth.data(),
+                                             one.depth.size() * sizeof(float)));
+                    EXPECT_EQ(one.stats.steps, many.stats.steps);
+                }
+            }
+        }
+    }
+}
+
+TEST(MultiresCaster, NearTerrainIsExactLevelZero) {
+    // Where every hit is nearer than the level-0 distance, auto levels render the same image.
+    const TerrainMap& map = synthetic512();
+    const Intrinsics in = Intrinsics::fromFov(96, 64, ig::degToRad(60));
+    Pose pose;
+    pose.position = {2500.0, 2500.0, map.surfaceHeight(2500.0, 2500.0) + 150.0};
+    pose.pitch = ig::degToRad(-60.0);
+    const auto single = renderWith(map, pose, in, 0, 1);
+    const auto multi = renderWith(map, pose, in, ig::kLevelsAuto, 1);
+    const double d0 = in.focal * map.spacingX();
+    float far = 0.0f;
+    for (float d : single.depth)
+        far = std::max(far, d);
+    ASSERT_LT(far, d0);
+    EXPECT_TRUE(single.color == multi.color);
+}
+
+// Mean colour error of levels 0 and auto against a 4x4-supersampled reference over a sweep.
+struct SupersampledError {
+    double single = 0.0, multi = 0.0;
+};
+
+SupersampledError errorAgainstSupersampled(const TerrainMap& map, int poses, int w, int h) {
+    constexpr int kF = 4;
+    const auto reference = ig::makeCaster(CasterKind::Reference, map);
+    const Intrinsics in = Intrinsics::fromFov(w, h, ig::degToRad(60));
+    const Intrinsics fine = Intrinsics::fromFov(w * kF, h * kF, ig::degToRad(60));
+    SupersampledError e;
+    int k = 0;
+    for (const Pose& pose : ig::sweepPoses(map, poses)) {
+        const auto ref =
+            boxDownsample(ig::renderFrame(*reference, map, pose, fine).color, w, h, kF);
+        const double single = ig::meanAbsErrorPct(renderWith(map, pose, in, 0, 0).color, ref);
+        const double multi =
+            ig::meanAbsErrorPct(renderWith(map, pose, in, ig::kLevelsAuto, 0).color, ref);
+        e.single += single / poses;
+        e.multi += multi / poses;
+        ++k;
+    }
+    return e;
+}
+
+TEST(MultiresCaster, NoWorseThanSingleLevelAgainstSupersampledReferencePuget) {
+    const SupersampledError e = errorAgainstSupersampled(puget(), 12, 64, 40);
+    std::printf("Puget Sound vs 4x4 reference: single-level MAE %.3f %%, multires %.3f %%\n",
+                e.single, e.multi);
+    EXPECT_LE(e.multi, e.single);
+}
+
+TEST(MultiresCaster, NoWorseThanSingleLevelAgainstSupersampledReferenceSynthetic) {
+    const SupersampledError e = errorAgainstSupersampled(synthetic1024(), 12, 64, 40);
+    std::printf("synthetic 1024^2 vs 4x4 reference: single-level MAE %.3f %%, multires %.3f %%\n",
+                e.single, e.multi);
+    EXPECT_LE(e.multi, e.single);
+}
+
+// Frame-to-frame mean absolute difference along a slow straight flight.
+std::vector<double> flightDifferences(const TerrainMap& map, int levels, int frames) {
+    const Intrinsics in = Intrinsics::fromFov(160, 90, ig::degToRad(60));
+    ig::RenderOptions options;
+    options.levels = levels;
+    const auto caster = ig::makeCaster(CasterKind::Fast, map, options);
+    std::vector<double> diffs;
+    std::vector<ig::Rgb8> prev;
+    for (int i = 0; i < frames; ++i) {
+        Pose pose;
+        pose.position = {1500.0 + 6.0 * i, 1500.0 + 6.0 * i, 0.0};
+        pose.position.z = 250.0 + map.surfaceHeight(1500.0, 1500.0);
+        pose.yaw = ig::degToRad(45.0);
+        pose.pitch = ig::degToRad(-4.0);
+        auto frame = ig::renderFrame(*caster, map, pose, in);
+        if (!prev.empty()) diffs.push_back(ig::meanAbsErrorPct(frame.color, prev));
+        prev = std::move(frame.color);
+    }
+    return diffs;
+}
+
+TEST(MultiresCaster, NoSpikesAlongASlowFlight) {
+    const TerrainMap& map = synthetic1024();
+    std::vector<double> multi = flightDifferences(map, ig::kLevelsAuto, 40);
+    std::vector<double> single = flightDifferences(map, 0, 40);
+    auto median = [](std::vector<double> v) {
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        return v[v.size() / 2];
+    };
+    const double mMulti = median(multi), mSingle = median(single);
+    const double worst = *std::max_element(multi.begin(), multi.end());
+    std::printf("slow flight: multires median %.3f %% worst %.3f %%; single-level median %.3f %%\n",
+                mMulti, worst, mSingle);
+    ASSERT_GT(mMulti, 0.0);
+    EXPECT_LE(worst, 2.0 * mMulti);
+    // Coarser levels far away do not flicker more than level 0 does.
+    EXPECT_LE(mMulti, 1.05 * mSingle);
+}
+
+TEST(MultiresCaster, SupersamplingAveragesSubRays) {
+    // With two rays per pixel, each pixel is the mean of the exact hits through (x + 0.5,
+    // y + 0.25) and (x + 0.5, y + 0.75), and its depth the nearer of the two.
+    const TerrainMap& map = synthetic512();
+    const Intrinsics in = Intrinsics::fromFov(64, 40, ig::degToRad(60));
+    Pose pose;
+    pose.position = {2000.0, 2500.0, map.surfaceHeight(2000.0, 2500.0) + 200.0};
+    pose.yaw = ig::degToRad(30.0);
+    pose.pitch = ig::degToRad(-8.0);
+    const auto ss = renderWith(map, pose, in, 0, 1, 2);
+    EXPECT_EQ(ss.stats.rays, static_cast<std::uint64_t>(2 * in.width * in.height));
+    const ig::Camera cam(pose, in);
+    const ig::SkyModel sky;
+    int bad = 0, hits = 0;
+    for (int y = 0; y < in.height; ++y) {
+        for (int x = 0; x < in.width; ++x) {
+            int sum[3] = {0, 0, 0};
+            float nearest = ig::kSkyDepth;
+            for (double sub : {0.25, 0.75}) {
+                const glm::dvec3 d = glm::normalize(cam.rayDirection(x + 0.5, y + sub));
+                const ig::RayHit hit = ig::intersectTerrain(map, pose.position, d);
+                ig::Rgb8 c = ig::skyColor(sky, d.z);
+                if (hit.hit) {
+                    c = ig::terrainColor(map, sky, hit.point.x, hit.point.y, hit.distance);
+                    nearest = std::min(nearest, static_cast<float>(hit.distance));
+                }
+                sum[0] += c.r;
+                sum[1] += c.g;
+                sum[2] += c.b;
+            }
+            const std::size_t i = static_cast<std::size_t>(y) * in.width + x;
+            const ig::Rgb8 got = ss.color[i];
+            const int diff =
+                std::max({std::abs(got.r - (sum[0] + 1) / 2), std::abs(got.g - (sum[1] + 1) / 2),
+                          std::abs(got.b - (sum[2] + 1) / 2)});
+            if (diff > 1) ++bad;
+            if (std::isfinite(nearest)) {
+                ++hits;
+                EXPECT_NEAR(ss.depth[i], nearest, 1e-4 * nearest) << x << "," << y;
+            } else {
+                EXPECT_TRUE(std::isinf(ss.depth[i]));
+            }
+        }
+    }
+    EXPECT_GT(hits, in.width * in.height / 3);
+    EXPECT_LE(bad, in.width * in.height / 200) << "pixels off by more than rounding";
+}
+
+TEST(MultiresCaster, LevelsParse) {
+    EXPECT_EQ(ig::parseLevels("auto"), ig::kLevelsAuto);
+    EXPECT_EQ(ig::parseLevels("0"), 0);
+    EXPECT_EQ(ig::parseLevels("3"), 3);
+    EXPECT_THROW(ig::parseLevels("-1"), ig::InputError);
+    EXPECT_THROW(ig::parseLevels("many"), ig::InputError);
+    EXPECT_THROW(ig::parseLevels(""), ig::InputError);
+    ig::RenderOptions bad;
+    bad.supersample = 0;
+    EXPECT_THROW(ig::makeCaster(CasterKind::Fast, synthetic512(), bad), ig::InputError);
+}
+
+}  // namespace
