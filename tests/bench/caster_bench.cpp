@@ -3,6 +3,7 @@
 // absolute colour error in % of full scale, computed once per case outside the timing).
 #include "ig/caster.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/pose_sweep.hpp"
 #include "ig/terrain_io.hpp"
 
 #include <benchmark/benchmark.h>
@@ -51,13 +52,45 @@ void BM_Caster(benchmark::State& state, ig::CasterKind kind) {
         benchmark::DoNotOptimize(frame.color.data());
     }
     const double pixels = static_cast<double>(w) * h;
-    state.counters["ns_per_pixel"] = benchmark::Counter(
-        static_cast<double>(state.iterations()) * pixels,
-        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    // Seconds per pixel (shown with an SI prefix, e.g. "65n" = 65 ns).
+    state.counters["s_per_pixel"] = benchmark::Counter(
+        pixels, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
     state.counters["steps_per_pixel"] = static_cast<double>(frame.stats.steps) / pixels;
     state.counters["restarts_per_pixel"] = static_cast<double>(frame.stats.restarts) / pixels;
     state.counters["mae_pct_vs_reference"] = errorAgainstReference(frame, in);
 }
+
+// The whole 50-pose accuracy sweep (5 m .. 20 km above ground, pitch +10 .. -85 degrees).
+void BM_CasterSweep(benchmark::State& state, ig::CasterKind kind) {
+    const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(w, h, ig::degToRad(60.0));
+    ig::RenderOptions options;
+    options.threads = 1;
+    const auto caster = ig::makeCaster(kind, puget(), options);
+    const auto poses = ig::sweepPoses(puget(), 50);
+    std::uint64_t steps = 0;
+    for (auto _ : state) {
+        steps = 0;
+        for (const ig::Pose& pose : poses) {
+            const auto frame = ig::renderFrame(*caster, puget(), pose, in);
+            steps += frame.stats.steps;
+            benchmark::DoNotOptimize(frame.color.data());
+        }
+    }
+    const double pixels = static_cast<double>(w) * h * poses.size();
+    state.counters["s_per_pixel"] = benchmark::Counter(
+        pixels, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    state.counters["steps_per_pixel"] = static_cast<double>(steps) / pixels;
+}
+
+BENCHMARK_CAPTURE(BM_CasterSweep, naive, ig::CasterKind::Naive)
+    ->Args({720, 486})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_CasterSweep, fast, ig::CasterKind::Fast)
+    ->Args({720, 486})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
 BENCHMARK_CAPTURE(BM_Caster, naive, ig::CasterKind::Naive)
     ->Args({720, 486})
