@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <sstream>
 #include <vector>
 
@@ -129,6 +130,41 @@ Pose parsePose(const std::string& text, const TerrainMap& map, const std::string
     p.pitch = degToRad(parseNumber(parts[4], what + " pitch"));
     p.roll = degToRad(parseNumber(parts[5], what + " roll"));
     return p;
+}
+
+int runProgram(const char* name, const std::function<int()>& body) {
+    try {
+        return body();
+    } catch (const InputError& e) {
+        std::fprintf(stderr, "%s: %s\n", name, e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s: error: %s\n", name, e.what());
+        return 1;
+    }
+}
+
+void writeTextOutput(const std::string& flag, const std::string& path, const std::string& text) {
+    if (path == "-") {
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        if (std::fflush(stdout) != 0)
+            throw InputError(flag + " -: cannot write to standard output");
+        return;
+    }
+    const std::string tmp = path + ".part";
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out << text;
+        out.close();
+        if (!out) {
+            std::remove(tmp.c_str());
+            throw InputError(flag + " " + path + ": cannot write the file");
+        }
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw InputError(flag + " " + path + ": cannot write the file");
+    }
 }
 
 }  // namespace ig

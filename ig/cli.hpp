@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -34,5 +35,12 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& what =
 // "x,y,z,yaw,pitch,roll" in metres and degrees; z written "+H" means H metres above the terrain
 // under (x, y). Throws InputError naming `what`.
 Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what = "--pose");
+
+// Runs a program's body: an InputError prints "NAME: message" and exits 2, any other exception
+// prints "NAME: error: message" and exits 1; otherwise the body's own exit code.
+int runProgram(const char* name, const std::function<int()>& body);
+// Writes `text` to `path` ('-': standard output), replacing the file only when all was written;
+// throws InputError naming `flag` and the path when it cannot.
+void writeTextOutput(const std::string& flag, const std::string& path, const std::string& text);
 
 }  // namespace ig

@@ -155,13 +155,7 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
                  {"roll_deg", ig::radToDeg(pose.roll)}};
     j["terrain"] = ig::describeTerrain(map);
     runStereo(s, map, pose, intr, options, depthPath, j);
-    if (jsonPath == "-") {
-        std::cout << j.dump(2) << "\n";
-    } else if (!jsonPath.empty()) {
-        std::ofstream out(jsonPath);
-        out << j.dump(2) << "\n";
-        if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
-    }
+    if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
     return 0;
 }
 
@@ -209,7 +203,7 @@ int main(int argc, char** argv) {
     addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
 
-    try {
+    return ig::runProgram("ig-render", [&]() -> int {
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -274,27 +268,13 @@ int main(int argc, char** argv) {
                 {{"px", {cp.pixel.x, cp.pixel.y}},
                  {"world", {cp.world.x, cp.world.y, cp.world.z, cp.world.w}}});
         }
-        if (!jsonPath.empty()) {
-            if (jsonPath == "-") {
-                std::cout << j.dump(2) << "\n";
-            } else {
-                std::ofstream out(jsonPath);
-                out << j.dump(2) << "\n";
-                if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
-            }
-        }
+        if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         if (outPath != "-") {
             std::fprintf(stderr, "%s: %dx%d in %.1f ms (%.1f ns/pixel, %.2f steps/pixel) -> %s\n",
                          casterText.c_str(), frame.width(), frame.height(), frame.stats.renderMs,
                          frame.stats.renderMs * 1e6 / pixels,
                          static_cast<double>(frame.stats.steps) / pixels, outPath.c_str());
         }
-    } catch (const ig::InputError& e) {
-        std::fprintf(stderr, "ig-render: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "ig-render: error: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+        return 0;
+    });
 }

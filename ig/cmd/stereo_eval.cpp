@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
     app.add_option("--json", jsonPath, "Results as JSON ('-': standard output)");
     CLI11_PARSE(app, argc, argv);
 
-    try {
+    return ig::runProgram("stereo-eval", [&]() -> int {
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -318,21 +318,7 @@ int main(int argc, char** argv) {
             j["results"].push_back(r);
         }
         j["per_pose"] = perPose;
-        if (!jsonPath.empty()) {
-            if (jsonPath == "-") {
-                std::cout << j.dump(2) << "\n";
-            } else {
-                std::ofstream out(jsonPath);
-                out << j.dump(2) << "\n";
-                if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
-            }
-        }
-    } catch (const ig::InputError& e) {
-        std::fprintf(stderr, "stereo-eval: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "stereo-eval: error: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+        if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+        return 0;
+    });
 }

@@ -77,17 +77,6 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     return s;
 }
 
-void writeJson(const std::string& path, const nlohmann::json& j) {
-    if (path == "-") {
-        std::printf("%s\n", j.dump(2).c_str());
-        return;
-    }
-    std::ofstream out(path);
-    out << j.dump(2) << "\n";
-    out.close();
-    if (!out) throw ig::InputError("--json " + path + ": cannot write the file");
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -151,7 +140,7 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     std::unique_ptr<io::FrameSink> sink;
-    try {
+    return ig::runProgram("flythrough", [&]() -> int {
         // Flags first, so a mistake is reported before anything is loaded or opened.
         if (duration && !(*duration > 0.0 && *duration <= 86400.0)) {
             throw ig::InputError("--duration: must be more than 0 and at most 86400 seconds");
@@ -329,14 +318,8 @@ int main(int argc, char** argv) {
             j["roll_margin"] = geometry.coverRoll;
             j["warp"] = warpText;
             j["render_hz_cap"] = renderHz;
-            writeJson(jsonPath, j);
+            ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }
-    } catch (const ig::InputError& e) {
-        std::fprintf(stderr, "flythrough: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "flythrough: error: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+        return 0;
+    });
 }

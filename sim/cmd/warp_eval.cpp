@@ -146,7 +146,7 @@ int main(int argc, char** argv) {
     app.add_option("--plot", plotPath, "Plot of error against horizon (PNG)");
     CLI11_PARSE(app, argc, argv);
 
-    try {
+    return ig::runProgram("warp-eval", [&]() -> int {
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -209,9 +209,7 @@ int main(int argc, char** argv) {
             j["terrain"] = ig::describeTerrain(map);
             j["results"] = cellsJson(all);
             j["trajectories"] = perTrajectory;
-            std::ofstream out(jsonPath);
-            out << j.dump(2) << "\n";
-            if (!out) throw ig::InputError("--json " + jsonPath + ": cannot write the file");
+            ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }
         if (!csvPath.empty()) {
             std::ofstream out(csvPath);
@@ -260,12 +258,6 @@ int main(int argc, char** argv) {
                 throw ig::InputError(error);
             }
         }
-    } catch (const ig::InputError& e) {
-        std::fprintf(stderr, "warp-eval: %s\n", e.what());
-        return 1;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "warp-eval: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+        return 0;
+    });
 }
