@@ -57,6 +57,7 @@ struct ColumnCounters {
 struct EyeGrid {
     double gx, gy, z;
     bool inside;
+    double zRaw;  // z in the map's raw height units
 };
 
 // Outcome of a coherent column march: a level-0 hit at u (cell and local coordinates for the
@@ -82,16 +83,16 @@ inline long floorToLong(double v) {
     return t > v ? t - 1 : t;
 }
 
-// a / b for a >= 0, b > 0, through a double division corrected to the exact integer quotient
-// (a 64-bit integer division is several times slower).
-inline std::int64_t exactQuotient(std::int64_t a, std::int64_t b) {
-    std::int64_t q = static_cast<std::int64_t>(static_cast<double>(a) / static_cast<double>(b));
-    while (q > 0 && q * b > a)
-        --q;
-    while ((q + 1) * b <= a)
-        ++q;
-    return q;
-}
+// What the per-pixel path reads of the map, fetched once per frame into plain values (the
+// image writes, through byte pointers, would otherwise force the compiler to reload them).
+struct MapView {
+    const std::uint16_t* heights;
+    const std::uint16_t* cellMax;
+    const Rgb8* colors;
+    int width, height;
+    double scale, offset, invScale;
+    double maxRaw;  // the map's highest point in raw height units
+};
 
 inline Rgb8 quantize(const float c[3]) {
     auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
@@ -100,34 +101,35 @@ inline Rgb8 quantize(const float c[3]) {
 
 // Exact solve of one march step (the ray between major grid lines m and m + sgn, in minor cells
 // ca..cb) on the level-0 bilinear surface, in the major-axis parameter s in [sBegin, sEnd].
+// Heights are in raw units (the solve is linear in them): ray height ezr + rzr * u.
 template <bool kMajorX>
 struct StepSolver {
     const std::uint16_t* heights;
     const std::uint16_t* cellMax;
     int width;
-    double scale, offset;
     int sgn;
-    double rn, rz, ez;
+    double rn, rzr, ezr;
 
-    bool piece(long m, int mc, int cn, std::int64_t n, double u, double s0, double s1,
-               ColumnMarch& out) const {
+    // kOwnBound: test the piece against its own cell's bound first (when the step's bound
+    // covered two cells, this piece may lie above its own).
+    template <bool kOwnBound>
+    [[gnu::always_inline]] bool piece(long m, int mc, int cn, std::int64_t n, double u, double s0,
+                                      double s1, ColumnMarch& out) const {
         if (!(s0 < s1)) return false;
         const int cx = kMajorX ? mc : cn, cy = kMajorX ? cn : mc;
-        // The step's bound covered both its cells; this piece may lie above its own cell.
-        const double za = ez + rz * (u + s0);
-        const double zLow = rz >= 0.0 ? za : za + rz * (s1 - s0);
-        if (zLow > cellMax[static_cast<std::size_t>(cy) * (width - 1) + cx] * scale + offset) {
-            return false;
+        const double za = ezr + rzr * (u + s0);
+        if (kOwnBound) {
+            const double zLow = rzr >= 0.0 ? za : za + rzr * (s1 - s0);
+            if (zLow > cellMax[static_cast<std::size_t>(cy) * (width - 1) + cx]) return false;
         }
         const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
         const double majorLocal = static_cast<double>(m - mc);
         const std::uint16_t* s00 = heights + static_cast<std::size_t>(cy) * width + cx;
-        const double h00 = s00[0] * scale + offset, h10 = s00[1] * scale + offset;
-        const double h01 = s00[width] * scale + offset, h11 = s00[width + 1] * scale + offset;
+        const double h00 = s00[0], h10 = s00[1], h01 = s00[width], h11 = s00[width + 1];
         const double am = majorLocal + sgn * s0, an = nD + rn * s0 - cn;
         const double r = kMajorX
-                             ? solveBilinear(h00, h10, h01, h11, am, an, sgn, rn, za, rz, s1 - s0)
-                             : solveBilinear(h00, h10, h01, h11, an, am, rn, sgn, za, rz, s1 - s0);
+                             ? solveBilinear(h00, h10, h01, h11, am, an, sgn, rn, za, rzr, s1 - s0)
+                             : solveBilinear(h00, h10, h01, h11, an, am, rn, sgn, za, rzr, s1 - s0);
         if (r < 0.0) return false;
         const double sh = s0 + r;
         out.kind = ColumnMarch::kHit;
@@ -141,14 +143,14 @@ struct StepSolver {
     }
 
     // Split where the step crosses the minor grid line between ca and cb.
-    bool solve(long m, int mc, int ca, int cb, std::int64_t n, double u, double sBegin, double sEnd,
-               ColumnMarch& out) const {
-        if (ca == cb) return piece(m, mc, ca, n, u, sBegin, sEnd, out);
+    [[gnu::always_inline]] bool solve(long m, int mc, int ca, int cb, std::int64_t n, double u,
+                                      double sBegin, double sEnd, ColumnMarch& out) const {
+        if (ca == cb) return piece<false>(m, mc, ca, n, u, sBegin, sEnd, out);
         const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
         const double line = ca < cb ? cb : ca;
         const double sSplit = std::clamp((line - nD) / rn, 0.0, sEnd);
-        return piece(m, mc, ca, n, u, std::max(sBegin, 0.0), sSplit, out) ||
-               piece(m, mc, cb, n, u, std::max(sBegin, sSplit), sEnd, out);
+        return piece<true>(m, mc, ca, n, u, std::max(sBegin, 0.0), sSplit, out) ||
+               piece<true>(m, mc, cb, n, u, std::max(sBegin, sSplit), sEnd, out);
     }
 };
 
@@ -178,13 +180,27 @@ class FastCaster final : public Caster {
         const double d0 =
             topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
                           : std::numeric_limits<double>::infinity();
+        const double scale = map_.heightScale(), offset = map_.heightOffset();
+        const MapView mv{map_.rawHeights().data(),
+                         map_.cellMaxData(),
+                         map_.colors().data(),
+                         map_.width(),
+                         map_.height(),
+                         scale,
+                         offset,
+                         1.0 / scale,
+                         (map_.maxHeight() - offset) / scale};
         tbb::combinable<ColumnCounters> counters;
         runWithThreads(options_.threads, [&] {
             // The image is a pool of columns; idle workers take the next one. Each column is
             // independent, so the image does not depend on the thread count.
             tbb::parallel_for(0, w, [&](int x) {
                 ColumnCounters& c = counters.local();
-                renderColumn(camera, d0, x, frame, c);
+                if (options_.supersample == 1) {
+                    renderColumn<true>(mv, camera, d0, x, frame, c);
+                } else {
+                    renderColumn<false>(mv, camera, d0, x, frame, c);
+                }
             });
         });
         const ColumnCounters total = counters.combine([](ColumnCounters a, ColumnCounters b) {
@@ -253,8 +269,10 @@ class FastCaster final : public Caster {
         return quantize(rgb);
     }
 
-    void renderColumn(const Camera& camera, double d0, int x, RenderedFrame& frame,
-                      ColumnCounters& counters) const {
+    // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own.
+    template <bool kOneRay>
+    void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
+                      RenderedFrame& frame, ColumnCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
         // Ray direction of image row y: base + y * down (unnormalised, linear in y).
         const CameraBasis& b = camera.basis();
@@ -267,8 +285,9 @@ class FastCaster final : public Caster {
         const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
         const bool eyeInside =
             eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
-        const EyeGrid eg{eye.x * invSx, eye.y * invSy, eye.z, eyeInside};
-        const int sub = options_.supersample;
+        const EyeGrid eg{eye.x * invSx, eye.y * invSy, eye.z, eyeInside,
+                         (eye.z - mv.offset) * mv.invScale};
+        const int sub = kOneRay ? 1 : options_.supersample;
         const double subStep = 1.0 / sub;
         const SkyModel& sky = options_.sky;
         const bool multires = topLevel_ > 0;
@@ -313,12 +332,12 @@ class FastCaster final : public Caster {
                         double uNear = std::numeric_limits<double>::infinity();
                         if (multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
                         const ColumnMarch r =
-                            majorX ? marchCoherent<true>(eg, sgn, rn, rz, prevU, uNear, steps)
-                                   : marchCoherent<false>(eg, sgn, rn, rz, prevU, uNear, steps);
+                            majorX ? marchCoherent<true>(mv, eg, sgn, rn, rz, prevU, uNear, steps)
+                                   : marchCoherent<false>(mv, eg, sgn, rn, rz, prevU, uNear, steps);
                         if (r.kind == ColumnMarch::kHit) {
                             tHit = r.u * lenPerU;
                             float rgb[3];
-                            cellColor(r.cx, r.cy, r.fx, r.fy, rgb);
+                            cellColor(mv, r.cx, r.cy, r.fx, r.fy, rgb);
                             c = haze(rgb, tHit);
                             prevU = r.u;
                             resolved = true;
@@ -405,12 +424,12 @@ class FastCaster final : public Caster {
         counters.restarts += restarts;
     }
 
-    // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy).
-    void cellColor(int cx, int cy, double fx, double fy, float rgb[3]) const {
+    // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy) (as TerrainMap::surfaceColor).
+    static void cellColor(const MapView& mv, int cx, int cy, double fx, double fy, float rgb[3]) {
         fx = std::clamp(fx, 0.0, 1.0);
         fy = std::clamp(fy, 0.0, 1.0);
-        const Rgb8* row0 = map_.colors().data() + map_.index(cx, cy);
-        const Rgb8* row1 = row0 + map_.width();
+        const Rgb8* row0 = mv.colors + static_cast<std::size_t>(cy) * mv.width + cx;
+        const Rgb8* row1 = row0 + mv.width;
         const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
                      w11 = fx * fy;
         rgb[0] = static_cast<float>(w00 * row0[0].r + w10 * row0[1].r + w01 * row1[0].r +
@@ -422,19 +441,20 @@ class FastCaster final : public Caster {
     }
 
     // The coherent march of one ray in major-axis form from u = uStart: grid line by grid line
-    // (as marchRay), the minor coordinate in 32.32 fixed point, z incremental; the reachable
-    // step solved exactly. No per-ray box clip, normalisation or division beyond the ray's one.
+    // (as marchRay), the minor coordinate in 32.32 fixed point, z incremental (raw height units);
+    // the reachable step solved exactly. No per-ray box clip, normalisation or division.
     template <bool kMajorX>
-    ColumnMarch marchCoherent(const EyeGrid& eg, int sgn, double rn, double rz, double uStart,
-                              double uNear, std::uint64_t& steps) const {
-        const std::uint16_t* __restrict__ cellMax = map_.cellMaxData();
-        const std::uint16_t* __restrict__ heights = map_.rawHeights().data();
-        const int w = map_.width(), h = map_.height();
+    [[gnu::always_inline]] static inline ColumnMarch marchCoherent(const MapView& mv,
+                                                                   const EyeGrid& eg, int sgn,
+                                                                   double rn, double rz,
+                                                                   double uStart, double uNear,
+                                                                   std::uint64_t& steps) {
+        const std::uint16_t* __restrict__ cellMax = mv.cellMax;
+        const int w = mv.width;
         const std::size_t stride = static_cast<std::size_t>(w - 1);
-        const int majorCount = kMajorX ? w : h, minorCount = kMajorX ? h : w;
+        const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
         const int lastMinorCell = minorCount - 2;
         const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
-        const double scale = map_.heightScale(), offset = map_.heightOffset();
         ColumnMarch out;
         out.u = uStart;
         // The grid line at or before the start (in the direction of travel).
@@ -450,79 +470,103 @@ class FastCaster final : public Caster {
         std::int64_t n = roundToInt64((en + rn * u) * kFix);
         const std::int64_t dn = roundToInt64(rn * kFix);
         const std::int64_t minorLimit = static_cast<std::int64_t>(minorCount - 1) << 32;
-        const double invScale = 1.0 / scale;
-        double zr = (eg.z + rz * u - offset) * invScale;
-        const double dzr = rz * invScale;
-        const double maxRaw = (map_.maxHeight() - offset) * invScale;
+        const double ezr = eg.zRaw;
+        const double dzr = rz * mv.invScale;
+        double zr = ezr + dzr * u;
+        const double maxRaw = mv.maxRaw;
         const bool rising = dzr >= 0.0;
         if (n < 0 || n > minorLimit) {
             out.kind = !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
             return out;
         }
-        // Whole steps before the ray reaches the major end, the level-0 distance, or leaves the
-        // minor range (then one last partial step), so the hot loop tests nothing else.
+        // Whole steps before the ray reaches the major end or the level-0 distance; a step that
+        // would leave the minor range ends the loop (then one last partial step).
         constexpr std::int64_t kMany = std::int64_t{1} << 40;
         const std::int64_t majorSteps = sgn > 0 ? majorCount - 1 - m : m;
-        const std::int64_t nearSteps =
-            uNear < 1e12
-                ? std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(uNear - u)))
-                : kMany;
-        const std::int64_t minorSteps = dn > 0   ? exactQuotient(minorLimit - n, dn)
-                                        : dn < 0 ? exactQuotient(n, -dn)
-                                                 : kMany;
-        std::int64_t left = std::min({majorSteps, nearSteps, minorSteps});
-        const std::int64_t total = left;
+        std::int64_t nearSteps = kMany;
+        if (uNear < 1e12) nearSteps = std::max<long>(0, -floorToLong(u - uNear));
+        const std::int64_t total = std::min(majorSteps, nearSteps);
+        const int mc0 = static_cast<int>(m) + (sgn > 0 ? 0 : -1);
         // The first step is solved from uStart on: before it the ray is known to be clear (and
         // the grid line may lie behind the eye).
-        double sBegin = uStart - u;
-        StepSolver<kMajorX> solver{heights, cellMax, w, scale, offset, sgn, rn, rz, eg.z};
-        while (left > 0) {
-            const int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
-            const int cb = std::min(static_cast<int>((n + dn) >> 32), lastMinorCell);
-            const int mc = static_cast<int>(sgn > 0 ? m : m - 1);
-            const std::size_t ia = kMajorX ? static_cast<std::size_t>(ca) * stride + mc
-                                           : static_cast<std::size_t>(mc) * stride + ca;
-            const std::size_t ib = kMajorX ? static_cast<std::size_t>(cb) * stride + mc
-                                           : static_cast<std::size_t>(mc) * stride + cb;
-            const int bound = std::max(cellMax[ia], cellMax[ib]);
-            const double zLow = rising ? zr : zr + dzr;
-            if (zLow <= bound) {
-                if (solver.solve(m, mc, ca, cb, n, u, sBegin, 1.0, out)) {
-                    steps += static_cast<std::uint64_t>(total - left + 1);
+        const double sBegin0 = uStart - u;
+        // The cell-max index of (major cell mc, minor cell c) is mc * majorStride + c *
+        // minorStride; the next step's first cell is this step's second one, one major cell on.
+        const std::ptrdiff_t minorStride = kMajorX ? static_cast<std::ptrdiff_t>(stride) : 1;
+        const std::ptrdiff_t majorStep = kMajorX ? sgn : sgn * static_cast<std::ptrdiff_t>(stride);
+        int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
+        std::ptrdiff_t ia = kMajorX ? static_cast<std::ptrdiff_t>(ca) * stride + mc0
+                                    : static_cast<std::ptrdiff_t>(mc0) * stride + ca;
+        // The lower end of the step's piece of ray (its start when rising, else its end).
+        double zLow = rising ? zr : zr + dzr;
+        // Step k runs from major grid line m + sgn * k (u + k) to the next one.
+        std::int64_t k = 0;
+        bool leavesMinor = false;
+        for (;;) {
+            // Scan for the next step the ray may reach (the hot loop: bound test only).
+            std::int64_t next = 0;
+            int cb = 0;
+            std::ptrdiff_t ib = 0;
+            bool reach = false;
+            for (; k < total; ++k) {
+                next = n + dn;
+                if (static_cast<std::uint64_t>(next) > static_cast<std::uint64_t>(minorLimit)) {
+                    leavesMinor = true;
+                    break;
+                }
+                cb = std::min(static_cast<int>(next >> 32), lastMinorCell);
+                ib = ia + (cb - ca) * minorStride;
+                if (zLow <= std::max(cellMax[ia], cellMax[ib])) {
+                    reach = true;
+                    break;
+                }
+                if (rising && zLow > maxRaw) {
+                    steps += static_cast<std::uint64_t>(k + 1);
+                    out.kind = ColumnMarch::kAbove;
+                    out.u = u + static_cast<double>(k);
                     return out;
                 }
-            } else if (rising && zr > maxRaw) {
-                steps += static_cast<std::uint64_t>(total - left + 1);
-                out.kind = ColumnMarch::kAbove;
-                out.u = u;
+                n = next;
+                ca = cb;
+                ia = ib + majorStep;
+                zLow += dzr;
+            }
+            if (!reach) break;
+            const StepSolver<kMajorX> solver{mv.heights, cellMax, w, sgn, rn, dzr, ezr};
+            const int step = static_cast<int>(k);
+            if (solver.solve(m + sgn * step, mc0 + sgn * step, ca, cb, n,
+                             u + static_cast<double>(k), k == 0 ? sBegin0 : 0.0, 1.0, out)) {
+                steps += static_cast<std::uint64_t>(k + 1);
                 return out;
             }
-            m += sgn;
-            n += dn;
-            zr += dzr;
-            u += 1.0;
-            sBegin = 0.0;
-            --left;
+            n = next;
+            ca = cb;
+            ia = ib + majorStep;
+            zLow += dzr;
+            ++k;
         }
-        steps += static_cast<std::uint64_t>(total);
-        out.u = u;
-        if (total == nearSteps && nearSteps < majorSteps + 1) {
-            out.kind = ColumnMarch::kFar;
+        steps += static_cast<std::uint64_t>(k);
+        out.u = u + static_cast<double>(k);
+        if (!leavesMinor) {
+            out.kind = total == nearSteps && nearSteps < majorSteps + 1 ? ColumnMarch::kFar
+                                                                        : ColumnMarch::kStop;
             return out;
         }
-        out.kind = ColumnMarch::kStop;
-        if (total == majorSteps) return out;
         // The ray leaves through a minor edge part-way through this step: solve up to there.
+        out.kind = ColumnMarch::kStop;
         ++steps;
         const double edge = n + dn < 0 ? 0.0 : minorCount - 1.0;
         const double nD = static_cast<double>(n) * (1.0 / kFix);
         const double sEnd = std::clamp((edge - nD) / rn, 0.0, 1.0);
-        const int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
         const int cb = n + dn < 0 ? 0 : lastMinorCell;
-        const int mc = static_cast<int>(sgn > 0 ? m : m - 1);
-        if (solver.solve(m, mc, ca, cb, n, u, sBegin, sEnd, out)) return out;
+        const int step = static_cast<int>(k);
+        const StepSolver<kMajorX> solver{mv.heights, cellMax, w, sgn, rn, dzr, ezr};
+        if (solver.solve(m + sgn * step, mc0 + sgn * step, ca, cb, n, out.u, k == 0 ? sBegin0 : 0.0,
+                         sEnd, out)) {
+            return out;
+        }
         out.kind = ColumnMarch::kStop;
-        out.u = u;
+        out.u = u + static_cast<double>(k);
         return out;
     }
 

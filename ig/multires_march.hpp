@@ -33,10 +33,16 @@ inline double solveBilinear(double h00, double h10, double h01, double h11, doub
         if (disc >= 0.0) {
             const double sq = std::sqrt(disc);
             const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
-            const double r1 = q / A;
-            const double r2 = q != 0.0 ? C / q : root;
-            if (r1 >= 0.0 && r1 < root) root = r1;
-            if (r2 >= 0.0 && r2 < root) root = r2;
+            // The roots are q / A and C / q (C > 0): only those of non-negative sign are
+            // computed.
+            if ((q > 0.0) == (A > 0.0)) {
+                const double r1 = q / A;
+                if (r1 >= 0.0 && r1 < root) root = r1;
+            }
+            if (q > 0.0) {
+                const double r2 = C / q;
+                if (r2 < root) root = r2;
+            }
         }
     }
     if (root <= len) return root;
