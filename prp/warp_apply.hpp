@@ -36,13 +36,22 @@ struct ApplyResult {
 // Unity gain in the Q8 gain used by the kernels.
 inline constexpr int kUnityGain = 256;
 
+// Implementation of the per-pixel kernel of applyQuadratic. All give bit-identical fields and
+// counts; Auto takes the fastest one the running processor supports (AVX-512 with VBMI, else
+// AVX2, else Scalar). A kernel the processor cannot run, or a source it cannot take (more than 2^31
+// bytes, narrower than 3 or lower than 2 pixels; gain outside 0..65536), falls back to Scalar.
+enum class WarpKernel { Auto, Scalar, Avx2, Avx512 };
+// Whether the running processor (and this build) can run `kernel`.
+bool warpKernelSupported(WarpKernel kernel);
+
 // Warps `source` into `field` through `sourceFromOutput`: per row the quadratic is evaluated by
 // forward differences in 32.32 fixed point, each sample is bilinear (8-bit weights) and the
 // colour is converted in the same pass. `gainQ8` != kUnityGain scales RGB first (AGC); `agc`
 // also accumulates luma. The quadratic must be bounded by kMaxSourceCoordinate (fitWarp
 // guarantees it).
 ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFromOutput,
-                           const FieldView& field, int gainQ8, bool agc);
+                           const FieldView& field, int gainQ8, bool agc,
+                           WarpKernel kernel = WarpKernel::Auto);
 // Same with a projective map (one division per pixel); its denominator must be positive.
 ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
                             const FieldView& field, int gainQ8, bool agc);

@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace prp {
@@ -216,6 +218,138 @@ TEST(WarpApply, HomographyAgreesWithAnEqualAffineQuadratic) {
     for (std::size_t i = 0; i < a.px.size(); ++i)
         worst = std::max(worst, std::abs(a.px[i] - b.px[i]));
     EXPECT_LE(worst, 1);
+}
+
+void expectKernelAgrees(WarpKernel kernel, const std::vector<ig::Rgb8>& img, int w, int h,
+                        const Quadratic& q, int outW, int frameH, int first, PixelFormat f,
+                        int gainQ8, bool agc, const std::string& what) {
+    Output scalar(outW, frameH, first, f), simd(outW, frameH, first, f);
+    // Different fill values: a pixel either kernel leaves unwritten shows up as a mismatch.
+    std::fill(scalar.px.begin(), scalar.px.end(), 0x11);
+    std::fill(simd.px.begin(), simd.px.end(), 0x11);
+    const ApplyResult rs =
+        applyQuadratic({img.data(), w, h}, q, scalar.view, gainQ8, agc, WarpKernel::Scalar);
+    const ApplyResult rv = applyQuadratic({img.data(), w, h}, q, simd.view, gainQ8, agc, kernel);
+    EXPECT_EQ(rs.edgeSamples, rv.edgeSamples) << what;
+    EXPECT_EQ(rs.lumaSum, rv.lumaSum) << what;
+    std::size_t mismatches = 0, firstBad = 0;
+    for (std::size_t i = 0; i < scalar.px.size(); ++i) {
+        if (scalar.px[i] != simd.px[i] && mismatches++ == 0) firstBad = i;
+    }
+    EXPECT_EQ(mismatches, 0u) << what << ": first at byte " << firstBad << " of "
+                              << scalar.px.size();
+}
+
+// The SIMD kernels this processor runs.
+std::vector<WarpKernel> simdKernels() {
+    std::vector<WarpKernel> kernels;
+    for (const WarpKernel k : {WarpKernel::Avx2, WarpKernel::Avx512}) {
+        if (warpKernelSupported(k)) kernels.push_back(k);
+    }
+    return kernels;
+}
+
+const char* kernelName(WarpKernel k) {
+    return k == WarpKernel::Avx2 ? "avx2" : k == WarpKernel::Avx512 ? "avx512" : "other";
+}
+
+// Runs `q` through the scalar and every SIMD kernel; expects identical bytes and counts.
+void expectKernelsAgree(const std::vector<ig::Rgb8>& img, int w, int h, const Quadratic& q,
+                        int outW, int frameH, int first, PixelFormat f, int gainQ8, bool agc,
+                        const std::string& what) {
+    for (const WarpKernel k : simdKernels()) {
+        expectKernelAgrees(k, img, w, h, q, outW, frameH, first, f, gainQ8, agc,
+                           what + " (" + kernelName(k) + ")");
+    }
+}
+
+// A rotation, zoom and curvature with the output pushed partly or wholly out of the source.
+Quadratic randomWarp(std::mt19937& rng, int w, int h, int outW, int outH) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const double angle = 0.3 * u(rng), scale = 1.0 + 0.3 * u(rng);
+    const double c = scale * std::cos(angle), s = scale * std::sin(angle);
+    // Centre the output on the source, then push it partly (or wholly) out of the frame.
+    const double tx = 0.5 * w - (c * 0.5 * outW - s * 0.5 * outH) + 0.6 * w * u(rng);
+    const double ty = 0.5 * h - (s * 0.5 * outW + c * 0.5 * outH) + 0.6 * h * u(rng);
+    Quadratic q = Quadratic::fromAffine({c, -s, s, c, tx, ty});
+    const double k = 0.5 / (outW * outW + outH * outH);
+    for (int i = 3; i < 6; ++i) {
+        q.a[i] = k * u(rng);
+        q.b[i] = k * u(rng);
+    }
+    return q;
+}
+
+TEST(WarpApplySimd, MatchesScalarBitForBitOnRandomWarps) {
+    if (simdKernels().empty()) GTEST_SKIP() << "no SIMD kernel on this processor";
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> size(2, 70);
+    const PixelFormat formats[] = {PixelFormat::Rgb8, PixelFormat::Y8, PixelFormat::Uyvy};
+    for (int trial = 0; trial < 300; ++trial) {
+        const int w = size(rng), h = size(rng);
+        const int outW = std::uniform_int_distribution<int>(1, 75)(rng);
+        const int outH = std::uniform_int_distribution<int>(1, 40)(rng);
+        const auto img = pattern(w, h, 100 + trial);
+        const Quadratic q = randomWarp(rng, w, h, outW, outH);
+        const PixelFormat f = formats[trial % 3];
+        const int gainQ8 = trial % 4 == 0 ? kUnityGain : 64 + 16 * (trial % 40);
+        const bool agc = trial % 2 == 1;
+        expectKernelsAgree(img, w, h, q, outW, outH, trial % 2, f, gainQ8, agc,
+                           "trial " + std::to_string(trial) + " source " + std::to_string(w) + "x" +
+                               std::to_string(h) + " out " + std::to_string(outW) + "x" +
+                               std::to_string(outH));
+    }
+}
+
+TEST(WarpApplySimd, MatchesScalarOnFullFieldsAcrossTheFrameEdges) {
+    // A 720-wide field slid across the source: all in, partly out on each side, wholly out.
+    if (simdKernels().empty()) GTEST_SKIP() << "no SIMD kernel on this processor";
+    const int w = 800, h = 300, outW = 720, outH = 256;
+    const auto img = pattern(w, h, 21);
+    const double c = std::cos(0.05), s = std::sin(0.05);
+    for (const double shift : {0.0, -60.0, 70.25, 500.0, -900.0}) {
+        Quadratic q;
+        q.a = {40 + shift, 1.01 * c, -s, 2e-6, 1e-5, -4e-6};
+        q.b = {20 - 0.3 * shift, s, 1.01 * c, -3e-6, 5e-6, 2e-5};
+        for (const PixelFormat f : {PixelFormat::Uyvy, PixelFormat::Rgb8, PixelFormat::Y8}) {
+            expectKernelsAgree(img, w, h, q, outW, outH, 1, f, kUnityGain, false,
+                               "shift " + std::to_string(shift));
+        }
+        expectKernelsAgree(img, w, h, q, outW, outH, 0, PixelFormat::Uyvy, 700, true,
+                           "gain, shift " + std::to_string(shift));
+    }
+}
+
+TEST(WarpApplySimd, SaturatingGainMatchesScalar) {
+    if (simdKernels().empty()) GTEST_SKIP() << "no SIMD kernel on this processor";
+    const int w = 40, h = 30;
+    const auto img = pattern(w, h, 31);
+    const Quadratic q = Quadratic::fromAffine({0.9, 0.1, -0.1, 0.95, 3.3, 2.7});
+    for (const int gainQ8 : {0, 1, 255, 257, 4096, 1 << 16}) {
+        for (const PixelFormat f : {PixelFormat::Uyvy, PixelFormat::Rgb8, PixelFormat::Y8}) {
+            expectKernelsAgree(img, w, h, q, 36, 26, 0, f, gainQ8, true,
+                               "gain " + std::to_string(gainQ8));
+        }
+    }
+}
+
+TEST(WarpApply, EveryKernelNameRunsAndAgrees) {
+    // Auto and a kernel the processor may lack both fall back cleanly (Scalar is always there).
+    EXPECT_TRUE(warpKernelSupported(WarpKernel::Scalar));
+    EXPECT_TRUE(warpKernelSupported(WarpKernel::Auto));
+    const int w = 30, h = 20;
+    const auto img = pattern(w, h, 41);
+    const Quadratic q = Quadratic::fromAffine({1.02, 0.03, -0.02, 0.99, -2.5, 1.5});
+    Output ref(28, 18, 1, PixelFormat::Uyvy);
+    const ApplyResult rr =
+        applyQuadratic({img.data(), w, h}, q, ref.view, kUnityGain, true, WarpKernel::Scalar);
+    for (const WarpKernel k : {WarpKernel::Auto, WarpKernel::Avx2, WarpKernel::Avx512}) {
+        Output out(28, 18, 1, PixelFormat::Uyvy);
+        const ApplyResult r = applyQuadratic({img.data(), w, h}, q, out.view, kUnityGain, true, k);
+        EXPECT_EQ(r.edgeSamples, rr.edgeSamples);
+        EXPECT_EQ(r.lumaSum, rr.lumaSum);
+        EXPECT_EQ(out.px, ref.px);
+    }
 }
 
 }  // namespace
