@@ -235,31 +235,49 @@ class RowReprojector {
         Rgb8* __restrict__ color = out_.color;
         float* __restrict__ depth = out_.depth;
         RightPixelSource* __restrict__ source = out_.source;
-        const int slots = slots_, w = w_;
-        std::uint64_t counts[3] = {0, 0, 0};
+        const int slots = slots_, w = w_, shift = shift_;
+        const std::uint64_t roundAll =
+            static_cast<std::uint64_t>((1 << shift) >> 1) * 0x100010001ULL;
+        const float inverseAll = kInverse[slots];
+        // Counted in registers (an indexed counter in memory would chain every pixel on a
+        // store-to-load round trip); interpolated = the rest.
+        std::uint64_t sampled = 0, cast = 0;
         for (int p = 0; p < w; ++p) {
             const PixelAcc a = acc[p];
             if (2 * a.cast >= slots) {
                 source[p] = RightPixelSource::RayCast;
                 color[p] = Rgb8{255, 0, 255};  // overwritten by the second pass
                 depth[p] = kSkyDepth;
-                ++counts[2];
+                ++cast;
                 ++castInColumn[p];
                 continue;
             }
-            const int covered = slots - a.cast;
-            const std::uint32_t scale = kScale[covered];
-            auto q = [scale](std::uint64_t sum) {
-                return static_cast<std::uint8_t>(((sum & 0xffff) * scale + 32768) >> 16);
-            };
-            color[p] = Rgb8{q(a.rgb), q(a.rgb >> 16), q(a.rgb >> 32)};
-            const float mean = a.depthSum * kInverse[covered];
+            float mean;
+            if (a.cast == 0) {
+                // All S slots covered (the common case): S is a power of two, so the rounded
+                // mean of each lane is (sum + S / 2) >> shift, all three lanes at once (a lane
+                // holds at most 8 x 255 + 4, so nothing carries; the low byte of each lane is
+                // the result). Equal to the general case below.
+                const std::uint64_t v = (a.rgb + roundAll) >> shift;
+                color[p] = Rgb8{static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 16),
+                                static_cast<std::uint8_t>(v >> 32)};
+                mean = a.depthSum * inverseAll;
+            } else {
+                const int covered = slots - a.cast;
+                const std::uint32_t scale = kScale[covered];
+                auto q = [scale](std::uint64_t sum) {
+                    return static_cast<std::uint8_t>(((sum & 0xffff) * scale + 32768) >> 16);
+                };
+                color[p] = Rgb8{q(a.rgb), q(a.rgb >> 16), q(a.rgb >> 32)};
+                mean = a.depthSum * kInverse[covered];
+            }
             depth[p] = mean < kSkyMean ? mean : kSkyDepth;
             source[p] = a.sampled ? RightPixelSource::Reprojected : RightPixelSource::Interpolated;
-            ++counts[a.sampled ? 0 : 1];
+            sampled += a.sampled;
         }
-        for (int k = 0; k < 3; ++k)
-            out_.counts[k] += counts[k];
+        out_.counts[0] += sampled;
+        out_.counts[1] += static_cast<std::uint64_t>(w) - sampled - cast;
+        out_.counts[2] += cast;
     }
 
     // Wan fig. 5-6: right to left, keeping the left-most accepted reprojection; a reprojection
