@@ -15,40 +15,6 @@
 
 namespace ig {
 
-// First s in [0, len] where the ray z = za + dz * s meets the bilinear patch with corner heights
-// h00, h10, h01, h11 (metres) at local cell coordinates (ua + du * s, va + dv * s); negative
-// when there is none. A ray under the patch at s = 0 hits at 0. (solveCell for any patch.)
-inline double solveBilinear(double h00, double h10, double h01, double h11, double ua, double va,
-                            double du, double dv, double za, double dz, double len) {
-    const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
-    const double C = za - (h00 + a * ua + b * va + c * ua * va);
-    if (C <= 0.0) return 0.0;
-    const double B = dz - (a * du + b * dv + c * (ua * dv + va * du));
-    const double A = -c * du * dv;
-    double root = len + 1.0;
-    if (std::abs(A) * len <= 1e-12 * (std::abs(B) + 1e-300)) {
-        if (B < 0.0) root = -C / B;
-    } else {
-        const double disc = B * B - 4.0 * A * C;
-        if (disc >= 0.0) {
-            const double sq = std::sqrt(disc);
-            const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
-            // The roots are q / A and C / q (C > 0): only those of non-negative sign are
-            // computed.
-            if ((q > 0.0) == (A > 0.0)) {
-                const double r1 = q / A;
-                if (r1 >= 0.0 && r1 < root) root = r1;
-            }
-            if (q > 0.0) {
-                const double r2 = C / q;
-                if (r2 < root) root = r2;
-            }
-        }
-    }
-    if (root <= len) return root;
-    return C + B * len + A * len * len <= 0.0 ? len : -1.0;
-}
-
 // Skips the part of [tStart, tEnd] where the ray passes over max-pyramid nodes it cannot reach,
 // descending from the coarsest node level to level 1 (2x2 cells). Returns the parameter from
 // which a cell-level march must go on (no display level's surface is met before it), or a

@@ -22,23 +22,16 @@ struct TerrainRay {
     glm::dvec3 at(double t) const { return origin + t * dir; }
 };
 
-// First t in [ta, tb] (a piece of the ray inside cell (cx, cy)) where the ray meets the cell's
-// bilinear surface, or a negative value. A ray under the surface at ta hits at ta.
-inline double solveCell(const TerrainMap& map, const TerrainRay& ray, int cx, int cy, double ta,
-                        double tb) {
-    const double scale = map.heightScale(), offset = map.heightOffset();
-    const double h00 = map.raw(cx, cy) * scale + offset, h10 = map.raw(cx + 1, cy) * scale + offset;
-    const double h01 = map.raw(cx, cy + 1) * scale + offset;
-    const double h11 = map.raw(cx + 1, cy + 1) * scale + offset;
-    // In local parameter s = t - ta: f(s) = z(s) - h(u(s), v(s)) = C + B s + A s^2.
-    const double ua = ray.gox + ta * ray.gdx - cx, va = ray.goy + ta * ray.gdy - cy;
+// First s in [0, len] where the ray z = za + dz * s meets the bilinear patch with corner heights
+// h00, h10, h01, h11 (metres) at local cell coordinates (ua + du * s, va + dv * s); negative
+// when there is none. A ray under the patch at s = 0 hits at 0.
+inline double solveBilinear(double h00, double h10, double h01, double h11, double ua, double va,
+                            double du, double dv, double za, double dz, double len) {
     const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
-    const double du = ray.gdx, dv = ray.gdy;
-    const double C = ray.origin.z + ta * ray.dir.z - (h00 + a * ua + b * va + c * ua * va);
-    if (C <= 0.0) return ta;
-    const double B = ray.dir.z - (a * du + b * dv + c * (ua * dv + va * du));
+    const double C = za - (h00 + a * ua + b * va + c * ua * va);
+    if (C <= 0.0) return 0.0;
+    const double B = dz - (a * du + b * dv + c * (ua * dv + va * du));
     const double A = -c * du * dv;
-    const double len = tb - ta;
     double root = len + 1.0;
     if (std::abs(A) * len <= 1e-12 * (std::abs(B) + 1e-300)) {
         if (B < 0.0) root = -C / B;
@@ -47,15 +40,33 @@ inline double solveCell(const TerrainMap& map, const TerrainRay& ray, int cx, in
         if (disc >= 0.0) {
             const double sq = std::sqrt(disc);
             const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
-            const double r1 = q / A;
-            const double r2 = q != 0.0 ? C / q : root;
-            if (r1 >= 0.0 && r1 < root) root = r1;
-            if (r2 >= 0.0 && r2 < root) root = r2;
+            // The roots are q / A and C / q (C > 0): only those of non-negative sign are
+            // computed.
+            if ((q > 0.0) == (A > 0.0)) {
+                const double r1 = q / A;
+                if (r1 >= 0.0 && r1 < root) root = r1;
+            }
+            if (q > 0.0) {
+                const double r2 = C / q;
+                if (r2 < root) root = r2;
+            }
         }
     }
-    if (root <= len) return ta + root;
-    // A root lost to rounding at the far end.
-    return C + B * len + A * len * len <= 0.0 ? tb : -1.0;
+    if (root <= len) return root;
+    return C + B * len + A * len * len <= 0.0 ? len : -1.0;
+}
+
+// First t in [ta, tb] (a piece of the ray inside cell (cx, cy)) where the ray meets the cell's
+// bilinear surface, or a negative value. A ray under the surface at ta hits at ta.
+inline double solveCell(const TerrainMap& map, const TerrainRay& ray, int cx, int cy, double ta,
+                        double tb) {
+    const double scale = map.heightScale(), offset = map.heightOffset();
+    const double s = solveBilinear(
+        map.raw(cx, cy) * scale + offset, map.raw(cx + 1, cy) * scale + offset,
+        map.raw(cx, cy + 1) * scale + offset, map.raw(cx + 1, cy + 1) * scale + offset,
+        ray.gox + ta * ray.gdx - cx, ray.goy + ta * ray.gdy - cy, ray.gdx, ray.gdy,
+        ray.origin.z + ta * ray.dir.z, ray.dir.z, tb - ta);
+    return s < 0.0 ? -1.0 : ta + s;
 }
 
 // The parameter interval in which the ray is inside the map's bounding box (footprint x

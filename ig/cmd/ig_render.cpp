@@ -18,6 +18,16 @@
 
 namespace {
 
+// A pose as JSON, angles in degrees.
+nlohmann::json poseJson(const ig::Pose& pose) {
+    return {{"x", pose.position.x},
+            {"y", pose.position.y},
+            {"z", pose.position.z},
+            {"yaw_deg", ig::radToDeg(pose.yaw)},
+            {"pitch_deg", ig::radToDeg(pose.pitch)},
+            {"roll_deg", ig::radToDeg(pose.roll)}};
+}
+
 constexpr const char* kConventions = R"(Conventions:
   World: metres, x east, y north, z up. Terrain sample column i is at x = i * spacing, row j
   (row 0 = the file's top, the north edge) at y = (rows - 1 - j) * spacing.
@@ -147,12 +157,7 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
     j["height"] = intr.height;
     j["margin"] = intr.margin;
     j["focal_px"] = intr.focal;
-    j["pose"] = {{"x", pose.position.x},
-                 {"y", pose.position.y},
-                 {"z", pose.position.z},
-                 {"yaw_deg", ig::radToDeg(pose.yaw)},
-                 {"pitch_deg", ig::radToDeg(pose.pitch)},
-                 {"roll_deg", ig::radToDeg(pose.roll)}};
+    j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
     runStereo(s, map, pose, intr, options, depthPath, j);
     if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
@@ -256,12 +261,7 @@ int main(int argc, char** argv) {
         j["coherence_restarts"] = frame.stats.restarts;
         j["levels"] = levelsText;
         j["supersample"] = supersample;
-        j["pose"] = {{"x", pose.position.x},
-                     {"y", pose.position.y},
-                     {"z", pose.position.z},
-                     {"yaw_deg", ig::radToDeg(pose.yaw)},
-                     {"pitch_deg", ig::radToDeg(pose.pitch)},
-                     {"roll_deg", ig::radToDeg(pose.roll)}};
+        j["pose"] = poseJson(pose);
         j["terrain"] = ig::describeTerrain(map);
         for (const ig::ControlPoint& cp : frame.controlPoints) {
             j["control_points"].push_back(
