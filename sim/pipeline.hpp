@@ -55,7 +55,9 @@ struct PipelineOptions {
     double renderHz = 0.0;  // cap on the render rate; 0: as fast as it can
     // Simulated clock with no cap: a render is modelled as taking 1 / simulatedRenderHz.
     double simulatedRenderHz = 12.0;
-    int renderThreads = 0;  // worker threads of the renderer's own task arena; 0: default
+    // Worker threads of the renderer's own task arena; 0: every core but one (at least one),
+    // so the field loop always has a core of its own.
+    int renderThreads = 0;
     // Nice value for the renderer's threads (0: leave them be).
     int renderNice = 0;
     // Wall clock: run the field loop at real-time priority (SCHED_FIFO) when the system allows

@@ -130,7 +130,8 @@ int main(int argc, char** argv) {
     app.add_flag("--fixed-margin", fixedMargin,
                  "Keep --margin as it is (default: widen it with the roll so the rolled window "
                  "stays inside the rendered frame)");
-    app.add_option("--render-threads", renderThreads, "Renderer worker threads (0: all cores)")
+    app.add_option("--render-threads", renderThreads,
+                   "Renderer worker threads (0: all cores but one, which the field loop keeps)")
         ->capture_default_str();
     app.add_flag("--terrain-points-only", terrainPointsOnly,
                  "Fit the warp to terrain control points only (default: sky directions too)");
