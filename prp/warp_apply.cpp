@@ -25,24 +25,9 @@ ApplyResult warpField(const SourceView& source, Rows rows, const FieldView& fiel
 template <class Rows>
 ApplyResult dispatch(const SourceView& source, Rows rows, const FieldView& field, int gainQ8,
                      bool agc) {
-    const bool gain = gainQ8 != kUnityGain;
-    auto pick = [&]<PixelFormat F>() {
-        if (agc) {
-            return gain ? warpField<F, true, true>(source, rows, field, gainQ8)
-                        : warpField<F, false, true>(source, rows, field, gainQ8);
-        }
-        return gain ? warpField<F, true, false>(source, rows, field, gainQ8)
-                    : warpField<F, false, false>(source, rows, field, gainQ8);
-    };
-    switch (field.format) {
-        case PixelFormat::Rgb8:
-            return pick.template operator()<PixelFormat::Rgb8>();
-        case PixelFormat::Y8:
-            return pick.template operator()<PixelFormat::Y8>();
-        case PixelFormat::Uyvy:
-            break;
-    }
-    return pick.template operator()<PixelFormat::Uyvy>();
+    return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
+        return warpField<F, G, A>(source, rows, field, gainQ8);
+    });
 }
 
 }  // namespace

@@ -303,31 +303,13 @@ VIG_TARGET_AVX2 ApplyResult quadraticAvx2(const SourceView& source, const Quadra
     return {s.edge, luma};
 }
 
-template <PixelFormat kFormat>
-ApplyResult pickAvx2(const SourceView& source, const Quadratic& q, const FieldView& field,
-                     int gainQ8, bool agc) {
-    const bool gain = gainQ8 != kUnityGain;
-    if (agc) {
-        return gain ? quadraticAvx2<kFormat, true, true>(source, q, field, gainQ8)
-                    : quadraticAvx2<kFormat, false, true>(source, q, field, gainQ8);
-    }
-    return gain ? quadraticAvx2<kFormat, true, false>(source, q, field, gainQ8)
-                : quadraticAvx2<kFormat, false, false>(source, q, field, gainQ8);
-}
-
 }  // namespace
 
 ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& sourceFromOutput,
                                const FieldView& field, int gainQ8, bool agc) {
-    switch (field.format) {
-        case PixelFormat::Rgb8:
-            return pickAvx2<PixelFormat::Rgb8>(source, sourceFromOutput, field, gainQ8, agc);
-        case PixelFormat::Y8:
-            return pickAvx2<PixelFormat::Y8>(source, sourceFromOutput, field, gainQ8, agc);
-        case PixelFormat::Uyvy:
-            break;
-    }
-    return pickAvx2<PixelFormat::Uyvy>(source, sourceFromOutput, field, gainQ8, agc);
+    return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
+        return quadraticAvx2<F, G, A>(source, sourceFromOutput, field, gainQ8);
+    });
 }
 
 }  // namespace prp::detail

@@ -339,31 +339,13 @@ VIG_TARGET_AVX512 ApplyResult quadraticAvx512(const SourceView& source, const Qu
     return {s.edge, luma};
 }
 
-template <PixelFormat kFormat>
-ApplyResult pickAvx512(const SourceView& source, const Quadratic& q, const FieldView& field,
-                       int gainQ8, bool agc) {
-    const bool gain = gainQ8 != kUnityGain;
-    if (agc) {
-        return gain ? quadraticAvx512<kFormat, true, true>(source, q, field, gainQ8)
-                    : quadraticAvx512<kFormat, false, true>(source, q, field, gainQ8);
-    }
-    return gain ? quadraticAvx512<kFormat, true, false>(source, q, field, gainQ8)
-                : quadraticAvx512<kFormat, false, false>(source, q, field, gainQ8);
-}
-
 }  // namespace
 
 ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sourceFromOutput,
                                  const FieldView& field, int gainQ8, bool agc) {
-    switch (field.format) {
-        case PixelFormat::Rgb8:
-            return pickAvx512<PixelFormat::Rgb8>(source, sourceFromOutput, field, gainQ8, agc);
-        case PixelFormat::Y8:
-            return pickAvx512<PixelFormat::Y8>(source, sourceFromOutput, field, gainQ8, agc);
-        case PixelFormat::Uyvy:
-            break;
-    }
-    return pickAvx512<PixelFormat::Uyvy>(source, sourceFromOutput, field, gainQ8, agc);
+    return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
+        return quadraticAvx512<F, G, A>(source, sourceFromOutput, field, gainQ8);
+    });
 }
 
 }  // namespace prp::detail

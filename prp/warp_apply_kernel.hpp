@@ -233,4 +233,28 @@ ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sour
                                  const FieldView& field, int gainQ8, bool agc);
 #endif
 
+// Picks the kernel specialised for the field's format, gain and AGC once per field:
+// run.template operator()<format, gain, agc>().
+template <class Run>
+ApplyResult dispatchKernel(PixelFormat format, int gainQ8, bool agc, Run&& run) {
+    const bool gain = gainQ8 != kUnityGain;
+    auto pick = [&]<PixelFormat F>() {
+        if (agc) {
+            return gain ? run.template operator()<F, true, true>()
+                        : run.template operator()<F, false, true>();
+        }
+        return gain ? run.template operator()<F, true, false>()
+                    : run.template operator()<F, false, false>();
+    };
+    switch (format) {
+        case PixelFormat::Rgb8:
+            return pick.template operator()<PixelFormat::Rgb8>();
+        case PixelFormat::Y8:
+            return pick.template operator()<PixelFormat::Y8>();
+        case PixelFormat::Uyvy:
+            break;
+    }
+    return pick.template operator()<PixelFormat::Uyvy>();
+}
+
 }  // namespace prp::detail
