@@ -35,4 +35,30 @@ double psnrDb(std::span<const Rgb8> a, std::span<const Rgb8> b) {
     return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
+std::vector<Rgb8> boxDownsample(std::span<const Rgb8> src, int w, int h, int f) {
+    if (w <= 0 || h <= 0 || f <= 0 || src.size() != static_cast<std::size_t>(w) * h * f * f) {
+        throw std::invalid_argument("boxDownsample: the source must hold (w*f) x (h*f) pixels");
+    }
+    std::vector<Rgb8> out(static_cast<std::size_t>(w) * h);
+    const int n = f * f;
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            int s[3] = {0, 0, 0};
+            for (int b = 0; b < f; ++b) {
+                for (int a = 0; a < f; ++a) {
+                    const Rgb8 c = src[static_cast<std::size_t>(y * f + b) * (w * f) + x * f + a];
+                    s[0] += c.r;
+                    s[1] += c.g;
+                    s[2] += c.b;
+                }
+            }
+            out[static_cast<std::size_t>(y) * w + x] =
+                Rgb8{static_cast<std::uint8_t>((s[0] + n / 2) / n),
+                     static_cast<std::uint8_t>((s[1] + n / 2) / n),
+                     static_cast<std::uint8_t>((s[2] + n / 2) / n)};
+        }
+    }
+    return out;
+}
+
 }  // namespace ig

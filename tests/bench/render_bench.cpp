@@ -209,27 +209,7 @@ std::vector<ig::Rgb8> supersampledReference(const ig::TerrainMap& map, const ig:
     const auto ref = ig::makeCaster(ig::CasterKind::Reference, map);
     const ig::Intrinsics fine = ig::Intrinsics::fromFov(w * f, h * f, ig::degToRad(60.0));
     const ig::RenderedFrame big = ig::renderFrame(*ref, map, pose, fine);
-    std::vector<ig::Rgb8> out(static_cast<std::size_t>(w) * h);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            int s[3] = {0, 0, 0};
-            for (int b = 0; b < f; ++b) {
-                for (int a = 0; a < f; ++a) {
-                    const ig::Rgb8 px =
-                        big.color[static_cast<std::size_t>(y * f + b) * w * f + x * f + a];
-                    s[0] += px.r;
-                    s[1] += px.g;
-                    s[2] += px.b;
-                }
-            }
-            const int n = f * f;
-            out[static_cast<std::size_t>(y) * w + x] =
-                ig::Rgb8{static_cast<std::uint8_t>((s[0] + n / 2) / n),
-                         static_cast<std::uint8_t>((s[1] + n / 2) / n),
-                         static_cast<std::uint8_t>((s[2] + n / 2) / n)};
-        }
-    }
-    return out;
+    return ig::boxDownsample(big.color, w, h, f);
 }
 
 // Speed against error: each variant's time at the full size and its error against a 4x4

@@ -56,30 +56,6 @@ double levelRawAt(const ig::PyramidLevel& l, double gx, double gy) {
            (l.raw(ix, iy + 1) * (1 - fx) + l.raw(ix + 1, iy + 1) * fx) * fy;
 }
 
-std::vector<ig::Rgb8> boxDownsample(const std::vector<ig::Rgb8>& src, int w, int h, int f) {
-    std::vector<ig::Rgb8> out(static_cast<std::size_t>(w) * h);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            int s[3] = {0, 0, 0};
-            for (int b = 0; b < f; ++b) {
-                for (int a = 0; a < f; ++a) {
-                    const ig::Rgb8 c =
-                        src[static_cast<std::size_t>(y * f + b) * (w * f) + x * f + a];
-                    s[0] += c.r;
-                    s[1] += c.g;
-                    s[2] += c.b;
-                }
-            }
-            const int n = f * f;
-            out[static_cast<std::size_t>(y) * w + x] =
-                ig::Rgb8{static_cast<std::uint8_t>((s[0] + n / 2) / n),
-                         static_cast<std::uint8_t>((s[1] + n / 2) / n),
-                         static_cast<std::uint8_t>((s[2] + n / 2) / n)};
-        }
-    }
-    return out;
-}
-
 TEST(TerrainPyramid, LevelsHalveAndStayOnGridLines) {
     for (int n : {2, 3, 17, 64, 65, 100}) {
         TerrainMap map(n, n + 7, 10.0, 10.0, 1.0, 0.0);
@@ -283,7 +259,7 @@ SupersampledError errorAgainstSupersampled(const TerrainMap& map, int poses, int
     int k = 0;
     for (const Pose& pose : ig::sweepPoses(map, poses)) {
         const auto ref =
-            boxDownsample(ig::renderFrame(*reference, map, pose, fine).color, w, h, kF);
+            ig::boxDownsample(ig::renderFrame(*reference, map, pose, fine).color, w, h, kF);
         const double single = ig::meanAbsErrorPct(renderWith(map, pose, in, 0, 0).color, ref);
         const double multi =
             ig::meanAbsErrorPct(renderWith(map, pose, in, ig::kLevelsAuto, 0).color, ref);
