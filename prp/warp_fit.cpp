@@ -7,10 +7,23 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 
 namespace prp {
 
 namespace {
+
+// Root-mean-square distance, in source pixels, between where `warp` sends each field point and
+// the source point it should reach.
+template <class Warp>
+double rmsResidual(const Warp& warp, std::span<const Correspondence> points) {
+    double sum = 0.0;
+    for (const Correspondence& c : points) {
+        const glm::dvec2 d = warp(c.field) - c.source;
+        sum += d.x * d.x + d.y * d.y;
+    }
+    return std::sqrt(sum / static_cast<double>(points.size()));
+}
 
 // Fixed-capacity matrices: a fit allocates nothing on the heap.
 template <int Cols, int MaxRows>
@@ -94,12 +107,7 @@ QuadraticFit fitPolynomial(std::span<const Correspondence> points, bool normalis
         q.b[k] = coef(k, 1);
     }
     q = composeAffine(q, norm);
-    double sum = 0.0;
-    for (const Correspondence& c : points) {
-        const glm::dvec2 d = q(c.field) - c.source;
-        sum += d.x * d.x + d.y * d.y;
-    }
-    r.residualPx = std::sqrt(sum / static_cast<double>(points.size()));
+    r.residualPx = rmsResidual(q, points);
     r.warp = q;
     r.ok = q.isFinite() && std::isfinite(r.residualPx) && r.condition <= kMaxCondition;
     return r;
@@ -300,12 +308,7 @@ HomographyFit fitHomography(std::span<const Correspondence> points) {
     const double scale = out.h[8] != 0.0 ? out.h[8] : 1.0;
     for (double& e : out.h)
         e /= scale;
-    double sum = 0.0;
-    for (const Correspondence& c : points) {
-        const glm::dvec2 d = out(c.field) - c.source;
-        sum += d.x * d.x + d.y * d.y;
-    }
-    r.residualPx = std::sqrt(sum / static_cast<double>(points.size()));
+    r.residualPx = rmsResidual(out, points);
     r.warp = out;
     r.ok = std::isfinite(r.residualPx) && r.condition <= kMaxCondition * kMaxCondition;
     return r;
