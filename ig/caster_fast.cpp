@@ -269,159 +269,252 @@ class FastCaster final : public Caster {
         return quantize(rgb);
     }
 
-    // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own.
-    template <bool kOneRay>
-    void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
-                      RenderedFrame& frame, ColumnCounters& counters) const {
-        const int w = camera.intrinsics().width, h = camera.intrinsics().height;
-        // Ray direction of image row y: base + y * down (unnormalised, linear in y).
-        const CameraBasis& b = camera.basis();
-        const double focal = camera.intrinsics().focal;
-        const glm::dvec3 base = focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
-                                camera.intrinsics().cy() * b.up;
-        const glm::dvec3 down = -b.up;
-        const glm::dvec3 eye = camera.pose().position;
-        const double maxSlope = map_.maxSlope();
-        const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
-        const bool eyeInside =
-            eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
-        const EyeGrid eg{eye.x * invSx, eye.y * invSy, eye.z, eyeInside,
-                         (eye.z - mv.offset) * mv.invScale};
-        const int sub = kOneRay ? 1 : options_.supersample;
-        const double subStep = 1.0 / sub;
-        const SkyModel& sky = options_.sky;
-        const bool multires = topLevel_ > 0;
+    // What every ray of one image column shares.
+    struct ColumnContext {
+        const MapView* mv;
+        glm::dvec3 base, down, eye;  // ray of row y: base + y * down
+        EyeGrid eg;
+        double d0;
+        double invSx, invSy;
+        double maxSlope;
+        bool multires;
+    };
 
-        // The ray below, in major-axis form: it and this ray share the major coordinate at equal
-        // u (major grid units travelled from the eye), so coherence compares them there.
+    // The ray below, in major-axis form: it and the next ray share the major coordinate at
+    // equal u (major grid units travelled from the eye), so coherence compares them there.
+    struct ColumnState {
         bool havePrev = false, prevMajorX = false, prevAbove = false;
         int prevSgn = 0;
         double prevRn = 0.0, prevRz = 0.0, prevU = 0.0;
         std::uint64_t steps = 0, restarts = 0;
-        for (int y = h - 1; y >= 0; --y) {
-            int sum[3] = {0, 0, 0};
-            float nearest = kSkyDepth;
-            for (int s = sub - 1; s >= 0; --s) {
-                const glm::dvec3 d = base + (y + (s + 0.5) * subStep) * down;
+    };
+
+    // One ray of a column, any case: coherent, restarted, past the level-0 distance, straight
+    // down. Sets the colour and the hit distance (negative: sky) and moves the state on.
+    [[gnu::noinline]] void castRay(const ColumnContext& cc, const glm::dvec3& d, ColumnState& st,
+                                   Rgb8& c, double& tHit) const {
+        const MapView& mv = *cc.mv;
+        const SkyModel& sky = options_.sky;
+        const double gx = d.x * cc.invSx, gy = d.y * cc.invSy;
+        const bool majorX = std::abs(gx) >= std::abs(gy);
+        const double gm = majorX ? gx : gy, gn = majorX ? gy : gx;
+        const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        tHit = -1.0;
+        if (!(std::abs(gm) > 1e-9 * len)) {
+            // Straight down or up: no major axis.
+            const TerrainRay ray(map_, cc.eye, d);
+            double tStop = 0.0;
+            const LevelHit hit = castFresh(ray, 0.0, cc.d0, !st.havePrev, tStop, st.steps);
+            if (hit.t >= 0.0) {
+                tHit = hit.t;
+                c = shadeLevelHit(hit, ray.at(hit.t));
+            } else {
+                c = skyColor(sky, ray.dir.z);
+            }
+            st.havePrev = false;
+            st.prevAbove = false;
+            return;
+        }
+        const double inv = 1.0 / std::abs(gm);
+        const int sgn = gm > 0 ? 1 : -1;
+        const double rn = gn * inv, rz = d.z * inv, lenPerU = len * inv;
+        const double sMinor = majorX ? map_.spacingY() : map_.spacingX();
+        // At equal u this ray is (rz - prevRz) * u higher than the ray below and |rn - prevRn| * u
+        // minor cells to the side, where the terrain is at most maxSlope times that higher: when
+        // the climb wins, it cannot meet the terrain before the ray below stopped.
+        const bool coherent = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
+                              rz - st.prevRz >= cc.maxSlope * std::abs(rn - st.prevRn) * sMinor;
+        if (st.havePrev && !coherent) ++st.restarts;
+        bool resolved = false;
+        if (coherent && st.prevAbove) {
+            // The ray below climbed above the map's highest point before meeting anything; this
+            // one climbs faster: sky.
+            c = skyColor(sky, d.z / len);
+            resolved = true;
+        } else if (st.prevAbove = false; coherent) {
+            // Level 0 reaches out to horizontal distance d0.
+            double uNear = std::numeric_limits<double>::infinity();
+            if (cc.multires) uNear = cc.d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
+            const ColumnMarch r =
+                majorX ? marchCoherent<true>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps)
+                       : marchCoherent<false>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps);
+            resolved = finishCoherent(cc, d, len, lenPerU, r, st, c, tHit);
+        }
+        st.prevMajorX = majorX;
+        st.prevSgn = sgn;
+        st.prevRn = rn;
+        st.prevRz = rz;
+        if (!resolved) {
+            // Bottom ray, restart, or a coherent start outside the map.
+            const TerrainRay ray(map_, cc.eye, d);
+            const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
+            double tStop = 0.0;
+            const LevelHit hit = castFresh(ray, horiz, cc.d0, !st.havePrev, tStop, st.steps);
+            if (hit.t >= 0.0) {
+                tHit = hit.t;
+                c = shadeLevelHit(hit, ray.at(hit.t));
+            } else {
+                c = skyColor(sky, ray.dir.z);
+            }
+            st.prevU = tStop / lenPerU;
+        }
+        st.havePrev = true;
+    }
+
+    // The outcome of a coherent march: colour, hit distance and the next start. False when the
+    // march started outside the map (the ray must be cast fresh).
+    [[gnu::always_inline]] bool finishCoherent(const ColumnContext& cc, const glm::dvec3& d,
+                                               double len, double lenPerU, const ColumnMarch& r,
+                                               ColumnState& st, Rgb8& c, double& tHit) const {
+        if (r.kind == ColumnMarch::kHit) {
+            tHit = r.u * lenPerU;
+            float rgb[3];
+            cellColor(*cc.mv, r.cx, r.cy, r.fx, r.fy, rgb);
+            c = haze(rgb, tHit);
+            st.prevU = r.u;
+            return true;
+        }
+        if (r.kind == ColumnMarch::kStop || r.kind == ColumnMarch::kAbove) {
+            c = skyColor(options_.sky, d.z / len);
+            st.prevU = r.u;
+            st.prevAbove = r.kind == ColumnMarch::kAbove;
+            return true;
+        }
+        if (r.kind == ColumnMarch::kFar) {
+            continueFar(cc, d, lenPerU, r, st, c, tHit);
+            return true;
+        }
+        return false;
+    }
+
+    // A coherent ray that reached the level-0 distance: the multiresolution march from there.
+    [[gnu::noinline]] void continueFar(const ColumnContext& cc, const glm::dvec3& d,
+                                       double lenPerU, const ColumnMarch& r, ColumnState& st,
+                                       Rgb8& c, double& tHit) const {
+        const TerrainRay ray(map_, cc.eye, d);
+        const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
+        double t0, t1;
+        LevelHit hit;
+        double tStop = 0.0;
+        if (clipToMapBox(map_, ray, t0, t1)) {
+            hit = castFrom(ray, horiz, cc.d0, std::max(t0, r.u * lenPerU), t1, st.steps);
+            tStop = hit.t >= 0.0 ? hit.t : t1;
+        }
+        if (hit.t >= 0.0) {
+            tHit = hit.t;
+            c = shadeLevelHit(hit, ray.at(hit.t));
+        } else {
+            c = skyColor(options_.sky, ray.dir.z);
+        }
+        st.prevU = std::max(tStop / lenPerU, r.u);
+    }
+
+    // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own: the
+    // coherent ray that stays on the ray below's major axis is handled inline, every other case
+    // by castRay.
+    template <bool kOneRay>
+    void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
+                      RenderedFrame& frame, ColumnCounters& counters) const {
+        const int w = camera.intrinsics().width, h = camera.intrinsics().height;
+        const CameraBasis& b = camera.basis();
+        const double focal = camera.intrinsics().focal;
+        const glm::dvec3 eye = camera.pose().position;
+        const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
+        const bool eyeInside =
+            eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
+        const ColumnContext cc{
+            &mv,
+            focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
+                camera.intrinsics().cy() * b.up,
+            -b.up,
+            eye,
+            EyeGrid{eye.x * invSx, eye.y * invSy, eye.z, eyeInside, (eye.z - mv.offset) * mv.invScale},
+            d0,
+            invSx,
+            invSy,
+            map_.maxSlope(),
+            topLevel_ > 0};
+        ColumnState st;
+        Rgb8* colorOut = frame.color.data() + x;
+        float* depthOut = frame.depth.data() + x;
+        if constexpr (kOneRay) {
+            const double sMinorX = map_.spacingY() * cc.maxSlope,
+                         sMinorY = map_.spacingX() * cc.maxSlope;
+            for (int y = h - 1; y >= 0; --y) {
+                const glm::dvec3 d = cc.base + (y + 0.5) * cc.down;
+                Rgb8 c;
+                double tHit = -1.0;
                 const double gx = d.x * invSx, gy = d.y * invSy;
                 const bool majorX = std::abs(gx) >= std::abs(gy);
                 const double gm = majorX ? gx : gy, gn = majorX ? gy : gx;
+                const int sgn = gm > 0 ? 1 : -1;
                 const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-                Rgb8 c;
-                double tHit = -1.0;
-                bool resolved = false;
-                if (std::abs(gm) > 1e-9 * len) {
+                bool done = false;
+                if (st.havePrev && !st.prevAbove && majorX == st.prevMajorX && sgn == st.prevSgn &&
+                    std::abs(gm) > 1e-9 * len) {
                     const double inv = 1.0 / std::abs(gm);
-                    const int sgn = gm > 0 ? 1 : -1;
-                    const double rn = gn * inv, rz = d.z * inv, lenPerU = len * inv;
-                    const double sMinor = majorX ? map_.spacingY() : map_.spacingX();
-                    // At equal u this ray is (rz - prevRz) * u higher than the ray below and
-                    // |rn - prevRn| * u minor cells to the side, where the terrain is at most
-                    // maxSlope times that higher: when the climb wins, it cannot meet the
-                    // terrain before the ray below stopped.
-                    const bool coherent = havePrev && prevMajorX == majorX && prevSgn == sgn &&
-                                          rz - prevRz >= maxSlope * std::abs(rn - prevRn) * sMinor;
-                    if (havePrev && !coherent) ++restarts;
-                    if (coherent && prevAbove) {
-                        // The ray below climbed above the map's highest point before meeting
-                        // anything; this one climbs faster: sky.
-                        c = skyColor(sky, d.z / len);
-                        resolved = true;
-                    } else if (prevAbove = false; coherent) {
-                        // Level 0 reaches out to horizontal distance d0.
+                    const double rn = gn * inv, rz = d.z * inv;
+                    if (rz - st.prevRz >=
+                        (majorX ? sMinorX : sMinorY) * std::abs(rn - st.prevRn)) {
                         double uNear = std::numeric_limits<double>::infinity();
-                        if (multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
+                        if (cc.multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
                         const ColumnMarch r =
-                            majorX ? marchCoherent<true>(mv, eg, sgn, rn, rz, prevU, uNear, steps)
-                                   : marchCoherent<false>(mv, eg, sgn, rn, rz, prevU, uNear, steps);
-                        if (r.kind == ColumnMarch::kHit) {
-                            tHit = r.u * lenPerU;
-                            float rgb[3];
-                            cellColor(mv, r.cx, r.cy, r.fx, r.fy, rgb);
-                            c = haze(rgb, tHit);
-                            prevU = r.u;
-                            resolved = true;
-                        } else if (r.kind == ColumnMarch::kStop || r.kind == ColumnMarch::kAbove) {
-                            c = skyColor(sky, d.z / len);
-                            prevU = r.u;
-                            prevAbove = r.kind == ColumnMarch::kAbove;
-                            resolved = true;
-                        } else if (r.kind == ColumnMarch::kFar) {
+                            majorX ? marchCoherent<true>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear,
+                                                         st.steps)
+                                   : marchCoherent<false>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear,
+                                                          st.steps);
+                        st.prevRn = rn;
+                        st.prevRz = rz;
+                        done = finishCoherent(cc, d, len, len * inv, r, st, c, tHit);
+                        if (!done) {
+                            // A coherent start outside the map: cast afresh (as castRay does).
                             const TerrainRay ray(map_, eye, d);
                             const double horiz =
                                 std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-                            double t0, t1;
-                            LevelHit hit;
                             double tStop = 0.0;
-                            if (clipToMapBox(map_, ray, t0, t1)) {
-                                hit = castFrom(ray, horiz, d0, std::max(t0, r.u * lenPerU), t1,
-                                               steps);
-                                tStop = hit.t >= 0.0 ? hit.t : t1;
-                            }
+                            const LevelHit hit = castFresh(ray, horiz, d0, false, tStop, st.steps);
                             if (hit.t >= 0.0) {
                                 tHit = hit.t;
                                 c = shadeLevelHit(hit, ray.at(hit.t));
                             } else {
-                                c = skyColor(sky, ray.dir.z);
+                                c = skyColor(options_.sky, ray.dir.z);
                             }
-                            prevU = std::max(tStop / lenPerU, r.u);
-                            resolved = true;
+                            st.prevU = tStop * std::abs(gm) / len;
+                            done = true;
                         }
                     }
-                    prevMajorX = majorX;
-                    prevSgn = sgn;
-                    prevRn = rn;
-                    prevRz = rz;
-                    if (!resolved) {
-                        // Bottom ray, restart, or a coherent start outside the map.
-                        const TerrainRay ray(map_, eye, d);
-                        const double horiz =
-                            std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-                        double tStop = 0.0;
-                        const LevelHit hit = castFresh(ray, horiz, d0, !havePrev, tStop, steps);
-                        if (hit.t >= 0.0) {
-                            tHit = hit.t;
-                            c = shadeLevelHit(hit, ray.at(hit.t));
-                        } else {
-                            c = skyColor(sky, ray.dir.z);
-                        }
-                        prevU = tStop / lenPerU;
-                    }
-                    havePrev = true;
-                } else {
-                    // Straight down or up: no major axis.
-                    const TerrainRay ray(map_, eye, d);
-                    double tStop = 0.0;
-                    const LevelHit hit = castFresh(ray, 0.0, d0, !havePrev, tStop, steps);
-                    if (hit.t >= 0.0) {
-                        tHit = hit.t;
-                        c = shadeLevelHit(hit, ray.at(hit.t));
-                    } else {
-                        c = skyColor(sky, ray.dir.z);
-                    }
-                    havePrev = false;
-                    prevAbove = false;
                 }
-                if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
-                sum[0] += c.r;
-                sum[1] += c.g;
-                sum[2] += c.b;
+                if (!done) castRay(cc, d, st, c, tHit);
+                const std::size_t idx = static_cast<std::size_t>(y) * w;
+                colorOut[idx] = c;
+                depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
             }
-            const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-            if (sub == 1) {
-                frame.color[idx] =
-                    Rgb8{static_cast<std::uint8_t>(sum[0]), static_cast<std::uint8_t>(sum[1]),
-                         static_cast<std::uint8_t>(sum[2])};
-            } else {
+        } else {
+            const int sub = options_.supersample;
+            const double subStep = 1.0 / sub;
+            for (int y = h - 1; y >= 0; --y) {
+                int sum[3] = {0, 0, 0};
+                float nearest = kSkyDepth;
+                for (int s = sub - 1; s >= 0; --s) {
+                    const glm::dvec3 d = cc.base + (y + (s + 0.5) * subStep) * cc.down;
+                    Rgb8 c;
+                    double tHit = -1.0;
+                    castRay(cc, d, st, c, tHit);
+                    if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
+                    sum[0] += c.r;
+                    sum[1] += c.g;
+                    sum[2] += c.b;
+                }
+                const std::size_t idx = static_cast<std::size_t>(y) * w;
                 const int half = sub / 2;
-                frame.color[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
-                                        static_cast<std::uint8_t>((sum[1] + half) / sub),
-                                        static_cast<std::uint8_t>((sum[2] + half) / sub)};
+                colorOut[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
+                                     static_cast<std::uint8_t>((sum[1] + half) / sub),
+                                     static_cast<std::uint8_t>((sum[2] + half) / sub)};
+                depthOut[idx] = nearest;
             }
-            frame.depth[idx] = nearest;
         }
-        counters.steps += steps;
-        counters.restarts += restarts;
+        counters.steps += st.steps;
+        counters.restarts += st.restarts;
     }
 
     // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy) (as TerrainMap::surfaceColor).

@@ -25,34 +25,29 @@ struct TerrainRay {
 // First s in [0, len] where the ray z = za + dz * s meets the bilinear patch with corner heights
 // h00, h10, h01, h11 (metres) at local cell coordinates (ua + du * s, va + dv * s); negative
 // when there is none. A ray under the patch at s = 0 hits at 0.
-inline double solveBilinear(double h00, double h10, double h01, double h11, double ua, double va,
-                            double du, double dv, double za, double dz, double len) {
+[[gnu::always_inline]] inline double solveBilinear(double h00, double h10, double h01, double h11,
+                                                   double ua, double va, double du, double dv,
+                                                   double za, double dz, double len) {
     const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
     const double C = za - (h00 + a * ua + b * va + c * ua * va);
     if (C <= 0.0) return 0.0;
+    // Height of the ray above the surface: A s^2 + B s + C, C > 0. Its first positive root,
+    // each branch written so that it does not cancel: with B < 0 it is C / q, q = (sqrt(disc)
+    // - B) / 2 > 0 (the smaller root when A > 0, the only one when A <= 0); with B >= 0 the
+    // only positive root is q' / A, q' = -(B + sqrt(disc)) / 2 < 0, and only when A < 0.
     const double B = dz - (a * du + b * dv + c * (ua * dv + va * du));
     const double A = -c * du * dv;
-    double root = len + 1.0;
-    if (std::abs(A) * len <= 1e-12 * (std::abs(B) + 1e-300)) {
-        if (B < 0.0) root = -C / B;
-    } else {
-        const double disc = B * B - 4.0 * A * C;
-        if (disc >= 0.0) {
-            const double sq = std::sqrt(disc);
-            const double q = -0.5 * (B + (B >= 0 ? sq : -sq));
-            // The roots are q / A and C / q (C > 0): only those of non-negative sign are
-            // computed.
-            if ((q > 0.0) == (A > 0.0)) {
-                const double r1 = q / A;
-                if (r1 >= 0.0 && r1 < root) root = r1;
-            }
-            if (q > 0.0) {
-                const double r2 = C / q;
-                if (r2 < root) root = r2;
-            }
+    const double disc = B * B - 4.0 * A * C;
+    double root = -1.0;
+    if (disc >= 0.0) {
+        const double sq = std::sqrt(disc);
+        if (B < 0.0) {
+            root = C / (0.5 * (sq - B));
+        } else if (A < 0.0) {
+            root = -0.5 * (B + sq) / A;
         }
     }
-    if (root <= len) return root;
+    if (root >= 0.0 && root <= len) return root;
     return C + B * len + A * len * len <= 0.0 ? len : -1.0;
 }
 
