@@ -19,6 +19,14 @@
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define VIG_CASTER_PACKETS 1
+#define VIG_CASTER_AVX2 __attribute__((target("avx2")))
+#include <immintrin.h>
+#else
+#define VIG_CASTER_PACKETS 0
+#endif
+
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 #include <glm/geometric.hpp>
@@ -194,14 +202,27 @@ class FastCaster final : public Caster {
         runWithThreads(options_.threads, [&] {
             // The image is a pool of columns; idle workers take the next one. Each column is
             // independent, so the image does not depend on the thread count.
-            tbb::parallel_for(0, w, [&](int x) {
-                ColumnCounters& c = counters.local();
-                if (options_.supersample == 1) {
-                    renderColumn<true>(mv, camera, d0, x, frame, c);
-                } else {
-                    renderColumn<false>(mv, camera, d0, x, frame, c);
-                }
-            });
+            if (usePackets()) {
+#if VIG_CASTER_PACKETS
+                tbb::parallel_for(0, (w + 3) / 4, [&](int p) {
+                    ColumnCounters& c = counters.local();
+                    if (4 * p + 4 <= w) {
+                        renderPacket(mv, camera, d0, 4 * p, frame, c);
+                    } else {
+                        for (int x = 4 * p; x < w; ++x) renderColumn<true>(mv, camera, d0, x, frame, c);
+                    }
+                });
+#endif
+            } else {
+                tbb::parallel_for(0, w, [&](int x) {
+                    ColumnCounters& c = counters.local();
+                    if (options_.supersample == 1) {
+                        renderColumn<true>(mv, camera, d0, x, frame, c);
+                    } else {
+                        renderColumn<false>(mv, camera, d0, x, frame, c);
+                    }
+                });
+            }
         });
         const ColumnCounters total = counters.combine([](ColumnCounters a, ColumnCounters b) {
             return ColumnCounters{a.steps + b.steps, a.restarts + b.restarts};
@@ -213,6 +234,16 @@ class FastCaster final : public Caster {
     }
 
   private:
+    // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
+    bool usePackets() const {
+#if VIG_CASTER_PACKETS
+        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
+        return options_.packets && options_.supersample == 1 && hasAvx2;
+#else
+        return false;
+#endif
+    }
+
     // The fresh (t-parameterised) path: box clip, hierarchical skip where worthwhile, exact
     // level-0 march out to tNear, multiresolution march beyond. Returns the hit (t < 0: none)
     // and sets tStop to where the ray stopped (its hit, or where it left the map box).
@@ -277,6 +308,8 @@ class FastCaster final : public Caster {
         double d0;
         double invSx, invSy;
         double maxSlope;
+        // The most the terrain can rise per minor grid unit across a major-x (y) ray's track.
+        double slopeX, slopeY;
         bool multires;
     };
 
@@ -318,12 +351,11 @@ class FastCaster final : public Caster {
         const double inv = 1.0 / std::abs(gm);
         const int sgn = gm > 0 ? 1 : -1;
         const double rn = gn * inv, rz = d.z * inv, lenPerU = len * inv;
-        const double sMinor = majorX ? map_.spacingY() : map_.spacingX();
         // At equal u this ray is (rz - prevRz) * u higher than the ray below and |rn - prevRn| * u
         // minor cells to the side, where the terrain is at most maxSlope times that higher: when
         // the climb wins, it cannot meet the terrain before the ray below stopped.
         const bool coherent = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
-                              rz - st.prevRz >= cc.maxSlope * std::abs(rn - st.prevRn) * sMinor;
+                              rz - st.prevRz >= (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn);
         if (st.havePrev && !coherent) ++st.restarts;
         bool resolved = false;
         if (coherent && st.prevAbove) {
@@ -409,6 +441,30 @@ class FastCaster final : public Caster {
         st.prevU = std::max(tStop / lenPerU, r.u);
     }
 
+    ColumnContext columnContext(const MapView& mv, const Camera& camera, double d0, int x) const {
+        const CameraBasis& b = camera.basis();
+        const double focal = camera.intrinsics().focal;
+        const glm::dvec3 eye = camera.pose().position;
+        const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
+        const bool eyeInside =
+            eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
+        return ColumnContext{
+            &mv,
+            focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
+                camera.intrinsics().cy() * b.up,
+            -b.up,
+            eye,
+            EyeGrid{eye.x * invSx, eye.y * invSy, eye.z, eyeInside,
+                    (eye.z - mv.offset) * mv.invScale},
+            d0,
+            invSx,
+            invSy,
+            map_.maxSlope(),
+            map_.spacingY() * map_.maxSlope(),
+            map_.spacingX() * map_.maxSlope(),
+            topLevel_ > 0};
+    }
+
     // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own: the
     // coherent ray that stays on the ray below's major axis is handled inline, every other case
     // by castRay.
@@ -416,30 +472,13 @@ class FastCaster final : public Caster {
     void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
                       RenderedFrame& frame, ColumnCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
-        const CameraBasis& b = camera.basis();
-        const double focal = camera.intrinsics().focal;
-        const glm::dvec3 eye = camera.pose().position;
-        const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
-        const bool eyeInside =
-            eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
-        const ColumnContext cc{
-            &mv,
-            focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
-                camera.intrinsics().cy() * b.up,
-            -b.up,
-            eye,
-            EyeGrid{eye.x * invSx, eye.y * invSy, eye.z, eyeInside, (eye.z - mv.offset) * mv.invScale},
-            d0,
-            invSx,
-            invSy,
-            map_.maxSlope(),
-            topLevel_ > 0};
+        const ColumnContext cc = columnContext(mv, camera, d0, x);
+        const glm::dvec3 eye = cc.eye;
+        const double invSx = cc.invSx, invSy = cc.invSy;
         ColumnState st;
         Rgb8* colorOut = frame.color.data() + x;
         float* depthOut = frame.depth.data() + x;
         if constexpr (kOneRay) {
-            const double sMinorX = map_.spacingY() * cc.maxSlope,
-                         sMinorY = map_.spacingX() * cc.maxSlope;
             for (int y = h - 1; y >= 0; --y) {
                 const glm::dvec3 d = cc.base + (y + 0.5) * cc.down;
                 Rgb8 c;
@@ -455,7 +494,7 @@ class FastCaster final : public Caster {
                     const double inv = 1.0 / std::abs(gm);
                     const double rn = gn * inv, rz = d.z * inv;
                     if (rz - st.prevRz >=
-                        (majorX ? sMinorX : sMinorY) * std::abs(rn - st.prevRn)) {
+                        (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn)) {
                         double uNear = std::numeric_limits<double>::infinity();
                         if (cc.multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
                         const ColumnMarch r =
@@ -479,7 +518,7 @@ class FastCaster final : public Caster {
                             } else {
                                 c = skyColor(options_.sky, ray.dir.z);
                             }
-                            st.prevU = tStop * std::abs(gm) / len;
+                            st.prevU = tStop / (len * inv);
                             done = true;
                         }
                     }
@@ -516,6 +555,364 @@ class FastCaster final : public Caster {
         counters.steps += st.steps;
         counters.restarts += st.restarts;
     }
+
+#if VIG_CASTER_PACKETS
+    // Four adjacent columns cast together, row by row, with AVX2: the rays' set-up, the
+    // coherent march's set-up and the exact solve of the hit step run on four lanes, the bound
+    // scan per lane. A row is cast this way when all four rays are coherent on the same major
+    // axis and direction and each ends in a level-0 hit; any other lane (bottom ray, restart,
+    // sky, the map's edge, past the level-0 distance) is cast again from its unchanged state by
+    // castRay. Every operation is the scalar path's, in the same order and precision (no fused
+    // multiply-add), so the image is bit for bit the one column at a time gives.
+    using V4 = double __attribute__((vector_size(32)));
+    using M4 = decltype(V4{} < V4{});
+
+    struct PacketLanes {
+        V4 rn, rz, len, u, n, dzr, sBegin;
+        double mc0[4], m[4];
+        double total[4];
+    };
+
+    // One lane's bound scan from step k on: the step it may reach (true), or false when the
+    // lane leaves the fast case (it is then cast by castRay).
+    struct LaneScan {
+        double n, dn, zLow, dzr;
+        std::ptrdiff_t ia;
+        int ca;
+        std::int64_t k, total;
+        // The reaching step's second cell and the next start.
+        int cb;
+        std::ptrdiff_t ib;
+        double next;
+    };
+
+    template <bool kMajorX>
+    [[gnu::always_inline]] static bool scanLane(const MapView& mv, LaneScan& s, double minorLimit,
+                                                int lastMinorCell, std::ptrdiff_t minorStride,
+                                                std::ptrdiff_t majorStep, double maxRaw) {
+        const std::uint16_t* __restrict__ cellMax = mv.cellMax;
+        const bool rising = s.dzr >= 0.0;
+        for (; s.k < s.total; ++s.k) {
+            const double next = s.n + s.dn;
+            if (next < 0.0 || next > minorLimit) return false;
+            const int cb = std::min(static_cast<int>(next * (1.0 / 4294967296.0)), lastMinorCell);
+            const std::ptrdiff_t ib = s.ia + (cb - s.ca) * minorStride;
+            if (s.zLow <= std::max(cellMax[s.ia], cellMax[ib])) {
+                s.cb = cb;
+                s.ib = ib;
+                s.next = next;
+                return true;
+            }
+            if (rising && s.zLow > maxRaw) return false;
+            s.n = next;
+            s.ca = cb;
+            s.ia = ib + majorStep;
+            s.zLow += s.dzr;
+        }
+        return false;
+    }
+
+    // std::max, std::min and std::clamp to [0, 1] on four lanes, with their exact semantics.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmax(V4 a, V4 b) { return a < b ? b : a; }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmin(V4 a, V4 b) { return b < a ? b : a; }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vclamp01(V4 v) {
+        const V4 zero = V4{} + 0.0, one = V4{} + 1.0;
+        return v < zero ? zero : (one < v ? one : v);
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vsqrt(V4 v) {
+        return reinterpret_cast<V4>(_mm256_sqrt_pd(reinterpret_cast<__m256d>(v)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vfloor(V4 v) {
+        return reinterpret_cast<V4>(_mm256_floor_pd(reinterpret_cast<__m256d>(v)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static int vmask(M4 m) {
+        return _mm256_movemask_pd(reinterpret_cast<__m256d>(m));
+    }
+    // roundToInt64 on four lanes, as an integer-valued double (exact below 2^53).
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vroundAway(V4 v) {
+        const V4 h = v >= 0.0 ? v + 0.5 : v - 0.5;
+        return reinterpret_cast<V4>(_mm256_round_pd(reinterpret_cast<__m256d>(h),
+                                                    _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC));
+    }
+
+    // solveBilinear on four lanes, the same operations in the same order.
+    VIG_CASTER_AVX2 static V4 solveBilinear4(V4 h00, V4 h10, V4 h01, V4 h11, V4 ua, V4 va, V4 du,
+                                             V4 dv, V4 za, V4 dz, V4 len) {
+        const V4 a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
+        const V4 C = za - (h00 + a * ua + b * va + c * ua * va);
+        const V4 B = dz - (a * du + b * dv + c * (ua * dv + va * du));
+        const V4 A = -c * du * dv;
+        const V4 disc = B * B - 4.0 * A * C;
+        const V4 zero = V4{} + 0.0;
+        const V4 sq = vsqrt(vmax(disc, zero));
+        const V4 rootNeg = C / (0.5 * (sq - B));
+        const V4 rootPos = -0.5 * (B + sq) / A;
+        V4 root = zero - 1.0;
+        root = disc >= 0.0 && B < 0.0 ? rootNeg : root;
+        root = disc >= 0.0 && B >= 0.0 && A < 0.0 ? rootPos : root;
+        const V4 endHit = C + B * len + A * len * len <= 0.0 ? len : zero - 1.0;
+        root = root >= 0.0 && root <= len ? root : endHit;
+        return C <= 0.0 ? zero : root;
+    }
+
+    // The scalar StepSolver::piece on the lanes in `active`: sets `hit` for the lanes whose
+    // piece [s0, s1] of their step (major line m, major cell mc, minor cell cn) meets the
+    // surface, with the hit's u and cell-local coordinates.
+    template <bool kMajorX>
+    VIG_CASTER_AVX2 static void piece4(const MapView& mv, M4 active, bool ownBound, M4 own, V4 sgn,
+                                       V4 rn, V4 rzr, double ezr, const V4& m, const V4& mc,
+                                       const int mci[4], const V4& cn, const int cni[4], V4 n,
+                                       V4 u, V4 s0, V4 s1, M4& hit, V4& outU, V4& outFx,
+                                       V4& outFy, int outCx[4], int outCy[4]) {
+        active = active && s0 < s1;
+        if (!vmask(active)) return;
+        const int w = mv.width;
+        const std::size_t stride = static_cast<std::size_t>(w - 1);
+        V4 h00, h10, h01, h11, bound;
+        for (int l = 0; l < 4; ++l) {
+            const int cx = active[l] ? (kMajorX ? mci[l] : cni[l]) : 0;
+            const int cy = active[l] ? (kMajorX ? cni[l] : mci[l]) : 0;
+            const std::uint16_t* s00 = mv.heights + static_cast<std::size_t>(cy) * w + cx;
+            h00[l] = s00[0];
+            h10[l] = s00[1];
+            h01[l] = s00[w];
+            h11[l] = s00[w + 1];
+            bound[l] = mv.cellMax[static_cast<std::size_t>(cy) * stride + cx];
+        }
+        const V4 za = ezr + rzr * (u + s0);
+        if (ownBound) {
+            const V4 zLow = rzr >= 0.0 ? za : za + rzr * (s1 - s0);
+            active = active && !(own && zLow > bound);
+        }
+        const V4 nD = n * (1.0 / 4294967296.0);
+        const V4 majorLocal = m - mc;
+        const V4 am = majorLocal + sgn * s0, an = nD + rn * s0 - cn;
+        const V4 r = kMajorX ? solveBilinear4(h00, h10, h01, h11, am, an, sgn, rn, za, rzr, s1 - s0)
+                             : solveBilinear4(h00, h10, h01, h11, an, am, rn, sgn, za, rzr, s1 - s0);
+        const M4 got = active && r >= 0.0;
+        const V4 sh = s0 + r;
+        const V4 fm = majorLocal + sgn * sh, fn = nD + rn * sh - cn;
+        outU = got ? u + sh : outU;
+        outFx = got ? (kMajorX ? fm : fn) : outFx;
+        outFy = got ? (kMajorX ? fn : fm) : outFy;
+        for (int l = 0; l < 4; ++l) {
+            if (got[l]) {
+                outCx[l] = kMajorX ? mci[l] : cni[l];
+                outCy[l] = kMajorX ? cni[l] : mci[l];
+            }
+        }
+        hit = hit || got;
+    }
+
+    // Casts row y of the four columns of `cc` where it can (see above); `done[l]` tells which
+    // lanes it cast. The state of the other lanes is untouched.
+    template <bool kMajorX>
+    VIG_CASTER_AVX2 void packetRow(const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy,
+                                   V4 dz, V4 len, int sgnI, Rgb8* c, double* tHit,
+                                   bool* done) const {
+        const MapView& mv = *cc[0].mv;
+        const EyeGrid& eg = cc[0].eg;
+        const double sgnD = sgnI;
+        const V4 sgn = V4{} + sgnD;
+        const V4 gx = dx * cc[0].invSx, gy = dy * cc[0].invSy;
+        const V4 gm = kMajorX ? gx : gy, gn = kMajorX ? gy : gx;
+        const V4 absGm = gm < 0.0 ? -gm : gm;
+        const V4 inv = 1.0 / absGm;
+        const V4 rn = gn * inv, rz = dz * inv;
+        V4 prevRn, prevRz, prevU;
+        for (int l = 0; l < 4; ++l) {
+            prevRn[l] = st[l].prevRn;
+            prevRz[l] = st[l].prevRz;
+            prevU[l] = st[l].prevU;
+        }
+        const double sMinor = (kMajorX ? map_.spacingY() : map_.spacingX()) * cc[0].maxSlope;
+        const V4 dRn = rn - prevRn;
+        const M4 coherent = rz - prevRz >= sMinor * (dRn < 0.0 ? -dRn : dRn);
+        V4 uNear = V4{} + std::numeric_limits<double>::infinity();
+        if (cc[0].multires) {
+            const V4 horiz = vsqrt(dx * dx + dy * dy);
+            uNear = cc[0].d0 / (horiz * inv);
+        }
+        // The march set-up of marchCoherent.
+        const int majorCount = kMajorX ? mv.width : mv.height;
+        const int minorCount = kMajorX ? mv.height : mv.width;
+        const int lastMinorCell = minorCount - 2;
+        const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
+        const V4 gm0 = em + sgn * prevU;
+        const V4 fl = vfloor(sgnI > 0 ? gm0 : -gm0);
+        const V4 m = sgnI > 0 ? fl : -fl;
+        const M4 inMajor = m >= 0.0 && m <= majorCount - 1.0;
+        const V4 u = (m - em) * sgn;
+        constexpr double kFix = 4294967296.0;
+        const V4 n = vroundAway((en + rn * u) * kFix);
+        const V4 dn = vroundAway(rn * kFix);
+        const double minorLimit = (minorCount - 1.0) * kFix;
+        const V4 dzr = rz * mv.invScale;
+        const V4 zr = eg.zRaw + dzr * u;
+        const M4 inMinor = n >= 0.0 && n <= minorLimit;
+        const M4 ok = coherent && inMajor && inMinor;
+        const int okMask = vmask(ok);
+        for (int l = 0; l < 4; ++l) done[l] = false;
+        if (!okMask) return;
+        const V4 majorSteps = sgnI > 0 ? majorCount - 1.0 - m : m;
+        const V4 nearFl = vfloor(u - uNear);
+        const V4 nearSteps = uNear < 1e12 ? vmax(V4{} + 0.0, -nearFl) : V4{} + 1099511627776.0;
+        const V4 total = vmin(majorSteps, nearSteps);
+        const V4 mc0 = m + (sgnI > 0 ? 0.0 : -1.0);
+        const V4 sBegin0 = prevU - u;
+        const V4 zLow0 = dzr >= 0.0 ? zr : zr + dzr;
+        const std::size_t stride = static_cast<std::size_t>(mv.width - 1);
+        const std::ptrdiff_t minorStride = kMajorX ? static_cast<std::ptrdiff_t>(stride) : 1;
+        const std::ptrdiff_t majorStep =
+            kMajorX ? sgnI : sgnI * static_cast<std::ptrdiff_t>(stride);
+        const auto pstride = static_cast<std::ptrdiff_t>(stride);
+        LaneScan s[4];
+        bool pending[4];
+        for (int l = 0; l < 4; ++l) {
+            pending[l] = (okMask >> l) & 1;
+            if (!pending[l]) continue;
+            const int ca = std::min(static_cast<int>(n[l] * (1.0 / kFix)), lastMinorCell);
+            const int mc = static_cast<int>(mc0[l]);
+            s[l] = LaneScan{n[l], dn[l], zLow0[l], dzr[l],
+                            kMajorX ? static_cast<std::ptrdiff_t>(ca) * pstride + mc
+                                    : static_cast<std::ptrdiff_t>(mc) * pstride + ca,
+                            ca, 0, static_cast<std::int64_t>(total[l]), 0, 0, 0.0};
+        }
+        M4 hit = {};
+        V4 hitU = V4{}, hitFx = V4{}, hitFy = V4{};
+        int hitCx[4] = {0, 0, 0, 0}, hitCy[4] = {0, 0, 0, 0};
+        std::int64_t hitK[4] = {0, 0, 0, 0};
+        for (;;) {
+            M4 parked = {};
+            bool any = false;
+            for (int l = 0; l < 4; ++l) {
+                if (!pending[l]) continue;
+                if (scanLane<kMajorX>(mv, s[l], minorLimit, lastMinorCell, minorStride, majorStep,
+                                      mv.maxRaw)) {
+                    parked[l] = -1;
+                    any = true;
+                } else {
+                    pending[l] = false;  // leaves the fast case
+                }
+            }
+            if (!any) break;
+            // The exact solve of each parked lane's step (StepSolver::solve).
+            V4 kD, nV, mcV, caV, cbV;
+            int mci[4], cai[4], cbi[4];
+            for (int l = 0; l < 4; ++l) {
+                const std::int64_t k = parked[l] ? s[l].k : 0;
+                kD[l] = static_cast<double>(k);
+                nV[l] = s[l].n;
+                mci[l] = static_cast<int>(mc0[l]) + sgnI * static_cast<int>(k);
+                mcV[l] = mci[l];
+                cai[l] = s[l].ca;
+                cbi[l] = s[l].cb;
+                caV[l] = cai[l];
+                cbV[l] = cbi[l];
+            }
+            const V4 mK = m + sgn * kD;
+            const V4 uK = u + kD;
+            const V4 sBegin = kD == 0.0 ? sBegin0 : V4{} + 0.0;
+            const V4 one = V4{} + 1.0;
+            const M4 split = caV != cbV;
+            const V4 nD = nV * (1.0 / kFix);
+            const V4 line = caV < cbV ? cbV : caV;
+            const V4 sSplit = vclamp01((line - nD) / rn);
+            const V4 sBeginPos = vmax(sBegin, V4{} + 0.0);
+            M4 got = {};
+            piece4<kMajorX>(mv, parked, true, split, sgn, rn, dzr, eg.zRaw, mK, mcV, mci, caV,
+                            cai, nV, uK, split ? sBeginPos : sBegin, split ? sSplit : one, got,
+                            hitU, hitFx, hitFy, hitCx, hitCy);
+            piece4<kMajorX>(mv, parked && split && !got, false, split, sgn, rn, dzr, eg.zRaw, mK,
+                            mcV, mci, cbV, cbi, nV, uK, vmax(sBegin, sSplit), one, got, hitU, hitFx,
+                            hitFy, hitCx, hitCy);
+            for (int l = 0; l < 4; ++l) {
+                if (!parked[l]) continue;
+                if (got[l]) {
+                    hit[l] = -1;
+                    hitK[l] = s[l].k;
+                    pending[l] = false;
+                } else {
+                    LaneScan& t = s[l];
+                    t.n = t.next;
+                    t.ca = t.cb;
+                    t.ia = t.ib + majorStep;
+                    t.zLow += t.dzr;
+                    ++t.k;
+                }
+            }
+        }
+        for (int l = 0; l < 4; ++l) {
+            if (!hit[l]) continue;
+            ColumnState& q = st[l];
+            q.steps += static_cast<std::uint64_t>(hitK[l] + 1);
+            q.prevRn = rn[l];
+            q.prevRz = rz[l];
+            q.prevU = hitU[l];
+            tHit[l] = hitU[l] * (len[l] * inv[l]);
+            float rgb[3];
+            cellColor(mv, hitCx[l], hitCy[l], hitFx[l], hitFy[l], rgb);
+            c[l] = haze(rgb, tHit[l]);
+            done[l] = true;
+        }
+    }
+
+    // Columns x0 .. x0 + 3, one row at a time: packetRow where the four rays allow, castRay
+    // for the rest.
+    VIG_CASTER_AVX2 void renderPacket(const MapView& mv, const Camera& camera, double d0, int x0,
+                                      RenderedFrame& frame, ColumnCounters& counters) const {
+        const int w = camera.intrinsics().width, h = camera.intrinsics().height;
+        ColumnContext cc[4];
+        ColumnState st[4];
+        V4 bx, by, bz;
+        for (int l = 0; l < 4; ++l) {
+            cc[l] = columnContext(mv, camera, d0, x0 + l);
+            bx[l] = cc[l].base.x;
+            by[l] = cc[l].base.y;
+            bz[l] = cc[l].base.z;
+        }
+        const glm::dvec3 down = cc[0].down;
+        for (int y = h - 1; y >= 0; --y) {
+            const double yy = y + 0.5;
+            const V4 dx = bx + yy * down.x, dy = by + yy * down.y, dz = bz + yy * down.z;
+            const V4 len = vsqrt(dx * dx + dy * dy + dz * dz);
+            const V4 gx = dx * cc[0].invSx, gy = dy * cc[0].invSy;
+            const M4 majorX = (gx < 0.0 ? -gx : gx) >= (gy < 0.0 ? -gy : gy);
+            const int mx = vmask(majorX);
+            const V4 gm = majorX ? gx : gy;
+            const int pos = vmask(gm > 0.0);
+            const int big = vmask((gm < 0.0 ? -gm : gm) > 1e-9 * len);
+            Rgb8 c[4];
+            double tHit[4] = {-1.0, -1.0, -1.0, -1.0};
+            bool done[4] = {false, false, false, false};
+            bool lanesOk = (mx == 0 || mx == 15) && (pos == 0 || pos == 15) && big == 15;
+            for (int l = 0; l < 4 && lanesOk; ++l) {
+                lanesOk = st[l].havePrev && !st[l].prevAbove && st[l].prevMajorX == (mx == 15) &&
+                          st[l].prevSgn == (pos == 15 ? 1 : -1);
+            }
+            if (lanesOk) {
+                if (mx == 15) {
+                    packetRow<true>(cc, st, dx, dy, dz, len, pos == 15 ? 1 : -1, c, tHit, done);
+                } else {
+                    packetRow<false>(cc, st, dx, dy, dz, len, pos == 15 ? 1 : -1, c, tHit, done);
+                }
+            }
+            const std::size_t row = static_cast<std::size_t>(y) * w + x0;
+            for (int l = 0; l < 4; ++l) {
+                if (!done[l]) {
+                    const glm::dvec3 d = cc[l].base + yy * cc[l].down;
+                    castRay(cc[l], d, st[l], c[l], tHit[l]);
+                }
+                frame.color[row + l] = c[l];
+                frame.depth[row + l] = tHit[l] >= 0.0 ? static_cast<float>(tHit[l]) : kSkyDepth;
+            }
+        }
+        for (int l = 0; l < 4; ++l) {
+            counters.steps += st[l].steps;
+            counters.restarts += st[l].restarts;
+        }
+    }
+#endif
 
     // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy) (as TerrainMap::surfaceColor).
     static void cellColor(const MapView& mv, int cx, int cy, double fx, double fy, float rgb[3]) {

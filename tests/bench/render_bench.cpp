@@ -32,6 +32,7 @@ struct Config {
     int size = 16384;
     int width = 1920, height = 1080;
     int repeat = 3;
+    bool packets = true;
     std::vector<std::string> sections;
 };
 
@@ -40,6 +41,7 @@ double secondsSince(Clock::time_point start) {
 }
 
 std::string gCache;
+bool gPackets = true;
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -119,6 +121,7 @@ std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& ma
     o.levels = levels;
     o.threads = threads;
     o.supersample = supersample;
+    o.packets = gPackets;
     const auto start = Clock::now();
     auto c = ig::makeCaster(kind, map, o);
     if (kind == ig::CasterKind::Fast && levels != 0) {
@@ -325,6 +328,8 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "bench-render: %s\n", e.what());
                 return 2;
             }
+        } else if (a == "--no-packets") {
+            c.packets = false;
         } else if (a == "--no-hugepages") {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
@@ -335,7 +340,7 @@ int main(int argc, char** argv) {
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] [--size N] "
-                "[--image WxH] [--repeat N] [--no-hugepages] [--cache DIR] "
+                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--cache DIR] "
                 "[--caster fast|naive|reference] [--levels auto|N]\n",
                 a.c_str());
             return 2;
@@ -343,6 +348,7 @@ int main(int argc, char** argv) {
     }
     if (c.sections.empty()) c.sections.push_back("speed");
     gCache = c.cache;
+    gPackets = c.packets;
     try {
         for (const std::string& s : c.sections) {
             if (s == "speed") speed(c);
