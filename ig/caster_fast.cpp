@@ -33,6 +33,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -238,7 +239,9 @@ class FastCaster final : public Caster {
     bool usePackets() const {
 #if VIG_CASTER_PACKETS
         static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        return options_.packets && options_.supersample == 1 && hasAvx2;
+        // Vector gathers index colour bytes with 32-bit offsets.
+        const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
+        return options_.packets && options_.supersample == 1 && hasAvx2 && fits;
 #else
         return false;
 #endif
@@ -558,58 +561,72 @@ class FastCaster final : public Caster {
 
 #if VIG_CASTER_PACKETS
     // Four adjacent columns cast together, row by row, with AVX2: the rays' set-up, the
-    // coherent march's set-up and the exact solve of the hit step run on four lanes, the bound
-    // scan per lane. A row is cast this way when all four rays are coherent on the same major
-    // axis and direction and each ends in a level-0 hit; any other lane (bottom ray, restart,
-    // sky, the map's edge, past the level-0 distance) is cast again from its unchanged state by
-    // castRay. Every operation is the scalar path's, in the same order and precision (no fused
-    // multiply-add), so the image is bit for bit the one column at a time gives.
+    // coherent march (its set-up, the bound scan in lock step, the exact solve of the step it
+    // may reach) and the colour run on four lanes. A row is cast this way when all four rays
+    // are coherent on the same major axis and direction; a lane that leaves that case (through
+    // the map's side, or past the level-0 distance) is cast again from its unchanged state by
+    // castRay, as are rows where some ray is not coherent (bottom ray, restart, sky above the
+    // map's top). Every operation is the scalar path's, in the same order and precision (no
+    // fused multiply-add), so the image is bit for bit the one column at a time gives.
     using V4 = double __attribute__((vector_size(32)));
     using M4 = decltype(V4{} < V4{});
 
-    struct PacketLanes {
-        V4 rn, rz, len, u, n, dzr, sBegin;
-        double mc0[4], m[4];
-        double total[4];
-    };
-
-    // One lane's bound scan from step k on: the step it may reach (true), or false when the
-    // lane leaves the fast case (it is then cast by castRay).
+    // One lane's bound scan (marchCoherent's inner loop) from step k on, and how it ended.
     struct LaneScan {
-        double n, dn, zLow, dzr;
-        std::ptrdiff_t ia;
-        int ca;
+        std::int64_t n, dn;  // minor coordinate at the step's start (32.32) and per step
+        double zLow, dzr;    // the step's lowest ray height and its change per step (raw)
+        std::ptrdiff_t ia;   // cell-max index of the step's first cell
+        int ca;              // its minor cell
         std::int64_t k, total;
-        // The reaching step's second cell and the next start.
+        // Of the reached step: its second cell and the next step's minor coordinate.
         int cb;
         std::ptrdiff_t ib;
-        double next;
+        std::int64_t next;
     };
+    enum class ScanEnd { kReach, kLeave, kExhausted, kClimb };
 
     template <bool kMajorX>
-    [[gnu::always_inline]] static bool scanLane(const MapView& mv, LaneScan& s, double minorLimit,
-                                                int lastMinorCell, std::ptrdiff_t minorStride,
-                                                std::ptrdiff_t majorStep, double maxRaw) {
+    [[gnu::always_inline]] static ScanEnd scanLane(const MapView& mv, LaneScan& q,
+                                                   std::int64_t minorLimit, int lastMinorCell,
+                                                   std::ptrdiff_t minorStride,
+                                                   std::ptrdiff_t majorStep) {
         const std::uint16_t* __restrict__ cellMax = mv.cellMax;
-        const bool rising = s.dzr >= 0.0;
-        for (; s.k < s.total; ++s.k) {
-            const double next = s.n + s.dn;
-            if (next < 0.0 || next > minorLimit) return false;
-            const int cb = std::min(static_cast<int>(next * (1.0 / 4294967296.0)), lastMinorCell);
-            const std::ptrdiff_t ib = s.ia + (cb - s.ca) * minorStride;
-            if (s.zLow <= std::max(cellMax[s.ia], cellMax[ib])) {
-                s.cb = cb;
-                s.ib = ib;
-                s.next = next;
-                return true;
+        const bool rising = q.dzr >= 0.0;
+        std::int64_t n = q.n, k = q.k;
+        std::ptrdiff_t ia = q.ia;
+        int ca = q.ca;
+        double zLow = q.zLow;
+        ScanEnd end = ScanEnd::kExhausted;
+        for (; k < q.total; ++k) {
+            const std::int64_t next = n + q.dn;
+            if (static_cast<std::uint64_t>(next) > static_cast<std::uint64_t>(minorLimit)) {
+                end = ScanEnd::kLeave;
+                break;
             }
-            if (rising && s.zLow > maxRaw) return false;
-            s.n = next;
-            s.ca = cb;
-            s.ia = ib + majorStep;
-            s.zLow += s.dzr;
+            const int cb = std::min(static_cast<int>(next >> 32), lastMinorCell);
+            const std::ptrdiff_t ib = ia + (cb - ca) * minorStride;
+            if (zLow <= std::max(cellMax[ia], cellMax[ib])) {
+                q.cb = cb;
+                q.ib = ib;
+                q.next = next;
+                end = ScanEnd::kReach;
+                break;
+            }
+            if (rising && zLow > mv.maxRaw) {
+                end = ScanEnd::kClimb;
+                break;
+            }
+            n = next;
+            ca = cb;
+            ia = ib + majorStep;
+            zLow += q.dzr;
         }
-        return false;
+        q.n = n;
+        q.k = k;
+        q.ia = ia;
+        q.ca = ca;
+        q.zLow = zLow;
+        return end;
     }
 
     // std::max, std::min and std::clamp to [0, 1] on four lanes, with their exact semantics.
@@ -634,10 +651,34 @@ class FastCaster final : public Caster {
         return reinterpret_cast<V4>(_mm256_round_pd(reinterpret_cast<__m256d>(h),
                                                     _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC));
     }
+    // The 32 bits at byte offset scale * idx from base, four lanes (idx integer-valued, below
+    // 2^31; inactive lanes must carry a valid index).
+    // (Four scalar loads: hardware gathers are slow where microcode guards them.)
+    template <int kScale>
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static __m128i gather32(const void* base, V4 idx) {
+        alignas(16) int i[4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(i),
+                        _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(idx)));
+        const auto* b = static_cast<const unsigned char*>(base);
+        int v[4];
+        for (int l = 0; l < 4; ++l) std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
+        return _mm_setr_epi32(v[0], v[1], v[2], v[3]);
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 toV4(__m128i v) {
+        return reinterpret_cast<V4>(_mm256_cvtepi32_pd(v));
+    }
+    // Two adjacent 16-bit samples at idx and idx + 1, four lanes.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void gatherPair(const std::uint16_t* base, V4 idx,
+                                                                  V4& first, V4& second) {
+        const __m128i g = gather32<2>(base, idx);
+        first = toV4(_mm_and_si128(g, _mm_set1_epi32(0xFFFF)));
+        second = toV4(_mm_srli_epi32(g, 16));
+    }
 
     // solveBilinear on four lanes, the same operations in the same order.
-    VIG_CASTER_AVX2 static V4 solveBilinear4(V4 h00, V4 h10, V4 h01, V4 h11, V4 ua, V4 va, V4 du,
-                                             V4 dv, V4 za, V4 dz, V4 len) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 solveBilinear4(V4 h00, V4 h10, V4 h01,
+                                                                    V4 h11, V4 ua, V4 va, V4 du,
+                                                                    V4 dv, V4 za, V4 dz, V4 len) {
         const V4 a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
         const V4 C = za - (h00 + a * ua + b * va + c * ua * va);
         const V4 B = dz - (a * du + b * dv + c * (ua * dv + va * du));
@@ -655,204 +696,248 @@ class FastCaster final : public Caster {
         return C <= 0.0 ? zero : root;
     }
 
-    // The scalar StepSolver::piece on the lanes in `active`: sets `hit` for the lanes whose
-    // piece [s0, s1] of their step (major line m, major cell mc, minor cell cn) meets the
-    // surface, with the hit's u and cell-local coordinates.
+    // What a lane's march is about.
+    struct PacketRay {
+        V4 sgn, rn, rzr;  // major sign, minor cells and raw height per major unit
+        double ezr;       // eye height, raw units
+    };
+
+    // StepSolver::piece on the lanes in `active`: the piece [s0, s1] of the step from major
+    // line m (major cell mc) in minor cell cn; sets `got` and the hit (u, cell, local
+    // coordinates) of the lanes whose piece meets the surface.
     template <bool kMajorX>
-    VIG_CASTER_AVX2 static void piece4(const MapView& mv, M4 active, bool ownBound, M4 own, V4 sgn,
-                                       V4 rn, V4 rzr, double ezr, const V4& m, const V4& mc,
-                                       const int mci[4], const V4& cn, const int cni[4], V4 n,
-                                       V4 u, V4 s0, V4 s1, M4& hit, V4& outU, V4& outFx,
-                                       V4& outFy, int outCx[4], int outCy[4]) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void piece4(const MapView& mv,
+                                                              const PacketRay& ray, M4 active,
+                                                              M4 ownBound, V4 m, V4 mc, V4 cn,
+                                                              V4 n, V4 u, V4 s0, V4 s1, M4& got,
+                                                              V4& outU, V4& outCx, V4& outCy,
+                                                              V4& outFx, V4& outFy) {
         active = active && s0 < s1;
         if (!vmask(active)) return;
-        const int w = mv.width;
-        const std::size_t stride = static_cast<std::size_t>(w - 1);
-        V4 h00, h10, h01, h11, bound;
-        for (int l = 0; l < 4; ++l) {
-            const int cx = active[l] ? (kMajorX ? mci[l] : cni[l]) : 0;
-            const int cy = active[l] ? (kMajorX ? cni[l] : mci[l]) : 0;
-            const std::uint16_t* s00 = mv.heights + static_cast<std::size_t>(cy) * w + cx;
-            h00[l] = s00[0];
-            h10[l] = s00[1];
-            h01[l] = s00[w];
-            h11[l] = s00[w + 1];
-            bound[l] = mv.cellMax[static_cast<std::size_t>(cy) * stride + cx];
-        }
-        const V4 za = ezr + rzr * (u + s0);
-        if (ownBound) {
-            const V4 zLow = rzr >= 0.0 ? za : za + rzr * (s1 - s0);
-            active = active && !(own && zLow > bound);
+        const V4 cx = kMajorX ? mc : cn, cy = kMajorX ? cn : mc;
+        const V4 zero = V4{} + 0.0;
+        const V4 cell = active ? cy * static_cast<double>(mv.width) + cx : zero;
+        V4 h00, h10, h01, h11;
+        gatherPair(mv.heights, cell, h00, h10);
+        gatherPair(mv.heights, cell + static_cast<double>(mv.width), h01, h11);
+        const V4 za = ray.ezr + ray.rzr * (u + s0);
+        if (vmask(ownBound)) {
+            const V4 bound = toV4(_mm_and_si128(
+                gather32<2>(mv.cellMax,
+                            active ? cy * static_cast<double>(mv.width - 1) + cx : zero),
+                _mm_set1_epi32(0xFFFF)));
+            const V4 zLow = ray.rzr >= 0.0 ? za : za + ray.rzr * (s1 - s0);
+            active = active && !(ownBound && zLow > bound);
         }
         const V4 nD = n * (1.0 / 4294967296.0);
         const V4 majorLocal = m - mc;
-        const V4 am = majorLocal + sgn * s0, an = nD + rn * s0 - cn;
-        const V4 r = kMajorX ? solveBilinear4(h00, h10, h01, h11, am, an, sgn, rn, za, rzr, s1 - s0)
-                             : solveBilinear4(h00, h10, h01, h11, an, am, rn, sgn, za, rzr, s1 - s0);
-        const M4 got = active && r >= 0.0;
+        const V4 am = majorLocal + ray.sgn * s0, an = nD + ray.rn * s0 - cn;
+        const V4 r = kMajorX ? solveBilinear4(h00, h10, h01, h11, am, an, ray.sgn, ray.rn, za,
+                                              ray.rzr, s1 - s0)
+                             : solveBilinear4(h00, h10, h01, h11, an, am, ray.rn, ray.sgn, za,
+                                              ray.rzr, s1 - s0);
+        const M4 hit = active && r >= 0.0;
         const V4 sh = s0 + r;
-        const V4 fm = majorLocal + sgn * sh, fn = nD + rn * sh - cn;
-        outU = got ? u + sh : outU;
-        outFx = got ? (kMajorX ? fm : fn) : outFx;
-        outFy = got ? (kMajorX ? fn : fm) : outFy;
-        for (int l = 0; l < 4; ++l) {
-            if (got[l]) {
-                outCx[l] = kMajorX ? mci[l] : cni[l];
-                outCy[l] = kMajorX ? cni[l] : mci[l];
-            }
-        }
-        hit = hit || got;
+        const V4 fm = majorLocal + ray.sgn * sh, fn = nD + ray.rn * sh - cn;
+        outU = hit ? u + sh : outU;
+        outCx = hit ? cx : outCx;
+        outCy = hit ? cy : outCy;
+        outFx = hit ? (kMajorX ? fm : fn) : outFx;
+        outFy = hit ? (kMajorX ? fn : fm) : outFy;
+        got = got || hit;
     }
 
-    // Casts row y of the four columns of `cc` where it can (see above); `done[l]` tells which
-    // lanes it cast. The state of the other lanes is untouched.
+    // cellColor on four lanes (the unused lanes must carry a valid cell).
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void cellColor4(const MapView& mv, V4 cx, V4 cy,
+                                                                  V4 fx, V4 fy, V4 rgb[3]) {
+        fx = vclamp01(fx);
+        fy = vclamp01(fy);
+        const V4 i00 = cy * static_cast<double>(mv.width) + cx;
+        const V4 i01 = i00 + static_cast<double>(mv.width);
+        // Four bytes from each texel's first: r, g, b and the next texel's r, all inside the
+        // array but at the last texel of the upper row, read from one byte earlier.
+        const __m128i c00 = gather32<1>(mv.colors, i00 * 3.0);
+        const __m128i c10 = gather32<1>(mv.colors, i00 * 3.0 + 3.0);
+        const __m128i c01 = gather32<1>(mv.colors, i01 * 3.0);
+        const __m128i c11 = _mm_srli_epi32(gather32<1>(mv.colors, i01 * 3.0 + 2.0), 8);
+        const V4 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
+                 w11 = fx * fy;
+        const __m128i mask = _mm_set1_epi32(0xFF);
+        for (int k = 0; k < 3; ++k) {
+            const int shift = 8 * k;
+            const __m128i sh = _mm_cvtsi32_si128(shift);
+            const V4 a = toV4(_mm_and_si128(_mm_srl_epi32(c00, sh), mask));
+            const V4 b = toV4(_mm_and_si128(_mm_srl_epi32(c10, sh), mask));
+            const V4 c = toV4(_mm_and_si128(_mm_srl_epi32(c01, sh), mask));
+            const V4 d = toV4(_mm_and_si128(_mm_srl_epi32(c11, sh), mask));
+            rgb[k] = w00 * a + w10 * b + w01 * c + w11 * d;
+        }
+    }
+
+    // Casts row y of the four columns where it can (see above); `done[l]` tells which lanes it
+    // cast. The state of the other lanes is untouched.
     template <bool kMajorX>
-    VIG_CASTER_AVX2 void packetRow(const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy,
-                                   V4 dz, V4 len, int sgnI, Rgb8* c, double* tHit,
-                                   bool* done) const {
+    VIG_CASTER_AVX2 void packetRow(const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy, V4 dz,
+                                   V4 len, int sgnI, Rgb8* c, double* tHit, bool* done) const {
         const MapView& mv = *cc[0].mv;
         const EyeGrid& eg = cc[0].eg;
-        const double sgnD = sgnI;
-        const V4 sgn = V4{} + sgnD;
+        const V4 zero = V4{} + 0.0, one = V4{} + 1.0;
+        const V4 sgn = zero + static_cast<double>(sgnI);
         const V4 gx = dx * cc[0].invSx, gy = dy * cc[0].invSy;
         const V4 gm = kMajorX ? gx : gy, gn = kMajorX ? gy : gx;
-        const V4 absGm = gm < 0.0 ? -gm : gm;
-        const V4 inv = 1.0 / absGm;
+        const V4 inv = 1.0 / (gm < 0.0 ? -gm : gm);
         const V4 rn = gn * inv, rz = dz * inv;
         V4 prevRn, prevRz, prevU;
         for (int l = 0; l < 4; ++l) {
             prevRn[l] = st[l].prevRn;
             prevRz[l] = st[l].prevRz;
             prevU[l] = st[l].prevU;
+            done[l] = false;
         }
-        const double sMinor = (kMajorX ? map_.spacingY() : map_.spacingX()) * cc[0].maxSlope;
         const V4 dRn = rn - prevRn;
-        const M4 coherent = rz - prevRz >= sMinor * (dRn < 0.0 ? -dRn : dRn);
-        V4 uNear = V4{} + std::numeric_limits<double>::infinity();
-        if (cc[0].multires) {
-            const V4 horiz = vsqrt(dx * dx + dy * dy);
-            uNear = cc[0].d0 / (horiz * inv);
-        }
-        // The march set-up of marchCoherent.
+        const M4 coherent =
+            rz - prevRz >= (kMajorX ? cc[0].slopeX : cc[0].slopeY) * (dRn < 0.0 ? -dRn : dRn);
+        V4 uNear = zero + std::numeric_limits<double>::infinity();
+        if (cc[0].multires) uNear = cc[0].d0 / (vsqrt(dx * dx + dy * dy) * inv);
+        // marchCoherent's set-up.
         const int majorCount = kMajorX ? mv.width : mv.height;
         const int minorCount = kMajorX ? mv.height : mv.width;
-        const int lastMinorCell = minorCount - 2;
+        const double lastMinorCell = minorCount - 2;
         const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
         const V4 gm0 = em + sgn * prevU;
         const V4 fl = vfloor(sgnI > 0 ? gm0 : -gm0);
         const V4 m = sgnI > 0 ? fl : -fl;
-        const M4 inMajor = m >= 0.0 && m <= majorCount - 1.0;
         const V4 u = (m - em) * sgn;
-        constexpr double kFix = 4294967296.0;
-        const V4 n = vroundAway((en + rn * u) * kFix);
+        constexpr double kFix = 4294967296.0, kInvFix = 1.0 / 4294967296.0;
+        V4 n = vroundAway((en + rn * u) * kFix);
         const V4 dn = vroundAway(rn * kFix);
         const double minorLimit = (minorCount - 1.0) * kFix;
         const V4 dzr = rz * mv.invScale;
         const V4 zr = eg.zRaw + dzr * u;
-        const M4 inMinor = n >= 0.0 && n <= minorLimit;
-        const M4 ok = coherent && inMajor && inMinor;
-        const int okMask = vmask(ok);
-        for (int l = 0; l < 4; ++l) done[l] = false;
-        if (!okMask) return;
+        const M4 ok = coherent && m >= 0.0 && m <= majorCount - 1.0 && n >= 0.0 &&
+                      n <= minorLimit;
+        if (!vmask(ok)) return;
         const V4 majorSteps = sgnI > 0 ? majorCount - 1.0 - m : m;
-        const V4 nearFl = vfloor(u - uNear);
-        const V4 nearSteps = uNear < 1e12 ? vmax(V4{} + 0.0, -nearFl) : V4{} + 1099511627776.0;
+        const V4 nearSteps =
+            uNear < 1e12 ? vmax(zero, -vfloor(u - uNear)) : zero + 1099511627776.0;
         const V4 total = vmin(majorSteps, nearSteps);
+        const M4 far = total == nearSteps && nearSteps < majorSteps + 1.0;
         const V4 mc0 = m + (sgnI > 0 ? 0.0 : -1.0);
         const V4 sBegin0 = prevU - u;
-        const V4 zLow0 = dzr >= 0.0 ? zr : zr + dzr;
-        const std::size_t stride = static_cast<std::size_t>(mv.width - 1);
-        const std::ptrdiff_t minorStride = kMajorX ? static_cast<std::ptrdiff_t>(stride) : 1;
-        const std::ptrdiff_t majorStep =
-            kMajorX ? sgnI : sgnI * static_cast<std::ptrdiff_t>(stride);
-        const auto pstride = static_cast<std::ptrdiff_t>(stride);
-        LaneScan s[4];
+        const V4 zLow = dzr >= 0.0 ? zr : zr + dzr;
+        const double stride = mv.width - 1.0;
+        const double minorStride = kMajorX ? stride : 1.0;
+        const double majorStep = kMajorX ? sgnI : sgnI * stride;
+        const V4 ca0 = vmin(vfloor(n * kInvFix), zero + lastMinorCell);
+        const V4 ia0 = kMajorX ? ca0 * stride + mc0 : mc0 * stride + ca0;
+        const PacketRay ray{sgn, rn, dzr, eg.zRaw};
+        M4 failed = !ok, hit = {}, stop = {}, above = {};
+        V4 endU = zero;  // where a lane that ended without a hit (sky) ended
+        V4 hitU = zero, hitCx = zero, hitCy = zero, hitFx = zero, hitFy = zero;
+        V4 stepsV = zero;
+        // The bound scan runs per lane (scalar loops of a few instructions a step keep the
+        // processor busier than masked lock step); the solve of the reached steps on four lanes.
+        LaneScan lane[4];
         bool pending[4];
+        const int okMask = vmask(ok);
         for (int l = 0; l < 4; ++l) {
             pending[l] = (okMask >> l) & 1;
-            if (!pending[l]) continue;
-            const int ca = std::min(static_cast<int>(n[l] * (1.0 / kFix)), lastMinorCell);
-            const int mc = static_cast<int>(mc0[l]);
-            s[l] = LaneScan{n[l], dn[l], zLow0[l], dzr[l],
-                            kMajorX ? static_cast<std::ptrdiff_t>(ca) * pstride + mc
-                                    : static_cast<std::ptrdiff_t>(mc) * pstride + ca,
-                            ca, 0, static_cast<std::int64_t>(total[l]), 0, 0, 0.0};
+            lane[l] = LaneScan{static_cast<std::int64_t>(n[l]),
+                               static_cast<std::int64_t>(dn[l]),
+                               zLow[l],
+                               dzr[l],
+                               static_cast<std::ptrdiff_t>(ia0[l]),
+                               static_cast<int>(ca0[l]),
+                               0,
+                               static_cast<std::int64_t>(total[l]),
+                               0,
+                               0,
+                               0};
         }
-        M4 hit = {};
-        V4 hitU = V4{}, hitFx = V4{}, hitFy = V4{};
-        int hitCx[4] = {0, 0, 0, 0}, hitCy[4] = {0, 0, 0, 0};
-        std::int64_t hitK[4] = {0, 0, 0, 0};
+        const auto limit = static_cast<std::int64_t>(minorCount - 1) << 32;
+        const auto mStride = static_cast<std::ptrdiff_t>(minorStride);
+        const auto mStep = static_cast<std::ptrdiff_t>(majorStep);
         for (;;) {
             M4 parked = {};
-            bool any = false;
             for (int l = 0; l < 4; ++l) {
                 if (!pending[l]) continue;
-                if (scanLane<kMajorX>(mv, s[l], minorLimit, lastMinorCell, minorStride, majorStep,
-                                      mv.maxRaw)) {
+                LaneScan& q = lane[l];
+                const ScanEnd e = scanLane<kMajorX>(mv, q, limit, static_cast<int>(lastMinorCell),
+                                                    mStride, mStep);
+                pending[l] = false;
+                if (e == ScanEnd::kReach) {
                     parked[l] = -1;
-                    any = true;
+                    continue;
+                }
+                if (e == ScanEnd::kLeave || (e == ScanEnd::kExhausted && far[l])) {
+                    failed[l] = -1;
                 } else {
-                    pending[l] = false;  // leaves the fast case
+                    endU[l] = u[l] + static_cast<double>(q.k);
+                    stepsV[l] = static_cast<double>(e == ScanEnd::kClimb ? q.k + 1 : q.k);
+                    (e == ScanEnd::kClimb ? above : stop)[l] = -1;
                 }
             }
-            if (!any) break;
+            if (!vmask(parked)) break;
             // The exact solve of each parked lane's step (StepSolver::solve).
-            V4 kD, nV, mcV, caV, cbV;
-            int mci[4], cai[4], cbi[4];
+            V4 k, ns, ca, cb;
             for (int l = 0; l < 4; ++l) {
-                const std::int64_t k = parked[l] ? s[l].k : 0;
-                kD[l] = static_cast<double>(k);
-                nV[l] = s[l].n;
-                mci[l] = static_cast<int>(mc0[l]) + sgnI * static_cast<int>(k);
-                mcV[l] = mci[l];
-                cai[l] = s[l].ca;
-                cbi[l] = s[l].cb;
-                caV[l] = cai[l];
-                cbV[l] = cbi[l];
+                k[l] = static_cast<double>(lane[l].k);
+                ns[l] = static_cast<double>(lane[l].n);
+                ca[l] = lane[l].ca;
+                cb[l] = lane[l].cb;
             }
-            const V4 mK = m + sgn * kD;
-            const V4 uK = u + kD;
-            const V4 sBegin = kD == 0.0 ? sBegin0 : V4{} + 0.0;
-            const V4 one = V4{} + 1.0;
-            const M4 split = caV != cbV;
-            const V4 nD = nV * (1.0 / kFix);
-            const V4 line = caV < cbV ? cbV : caV;
+            const V4 mK = m + sgn * k;
+            const V4 mcK = mc0 + sgn * k;
+            const V4 uK = u + k;
+            const V4 sBegin = k == 0.0 ? sBegin0 : zero;
+            const M4 split = ca != cb;
+            const V4 nD = ns * kInvFix;
+            const V4 line = ca < cb ? cb : ca;
             const V4 sSplit = vclamp01((line - nD) / rn);
-            const V4 sBeginPos = vmax(sBegin, V4{} + 0.0);
             M4 got = {};
-            piece4<kMajorX>(mv, parked, true, split, sgn, rn, dzr, eg.zRaw, mK, mcV, mci, caV,
-                            cai, nV, uK, split ? sBeginPos : sBegin, split ? sSplit : one, got,
-                            hitU, hitFx, hitFy, hitCx, hitCy);
-            piece4<kMajorX>(mv, parked && split && !got, false, split, sgn, rn, dzr, eg.zRaw, mK,
-                            mcV, mci, cbV, cbi, nV, uK, vmax(sBegin, sSplit), one, got, hitU, hitFx,
-                            hitFy, hitCx, hitCy);
+            piece4<kMajorX>(mv, ray, parked, split, mK, mcK, ca, ns, uK,
+                            split ? vmax(sBegin, zero) : sBegin, split ? sSplit : one, got, hitU,
+                            hitCx, hitCy, hitFx, hitFy);
+            piece4<kMajorX>(mv, ray, parked && split && !got, split, mK, mcK, cb, ns, uK,
+                            vmax(sBegin, sSplit), one, got, hitU, hitCx, hitCy, hitFx, hitFy);
+            hit = hit || got;
+            stepsV = got ? k + 1.0 : stepsV;
+            // A lane whose step held no hit scans on from the next step.
             for (int l = 0; l < 4; ++l) {
-                if (!parked[l]) continue;
-                if (got[l]) {
-                    hit[l] = -1;
-                    hitK[l] = s[l].k;
-                    pending[l] = false;
-                } else {
-                    LaneScan& t = s[l];
-                    t.n = t.next;
-                    t.ca = t.cb;
-                    t.ia = t.ib + majorStep;
-                    t.zLow += t.dzr;
-                    ++t.k;
-                }
+                if (!parked[l] || got[l]) continue;
+                LaneScan& q = lane[l];
+                q.n = q.next;
+                q.ca = q.cb;
+                q.ia = q.ib + mStep;
+                q.zLow += q.dzr;
+                ++q.k;
+                pending[l] = true;
             }
         }
+        const int hitMask = vmask(hit), stopMask = vmask(stop || above), aboveMask = vmask(above);
+        const int failMask = vmask(failed);
+        V4 rgb[3];
+        if (hitMask) {
+            cellColor4(mv, hit ? hitCx : zero, hit ? hitCy : zero, hitFx, hitFy, rgb);
+        }
+        const V4 lenPerU = len * inv;
         for (int l = 0; l < 4; ++l) {
-            if (!hit[l]) continue;
+            if ((failMask >> l) & 1) continue;
             ColumnState& q = st[l];
-            q.steps += static_cast<std::uint64_t>(hitK[l] + 1);
+            q.steps += static_cast<std::uint64_t>(stepsV[l]);
             q.prevRn = rn[l];
             q.prevRz = rz[l];
-            q.prevU = hitU[l];
-            tHit[l] = hitU[l] * (len[l] * inv[l]);
-            float rgb[3];
-            cellColor(mv, hitCx[l], hitCy[l], hitFx[l], hitFy[l], rgb);
-            c[l] = haze(rgb, tHit[l]);
+            if ((hitMask >> l) & 1) {
+                tHit[l] = hitU[l] * lenPerU[l];
+                float f[3] = {static_cast<float>(rgb[0][l]), static_cast<float>(rgb[1][l]),
+                              static_cast<float>(rgb[2][l])};
+                c[l] = haze(f, tHit[l]);
+                q.prevU = hitU[l];
+            } else if ((stopMask >> l) & 1) {
+                c[l] = skyColor(options_.sky, dz[l] / len[l]);
+                q.prevU = endU[l];
+                q.prevAbove = (aboveMask >> l) & 1;
+            }
             done[l] = true;
         }
     }

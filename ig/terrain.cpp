@@ -50,8 +50,10 @@ void TerrainMap::updateRange() {
         maxHeight_ = minHeight_ = heightOffset_;
         return;
     }
-    cellMax_.assign(static_cast<std::size_t>(std::max(width_ - 1, 0)) * std::max(height_ - 1, 0),
-                    0);
+    // Two spare entries after the last cell: four-byte vector gathers of a cell's bound stay
+    // inside the array.
+    cellMax_.assign(
+        static_cast<std::size_t>(std::max(width_ - 1, 0)) * std::max(height_ - 1, 0) + 2, 0);
     // Over a cell the bilinear surface's x-slope lies between its two edge slopes (likewise y),
     // so the largest sample difference along each axis bounds the gradient.
     int maxDx = 0, maxDy = 0;

@@ -62,6 +62,7 @@ class TerrainMap {
     std::uint16_t cellMaxRaw(int cx, int cy) const {
         return cellMax_[static_cast<std::size_t>(cy) * (width_ - 1) + cx];
     }
+    // The cell maxima, (width-1) per row, followed by two spare entries.
     const std::uint16_t* cellMaxData() const { return cellMax_.data(); }
     // Bound on the gradient magnitude of the bilinear surface anywhere on the map (m per m).
     double maxSlope() const { return maxSlope_; }
