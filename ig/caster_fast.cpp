@@ -831,7 +831,7 @@ class FastCaster final : public Caster {
         const V4 ca0 = vmin(vfloor(n * kInvFix), zero + lastMinorCell);
         const V4 ia0 = kMajorX ? ca0 * stride + mc0 : mc0 * stride + ca0;
         const PacketRay ray{sgn, rn, dzr, eg.zRaw};
-        M4 failed = !ok, hit = {}, stop = {}, above = {};
+        M4 failed = !ok, hit = {}, stop = {}, above = {}, farEnd = {};
         V4 endU = zero;  // where a lane that ended without a hit (sky) ended
         V4 hitU = zero, hitCx = zero, hitCy = zero, hitFx = zero, hitFy = zero;
         V4 stepsV = zero;
@@ -869,8 +869,13 @@ class FastCaster final : public Caster {
                     parked[l] = -1;
                     continue;
                 }
-                if (e == ScanEnd::kLeave || (e == ScanEnd::kExhausted && far[l])) {
+                if (e == ScanEnd::kLeave) {
                     failed[l] = -1;
+                } else if (e == ScanEnd::kExhausted && far[l]) {
+                    // Reached the level-0 distance: the multiresolution march goes on from there.
+                    farEnd[l] = -1;
+                    endU[l] = u[l] + static_cast<double>(q.k);
+                    stepsV[l] = static_cast<double>(q.k);
                 } else {
                     endU[l] = u[l] + static_cast<double>(q.k);
                     stepsV[l] = static_cast<double>(e == ScanEnd::kClimb ? q.k + 1 : q.k);
@@ -915,7 +920,7 @@ class FastCaster final : public Caster {
             }
         }
         const int hitMask = vmask(hit), stopMask = vmask(stop || above), aboveMask = vmask(above);
-        const int failMask = vmask(failed);
+        const int failMask = vmask(failed), farMask = vmask(farEnd);
         V4 rgb[3];
         if (hitMask) {
             cellColor4(mv, hit ? hitCx : zero, hit ? hitCy : zero, hitFx, hitFy, rgb);
@@ -937,6 +942,12 @@ class FastCaster final : public Caster {
                 c[l] = skyColor(options_.sky, dz[l] / len[l]);
                 q.prevU = endU[l];
                 q.prevAbove = (aboveMask >> l) & 1;
+            } else if ((farMask >> l) & 1) {
+                ColumnMarch r;
+                r.kind = ColumnMarch::kFar;
+                r.u = endU[l];
+                continueFar(cc[l], glm::dvec3{dx[l], dy[l], dz[l]}, lenPerU[l], r, q, c[l],
+                            tHit[l]);
             }
             done[l] = true;
         }

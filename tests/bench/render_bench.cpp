@@ -42,6 +42,7 @@ double secondsSince(Clock::time_point start) {
 
 std::string gCache;
 bool gPackets = true;
+double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -91,7 +92,7 @@ ig::Pose issuePose(const ig::TerrainMap& map, double pitchDeg = -10.0) {
     ig::Pose p;
     p.position = {20000.0, 20000.0, 0.0};
     p.position.z = map.surfaceHeight(p.position.x, p.position.y) + 300.0;
-    p.yaw = ig::degToRad(45.0);
+    p.yaw = ig::degToRad(gHeadingDeg);
     p.pitch = ig::degToRad(pitchDeg);
     return p;
 }
@@ -328,6 +329,8 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "bench-render: %s\n", e.what());
                 return 2;
             }
+        } else if (a == "--heading") {
+            gHeadingDeg = std::atof(next().c_str());
         } else if (a == "--no-packets") {
             c.packets = false;
         } else if (a == "--no-hugepages") {
@@ -340,7 +343,7 @@ int main(int argc, char** argv) {
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] [--size N] "
-                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--cache DIR] "
+                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--heading DEG] [--cache DIR] "
                 "[--caster fast|naive|reference] [--levels auto|N]\n",
                 a.c_str());
             return 2;
