@@ -68,6 +68,16 @@ void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& int
     }
 }
 
+void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame) {
+    const auto pixels = controlPointPixels(camera.intrinsics());
+    for (int i = 0; i < kControlPointCount; ++i) {
+        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
+        const RayHit hit = intersectTerrain(map, camera.pose().position, dir);
+        frame.controlPoints[i].pixel = pixels[i];
+        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
+    }
+}
+
 RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
                           const Intrinsics& intrinsics, double time, std::uint64_t sequence) {
     validateView(map, pose, intrinsics);
@@ -86,13 +96,7 @@ RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pos
     frame.stats.renderMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 
-    const auto pixels = controlPointPixels(intrinsics);
-    for (int i = 0; i < kControlPointCount; ++i) {
-        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
-        const RayHit hit = intersectTerrain(map, pose.position, dir);
-        frame.controlPoints[i].pixel = pixels[i];
-        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
-    }
+    castControlPoints(map, camera, frame);
     return frame;
 }
 

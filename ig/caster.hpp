@@ -45,6 +45,12 @@ struct RenderOptions {
 // Parses --levels: "auto" or a count >= 0; throws InputError otherwise.
 int parseLevels(std::string_view text);
 
+// Steps and restarts of the work units one thread rendered.
+struct UnitCounters {
+    std::uint64_t steps = 0;
+    std::uint64_t restarts = 0;
+};
+
 // A ray caster over one terrain map. Implementations keep no per-frame state, so one caster
 // may render several frames concurrently.
 class Caster {
@@ -56,6 +62,14 @@ class Caster {
     // frame.stats. The reference and naive casters honour any roll; the fast caster
     // requires roll == 0 (CHECKed).
     virtual void render(const Camera& camera, RenderedFrame& frame) const = 0;
+
+    // The same frame as independent work units (image rows for the per-pixel casters, groups
+    // of adjacent columns for the fast caster) that write disjoint pixels: rendering every unit
+    // once, in any order and on any threads, gives render()'s image; the units' counters add
+    // up to its stats (rays excepted). FrameStream runs them to overlap consecutive frames.
+    virtual int workUnits(const Camera& camera) const = 0;
+    virtual void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                            UnitCounters& counters) const = 0;
 };
 
 std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,

@@ -57,11 +57,6 @@ namespace {
 // more cells than this; shorter ones (near the nadir) are cheaper to march.
 constexpr double kSkipMinCells = 16.0;
 
-struct ColumnCounters {
-    std::uint64_t steps = 0;
-    std::uint64_t restarts = 0;
-};
-
 // The eye in grid units (x / spacingX, y / spacingY; z in metres), and whether it is over the map.
 struct EyeGrid {
     double gx, gy, z;
@@ -180,10 +175,33 @@ class FastCaster final : public Caster {
     CasterKind kind() const override { return CasterKind::Fast; }
 
     void render(const Camera& camera, RenderedFrame& frame) const override {
-        if (camera.pose().roll != 0.0) {
-            throw std::invalid_argument(
-                "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
-        }
+        checkRoll(camera);
+        const int units = workUnits(camera);
+        tbb::combinable<UnitCounters> counters;
+        runWithThreads(options_.threads, [&] {
+            // The image is a pool of columns (or groups of four); idle workers take the next.
+            // Each is independent, so the image does not depend on the thread count.
+            tbb::parallel_for(0, units,
+                              [&](int unit) { renderUnit(camera, frame, unit, counters.local()); });
+        });
+        const UnitCounters total = counters.combine([](UnitCounters a, UnitCounters b) {
+            return UnitCounters{a.steps + b.steps, a.restarts + b.restarts};
+        });
+        frame.stats.steps = total.steps;
+        frame.stats.restarts = total.restarts;
+        frame.stats.rays = static_cast<std::uint64_t>(camera.intrinsics().width) *
+                           camera.intrinsics().height *
+                           static_cast<std::uint64_t>(options_.supersample);
+    }
+
+    int workUnits(const Camera& camera) const override {
+        const int w = camera.intrinsics().width;
+        return usePackets() ? (w + 3) / 4 : w;
+    }
+
+    void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                    UnitCounters& counters) const override {
+        checkRoll(camera);
         const int w = camera.intrinsics().width;
         // Level 0 is used out to where a voxel spans one pixel across the view.
         const double d0 =
@@ -199,42 +217,33 @@ class FastCaster final : public Caster {
                          offset,
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
-        tbb::combinable<ColumnCounters> counters;
-        runWithThreads(options_.threads, [&] {
-            // The image is a pool of columns; idle workers take the next one. Each column is
-            // independent, so the image does not depend on the thread count.
-            if (usePackets()) {
 #if VIG_CASTER_PACKETS
-                tbb::parallel_for(0, (w + 3) / 4, [&](int p) {
-                    ColumnCounters& c = counters.local();
-                    if (4 * p + 4 <= w) {
-                        renderPacket(mv, camera, d0, 4 * p, frame, c);
-                    } else {
-                        for (int x = 4 * p; x < w; ++x) renderColumn<true>(mv, camera, d0, x, frame, c);
-                    }
-                });
-#endif
+        if (usePackets()) {
+            const int x0 = 4 * unit;
+            if (x0 + 4 <= w) {
+                renderPacket(mv, camera, d0, x0, frame, counters);
             } else {
-                tbb::parallel_for(0, w, [&](int x) {
-                    ColumnCounters& c = counters.local();
-                    if (options_.supersample == 1) {
-                        renderColumn<true>(mv, camera, d0, x, frame, c);
-                    } else {
-                        renderColumn<false>(mv, camera, d0, x, frame, c);
-                    }
-                });
+                for (int x = x0; x < w; ++x)
+                    renderColumn<true>(mv, camera, d0, x, frame, counters);
             }
-        });
-        const ColumnCounters total = counters.combine([](ColumnCounters a, ColumnCounters b) {
-            return ColumnCounters{a.steps + b.steps, a.restarts + b.restarts};
-        });
-        frame.stats.steps = total.steps;
-        frame.stats.restarts = total.restarts;
-        frame.stats.rays = static_cast<std::uint64_t>(w) * camera.intrinsics().height *
-                           static_cast<std::uint64_t>(options_.supersample);
+            return;
+        }
+#endif
+        if (options_.supersample == 1) {
+            renderColumn<true>(mv, camera, d0, unit, frame, counters);
+        } else {
+            renderColumn<false>(mv, camera, d0, unit, frame, counters);
+        }
     }
 
   private:
+    static void checkRoll(const Camera& camera) {
+        if (camera.pose().roll != 0.0) {
+            throw std::invalid_argument(
+                "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
+        }
+    }
+
     // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
     bool usePackets() const {
 #if VIG_CASTER_PACKETS
@@ -357,8 +366,9 @@ class FastCaster final : public Caster {
         // At equal u this ray is (rz - prevRz) * u higher than the ray below and |rn - prevRn| * u
         // minor cells to the side, where the terrain is at most maxSlope times that higher: when
         // the climb wins, it cannot meet the terrain before the ray below stopped.
-        const bool coherent = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
-                              rz - st.prevRz >= (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn);
+        const bool coherent =
+            st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
+            rz - st.prevRz >= (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn);
         if (st.havePrev && !coherent) ++st.restarts;
         bool resolved = false;
         if (coherent && st.prevAbove) {
@@ -423,9 +433,9 @@ class FastCaster final : public Caster {
     }
 
     // A coherent ray that reached the level-0 distance: the multiresolution march from there.
-    [[gnu::noinline]] void continueFar(const ColumnContext& cc, const glm::dvec3& d,
-                                       double lenPerU, const ColumnMarch& r, ColumnState& st,
-                                       Rgb8& c, double& tHit) const {
+    [[gnu::noinline]] void continueFar(const ColumnContext& cc, const glm::dvec3& d, double lenPerU,
+                                       const ColumnMarch& r, ColumnState& st, Rgb8& c,
+                                       double& tHit) const {
         const TerrainRay ray(map_, cc.eye, d);
         const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
         double t0, t1;
@@ -451,21 +461,20 @@ class FastCaster final : public Caster {
         const double invSx = 1.0 / map_.spacingX(), invSy = 1.0 / map_.spacingY();
         const bool eyeInside =
             eye.x >= 0.0 && eye.y >= 0.0 && eye.x <= map_.extentX() && eye.y <= map_.extentY();
-        return ColumnContext{
-            &mv,
-            focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
-                camera.intrinsics().cy() * b.up,
-            -b.up,
-            eye,
-            EyeGrid{eye.x * invSx, eye.y * invSy, eye.z, eyeInside,
-                    (eye.z - mv.offset) * mv.invScale},
-            d0,
-            invSx,
-            invSy,
-            map_.maxSlope(),
-            map_.spacingY() * map_.maxSlope(),
-            map_.spacingX() * map_.maxSlope(),
-            topLevel_ > 0};
+        return ColumnContext{&mv,
+                             focal * b.forward + (x + 0.5 - camera.intrinsics().cx()) * b.right +
+                                 camera.intrinsics().cy() * b.up,
+                             -b.up,
+                             eye,
+                             EyeGrid{eye.x * invSx, eye.y * invSy, eye.z, eyeInside,
+                                     (eye.z - mv.offset) * mv.invScale},
+                             d0,
+                             invSx,
+                             invSy,
+                             map_.maxSlope(),
+                             map_.spacingY() * map_.maxSlope(),
+                             map_.spacingX() * map_.maxSlope(),
+                             topLevel_ > 0};
     }
 
     // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own: the
@@ -473,7 +482,7 @@ class FastCaster final : public Caster {
     // by castRay.
     template <bool kOneRay>
     void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
-                      RenderedFrame& frame, ColumnCounters& counters) const {
+                      RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
         const ColumnContext cc = columnContext(mv, camera, d0, x);
         const glm::dvec3 eye = cc.eye;
@@ -500,11 +509,11 @@ class FastCaster final : public Caster {
                         (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn)) {
                         double uNear = std::numeric_limits<double>::infinity();
                         if (cc.multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
-                        const ColumnMarch r =
-                            majorX ? marchCoherent<true>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear,
-                                                         st.steps)
-                                   : marchCoherent<false>(mv, cc.eg, sgn, rn, rz, st.prevU, uNear,
-                                                          st.steps);
+                        const ColumnMarch r = majorX
+                                                  ? marchCoherent<true>(mv, cc.eg, sgn, rn, rz,
+                                                                        st.prevU, uNear, st.steps)
+                                                  : marchCoherent<false>(mv, cc.eg, sgn, rn, rz,
+                                                                         st.prevU, uNear, st.steps);
                         st.prevRn = rn;
                         st.prevRz = rz;
                         done = finishCoherent(cc, d, len, len * inv, r, st, c, tHit);
@@ -583,7 +592,7 @@ class FastCaster final : public Caster {
         std::ptrdiff_t ib;
         std::int64_t next;
     };
-    enum class ScanEnd { kReach, kLeave, kExhausted, kClimb };
+    enum class ScanEnd{kReach, kLeave, kExhausted, kClimb};
 
     template <bool kMajorX>
     [[gnu::always_inline]] static ScanEnd scanLane(const MapView& mv, LaneScan& q,
@@ -630,8 +639,12 @@ class FastCaster final : public Caster {
     }
 
     // std::max, std::min and std::clamp to [0, 1] on four lanes, with their exact semantics.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmax(V4 a, V4 b) { return a < b ? b : a; }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmin(V4 a, V4 b) { return b < a ? b : a; }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmax(V4 a, V4 b) {
+        return a < b ? b : a;
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmin(V4 a, V4 b) {
+        return b < a ? b : a;
+    }
     [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vclamp01(V4 v) {
         const V4 zero = V4{} + 0.0, one = V4{} + 1.0;
         return v < zero ? zero : (one < v ? one : v);
@@ -648,8 +661,8 @@ class FastCaster final : public Caster {
     // roundToInt64 on four lanes, as an integer-valued double (exact below 2^53).
     [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vroundAway(V4 v) {
         const V4 h = v >= 0.0 ? v + 0.5 : v - 0.5;
-        return reinterpret_cast<V4>(_mm256_round_pd(reinterpret_cast<__m256d>(h),
-                                                    _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC));
+        return reinterpret_cast<V4>(
+            _mm256_round_pd(reinterpret_cast<__m256d>(h), _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC));
     }
     // The 32 bits at byte offset scale * idx from base, four lanes (idx integer-valued, below
     // 2^31; inactive lanes must carry a valid index).
@@ -661,7 +674,8 @@ class FastCaster final : public Caster {
                         _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(idx)));
         const auto* b = static_cast<const unsigned char*>(base);
         int v[4];
-        for (int l = 0; l < 4; ++l) std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
+        for (int l = 0; l < 4; ++l)
+            std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
         return _mm_setr_epi32(v[0], v[1], v[2], v[3]);
     }
     [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 toV4(__m128i v) {
@@ -676,9 +690,9 @@ class FastCaster final : public Caster {
     }
 
     // solveBilinear on four lanes, the same operations in the same order.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 solveBilinear4(V4 h00, V4 h10, V4 h01,
-                                                                    V4 h11, V4 ua, V4 va, V4 du,
-                                                                    V4 dv, V4 za, V4 dz, V4 len) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 solveBilinear4(V4 h00, V4 h10, V4 h01, V4 h11,
+                                                                    V4 ua, V4 va, V4 du, V4 dv,
+                                                                    V4 za, V4 dz, V4 len) {
         const V4 a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
         const V4 C = za - (h00 + a * ua + b * va + c * ua * va);
         const V4 B = dz - (a * du + b * dv + c * (ua * dv + va * du));
@@ -706,12 +720,9 @@ class FastCaster final : public Caster {
     // line m (major cell mc) in minor cell cn; sets `got` and the hit (u, cell, local
     // coordinates) of the lanes whose piece meets the surface.
     template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static void piece4(const MapView& mv,
-                                                              const PacketRay& ray, M4 active,
-                                                              M4 ownBound, V4 m, V4 mc, V4 cn,
-                                                              V4 n, V4 u, V4 s0, V4 s1, M4& got,
-                                                              V4& outU, V4& outCx, V4& outCy,
-                                                              V4& outFx, V4& outFy) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void piece4(
+        const MapView& mv, const PacketRay& ray, M4 active, M4 ownBound, V4 m, V4 mc, V4 cn, V4 n,
+        V4 u, V4 s0, V4 s1, M4& got, V4& outU, V4& outCx, V4& outCy, V4& outFx, V4& outFy) {
         active = active && s0 < s1;
         if (!vmask(active)) return;
         const V4 cx = kMajorX ? mc : cn, cy = kMajorX ? cn : mc;
@@ -732,10 +743,10 @@ class FastCaster final : public Caster {
         const V4 nD = n * (1.0 / 4294967296.0);
         const V4 majorLocal = m - mc;
         const V4 am = majorLocal + ray.sgn * s0, an = nD + ray.rn * s0 - cn;
-        const V4 r = kMajorX ? solveBilinear4(h00, h10, h01, h11, am, an, ray.sgn, ray.rn, za,
-                                              ray.rzr, s1 - s0)
-                             : solveBilinear4(h00, h10, h01, h11, an, am, ray.rn, ray.sgn, za,
-                                              ray.rzr, s1 - s0);
+        const V4 r =
+            kMajorX
+                ? solveBilinear4(h00, h10, h01, h11, am, an, ray.sgn, ray.rn, za, ray.rzr, s1 - s0)
+                : solveBilinear4(h00, h10, h01, h11, an, am, ray.rn, ray.sgn, za, ray.rzr, s1 - s0);
         const M4 hit = active && r >= 0.0;
         const V4 sh = s0 + r;
         const V4 fm = majorLocal + ray.sgn * sh, fn = nD + ray.rn * sh - cn;
@@ -760,8 +771,7 @@ class FastCaster final : public Caster {
         const __m128i c10 = gather32<1>(mv.colors, i00 * 3.0 + 3.0);
         const __m128i c01 = gather32<1>(mv.colors, i01 * 3.0);
         const __m128i c11 = _mm_srli_epi32(gather32<1>(mv.colors, i01 * 3.0 + 2.0), 8);
-        const V4 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
-                 w11 = fx * fy;
+        const V4 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
         const __m128i mask = _mm_set1_epi32(0xFF);
         for (int k = 0; k < 3; ++k) {
             const int shift = 8 * k;
@@ -814,12 +824,10 @@ class FastCaster final : public Caster {
         const double minorLimit = (minorCount - 1.0) * kFix;
         const V4 dzr = rz * mv.invScale;
         const V4 zr = eg.zRaw + dzr * u;
-        const M4 ok = coherent && m >= 0.0 && m <= majorCount - 1.0 && n >= 0.0 &&
-                      n <= minorLimit;
+        const M4 ok = coherent && m >= 0.0 && m <= majorCount - 1.0 && n >= 0.0 && n <= minorLimit;
         if (!vmask(ok)) return;
         const V4 majorSteps = sgnI > 0 ? majorCount - 1.0 - m : m;
-        const V4 nearSteps =
-            uNear < 1e12 ? vmax(zero, -vfloor(u - uNear)) : zero + 1099511627776.0;
+        const V4 nearSteps = uNear < 1e12 ? vmax(zero, -vfloor(u - uNear)) : zero + 1099511627776.0;
         const V4 total = vmin(majorSteps, nearSteps);
         const M4 far = total == nearSteps && nearSteps < majorSteps + 1.0;
         const V4 mc0 = m + (sgnI > 0 ? 0.0 : -1.0);
@@ -956,7 +964,7 @@ class FastCaster final : public Caster {
     // Columns x0 .. x0 + 3, one row at a time: packetRow where the four rays allow, castRay
     // for the rest.
     VIG_CASTER_AVX2 void renderPacket(const MapView& mv, const Camera& camera, double d0, int x0,
-                                      RenderedFrame& frame, ColumnCounters& counters) const {
+                                      RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
         ColumnContext cc[4];
         ColumnState st[4];

@@ -14,6 +14,9 @@ std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOption
 // Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.
 void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);
 
+// The frame's nine control points, each cast exactly through its pixel centre.
+void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame);
+
 }  // namespace ig
 
 #include <tbb/task_arena.h>

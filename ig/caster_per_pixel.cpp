@@ -14,7 +14,29 @@
 namespace ig {
 namespace {
 
-// Renders every pixel independently with `trace(ray, t0, t1, steps)`; honours any roll.
+// Renders image row y, every pixel independently with `trace(ray, t0, t1, steps)`; honours
+// any roll.
+template <typename Trace>
+void renderRow(const TerrainMap& map, const RenderOptions& options, const Camera& camera,
+               RenderedFrame& frame, int y, std::uint64_t& steps, Trace trace) {
+    const int w = camera.intrinsics().width;
+    for (int x = 0; x < w; ++x) {
+        const TerrainRay ray(map, camera.pose().position, camera.rayDirection(x + 0.5, y + 0.5));
+        const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+        double t0, t1, t = -1.0;
+        if (clipToMapBox(map, ray, t0, t1)) t = trace(ray, t0, t1, steps);
+        if (t >= 0.0) {
+            const glm::dvec3 p = ray.at(t);
+            frame.color[idx] = terrainColor(map, options.sky, p.x, p.y, t);
+            frame.depth[idx] = static_cast<float>(t);
+        } else {
+            frame.color[idx] = skyColor(options.sky, ray.dir.z);
+            frame.depth[idx] = kSkyDepth;
+        }
+    }
+}
+
+// Every row of the frame, rows taken by the workers of the caster's thread count.
 template <typename Trace>
 void renderPerPixel(const TerrainMap& map, const RenderOptions& options, const Camera& camera,
                     RenderedFrame& frame, Trace trace) {
@@ -24,21 +46,7 @@ void renderPerPixel(const TerrainMap& map, const RenderOptions& options, const C
         tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
             std::uint64_t localSteps = 0;
             for (int y = rows.begin(); y < rows.end(); ++y) {
-                for (int x = 0; x < w; ++x) {
-                    const TerrainRay ray(map, camera.pose().position,
-                                         camera.rayDirection(x + 0.5, y + 0.5));
-                    const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-                    double t0, t1, t = -1.0;
-                    if (clipToMapBox(map, ray, t0, t1)) t = trace(ray, t0, t1, localSteps);
-                    if (t >= 0.0) {
-                        const glm::dvec3 p = ray.at(t);
-                        frame.color[idx] = terrainColor(map, options.sky, p.x, p.y, t);
-                        frame.depth[idx] = static_cast<float>(t);
-                    } else {
-                        frame.color[idx] = skyColor(options.sky, ray.dir.z);
-                        frame.depth[idx] = kSkyDepth;
-                    }
-                }
+                renderRow(map, options, camera, frame, y, localSteps, trace);
             }
             steps.local() += localSteps;
         });
@@ -53,13 +61,23 @@ class ReferenceCaster final : public Caster {
         : map_(map), options_(options) {}
     CasterKind kind() const override { return CasterKind::Reference; }
     void render(const Camera& camera, RenderedFrame& frame) const override {
-        renderPerPixel(map_, options_, camera, frame,
-                       [this](const TerrainRay& ray, double t0, double t1, std::uint64_t& steps) {
-                           return exactHitInRange(map_, ray, t0, t1, &steps);
-                       });
+        renderPerPixel(map_, options_, camera, frame, trace());
+    }
+    int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
+    void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                    UnitCounters& counters) const override {
+        renderRow(map_, options_, camera, frame, unit, counters.steps, trace());
     }
 
   private:
+    struct Trace {
+        const TerrainMap* map;
+        double operator()(const TerrainRay& ray, double t0, double t1, std::uint64_t& steps) const {
+            return exactHitInRange(*map, ray, t0, t1, &steps);
+        }
+    };
+    Trace trace() const { return Trace{&map_}; }
+
     const TerrainMap& map_;
     RenderOptions options_;
 };
@@ -70,13 +88,23 @@ class NaiveCaster final : public Caster {
         : map_(map), options_(options) {}
     CasterKind kind() const override { return CasterKind::Naive; }
     void render(const Camera& camera, RenderedFrame& frame) const override {
-        renderPerPixel(map_, options_, camera, frame,
-                       [this](const TerrainRay& ray, double t0, double t1, std::uint64_t& steps) {
-                           return marchRay(map_, ray, t0, t1, steps);
-                       });
+        renderPerPixel(map_, options_, camera, frame, trace());
+    }
+    int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
+    void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                    UnitCounters& counters) const override {
+        renderRow(map_, options_, camera, frame, unit, counters.steps, trace());
     }
 
   private:
+    struct Trace {
+        const TerrainMap* map;
+        double operator()(const TerrainRay& ray, double t0, double t1, std::uint64_t& steps) const {
+            return marchRay(*map, ray, t0, t1, steps);
+        }
+    };
+    Trace trace() const { return Trace{&map_}; }
+
     const TerrainMap& map_;
     RenderOptions options_;
 };

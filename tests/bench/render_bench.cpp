@@ -4,10 +4,11 @@
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
 //                [--cache DIR] [--caster K] [--levels auto|N]
-//   sections: speed sensitivity threads supersample flight quality frame (default: speed)
+//   sections: speed sensitivity threads supersample flight quality frame stream (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames; the machine's load affects them (state it).
 #include "ig/caster.hpp"
+#include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/synthetic.hpp"
 
@@ -265,6 +266,61 @@ void frame(const Config& c) {
                 static_cast<double>(f.stats.steps) / pixels);
 }
 
+// Consecutive frames of a slow flight on two threads: one frame at a time (each frame's
+// parallel_for waits for its slowest column before the next frame starts) against FrameStream
+// (the next frame's columns start while the last ones finish).
+void stream(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(std::min(c.size, 4096));
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const int frames = 8 * c.repeat;
+    std::vector<ig::Pose> poses;
+    for (int i = 0; i < frames; ++i) {
+        ig::Pose pose = issuePose(map);
+        pose.position.x += 20.0 * i;
+        pose.position.y += 20.0 * i;
+        poses.push_back(pose);
+    }
+    std::printf(
+        "\n## frame stream: synthetic %d^2, %dx%d, issue camera moving 28 m per frame, %d "
+        "frames, 2 threads\n",
+        map.width(), c.width, c.height, frames);
+    ig::RenderOptions o;
+    o.threads = 2;
+    o.packets = gPackets;
+    const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, o);
+    // Frames are compared by a hash of their colours (keeping them all would add page faults).
+    auto hash = [](const ig::RenderedFrame& f) {
+        std::uint64_t h = 1469598103934665603ull;
+        for (const ig::Rgb8& p : f.color)
+            h = (h ^ (p.r | p.g << 8 | p.b << 16)) * 1099511628211ull;
+        return h;
+    };
+    std::vector<std::uint64_t> one, many;
+    auto start = Clock::now();
+    for (int i = 0; i < frames; ++i)
+        one.push_back(hash(ig::renderFrame(*fast, map, poses[i], in)));
+    const double sequential = secondsSince(start);
+    start = Clock::now();
+    {
+        ig::FrameStream s(*fast, map, 2);
+        s.submit(poses[0], in);
+        for (int i = 0; i < frames; ++i) {
+            s.help();
+            if (i + 1 < frames) s.submit(poses[i + 1], in);
+            many.push_back(hash(s.take()));
+        }
+    }
+    const double overlapped = secondsSince(start);
+    const bool same = one == many;
+    std::printf("| mode | frames/s | ms/frame |\n|---|---:|---:|\n");
+    std::printf("| one frame at a time | %.2f | %.1f |\n", frames / sequential,
+                1e3 * sequential / frames);
+    std::printf("| overlapped (FrameStream) | %.2f | %.1f |\n", frames / overlapped,
+                1e3 * overlapped / frames);
+    std::printf("overlap speed-up %.3fx; images %s\n", sequential / overlapped,
+                same ? "identical" : "DIFFER");
+}
+
 void flight(const Config& c) {
     const ig::TerrainMap& map = syntheticMap(std::min(c.size, 4096));
     const int w = c.width / 2, h = c.height / 2;
@@ -336,16 +392,17 @@ int main(int argc, char** argv) {
         } else if (a == "--no-hugepages") {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
-                   a == "flight" || a == "quality" || a == "frame") {
+                   a == "flight" || a == "quality" || a == "frame" || a == "stream") {
             c.sections.push_back(a);
         } else {
-            std::fprintf(
-                stderr,
-                "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
-                "[sensitivity] [threads] [supersample] [quality] [flight] [frame] [--size N] "
-                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--heading DEG] [--cache DIR] "
-                "[--caster fast|naive|reference] [--levels auto|N]\n",
-                a.c_str());
+            std::fprintf(stderr,
+                         "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
+                         "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
+                         "[stream] [--size N] "
+                         "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--heading "
+                         "DEG] [--cache DIR] "
+                         "[--caster fast|naive|reference] [--levels auto|N]\n",
+                         a.c_str());
             return 2;
         }
     }
@@ -360,6 +417,7 @@ int main(int argc, char** argv) {
             if (s == "quality") quality(c, -10.0, "quality");
             if (s == "supersample") quality(c, -1.0, "supersampling at shallow pitch");
             if (s == "flight") flight(c);
+            if (s == "stream") stream(c);
             if (s == "frame") frame(c);
         }
     } catch (const std::exception& e) {

@@ -248,8 +248,8 @@ TEST(FastCaster, FourColumnPacketsGiveTheOneColumnImage) {
                 const auto a = ig::renderFrame(*packets, *map, pose, in);
                 const auto b = ig::renderFrame(*columns, *map, pose, in);
                 ASSERT_TRUE(a.color == b.color) << "levels " << levels;
-                ASSERT_EQ(0, std::memcmp(a.depth.data(), b.depth.data(),
-                                         a.depth.size() * sizeof(float)));
+                ASSERT_EQ(
+                    0, std::memcmp(a.depth.data(), b.depth.data(), a.depth.size() * sizeof(float)));
                 EXPECT_EQ(a.stats.steps, b.stats.steps);
                 EXPECT_EQ(a.stats.restarts, b.stats.restarts);
                 pixels += a.color.size();

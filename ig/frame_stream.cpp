@@ -1,0 +1,140 @@
+#include "ig/frame_stream.hpp"
+
+#include "ig/caster_impl.hpp"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <stdexcept>
+#include <thread>
+
+namespace ig {
+
+struct FrameStream::Job {
+    RenderedFrame frame;
+    Camera camera;
+    int units = 0;
+    std::atomic<int> next{0};      // the next unit to hand out
+    std::atomic<int> finished{0};  // units rendered
+    std::atomic<std::uint64_t> steps{0}, restarts{0};
+    std::exception_ptr error;  // guarded by the stream's mutex
+    std::chrono::steady_clock::time_point start;
+
+    Job(const Pose& pose, const Intrinsics& intrinsics) : camera(pose, intrinsics) {}
+};
+
+FrameStream::FrameStream(const Caster& caster, const TerrainMap& map, int threads)
+    : caster_(caster), map_(map) {
+    const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    threads_ = threads > 0 ? std::min(threads, cores) : cores;
+    // The caller of help() is one of the workers: the arena's other slots are for the pool's.
+    arena_ = std::make_unique<tbb::task_arena>(threads_, 1);
+    arena_->initialize();
+}
+
+FrameStream::~FrameStream() {
+    // Units nobody took yet (with one thread, the pool has no workers of its own).
+    std::deque<std::shared_ptr<Job>> jobs;
+    {
+        std::lock_guard lock(mutex_);
+        jobs = jobs_;
+    }
+    for (const auto& job : jobs)
+        arena_->execute([&] { work(*job); });
+    std::unique_lock lock(mutex_);
+    done_.wait(lock, [&] {
+        return std::all_of(jobs_.begin(), jobs_.end(),
+                           [](const auto& j) { return j->finished.load() == j->units; });
+    });
+}
+
+void FrameStream::submit(const Pose& pose, const Intrinsics& intrinsics, double time,
+                         std::uint64_t sequence) {
+    validateView(map_, pose, intrinsics);
+    auto job = std::make_shared<Job>(pose, intrinsics);
+    job->frame.sequence = sequence;
+    job->frame.time = time;
+    job->frame.pose = pose;
+    job->frame.intrinsics = intrinsics;
+    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
+    job->frame.color.resize(n);
+    job->frame.depth.resize(n);
+    job->units = caster_.workUnits(job->camera);
+    job->start = std::chrono::steady_clock::now();
+    {
+        std::lock_guard lock(mutex_);
+        jobs_.push_back(job);
+    }
+    // One loop per pool worker; enqueued work runs in about the order it was enqueued, so a
+    // worker reaches this frame's loop when the frames before it have no units left.
+    for (int i = 1; i < threads_; ++i) {
+        arena_->enqueue([this, job] { work(*job); });
+    }
+}
+
+void FrameStream::work(Job& job) {
+    UnitCounters counters;
+    int rendered = 0;
+    for (;;) {
+        const int unit = job.next.fetch_add(1, std::memory_order_relaxed);
+        if (unit >= job.units) break;
+        try {
+            caster_.renderUnit(job.camera, job.frame, unit, counters);
+        } catch (...) {
+            std::lock_guard lock(mutex_);
+            if (!job.error) job.error = std::current_exception();
+        }
+        ++rendered;
+    }
+    job.steps.fetch_add(counters.steps, std::memory_order_relaxed);
+    job.restarts.fetch_add(counters.restarts, std::memory_order_relaxed);
+    if (rendered > 0 &&
+        job.finished.fetch_add(rendered, std::memory_order_acq_rel) + rendered == job.units) {
+        std::lock_guard lock(mutex_);
+        done_.notify_all();
+    }
+}
+
+void FrameStream::help() {
+    std::shared_ptr<Job> job;
+    {
+        std::lock_guard lock(mutex_);
+        if (jobs_.empty()) return;
+        job = jobs_.front();
+    }
+    arena_->execute([&] { work(*job); });
+}
+
+RenderedFrame FrameStream::take() {
+    std::shared_ptr<Job> job;
+    {
+        std::lock_guard lock(mutex_);
+        if (jobs_.empty()) throw std::logic_error("FrameStream::take: no frame in flight");
+        job = jobs_.front();
+    }
+    arena_->execute([&] { work(*job); });  // the units still unclaimed, if any
+    {
+        std::unique_lock lock(mutex_);
+        done_.wait(lock, [&] { return job->finished.load() == job->units; });
+        jobs_.pop_front();
+        if (job->error) std::rethrow_exception(job->error);
+    }
+    RenderedFrame& frame = job->frame;
+    frame.stats.renderMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - job->start)
+            .count();
+    frame.stats.steps = job->steps.load();
+    frame.stats.restarts = job->restarts.load();
+    frame.stats.rays = static_cast<std::uint64_t>(frame.intrinsics.width) * frame.intrinsics.height;
+    castControlPoints(map_, job->camera, frame);
+    return std::move(frame);
+}
+
+int FrameStream::inFlight() const {
+    std::lock_guard lock(mutex_);
+    return static_cast<int>(jobs_.size());
+}
+
+}  // namespace ig

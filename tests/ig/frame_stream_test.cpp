@@ -1,0 +1,128 @@
+// Consecutive frames over one worker pool, the next frame started while the last finishes:
+// every frame must be the one renderFrame gives.
+#include "ig/frame_stream.hpp"
+
+#include "ig/caster.hpp"
+#include "ig/error.hpp"
+#include "ig/synthetic.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <vector>
+
+namespace {
+
+using ig::CasterKind;
+using ig::Intrinsics;
+using ig::Pose;
+using ig::RenderedFrame;
+using ig::TerrainMap;
+
+const TerrainMap& terrain() {
+    static const TerrainMap map = ig::makeSyntheticTerrain(512, 11, 10.0);
+    return map;
+}
+
+// A slow straight flight over the map, 300 m above the ground at the start.
+std::vector<Pose> flight(int frames) {
+    const TerrainMap& map = terrain();
+    std::vector<Pose> poses;
+    for (int i = 0; i < frames; ++i) {
+        Pose p;
+        p.position = {1500.0 + 40.0 * i, 1200.0 + 30.0 * i, 0.0};
+        p.position.z = map.surfaceHeight(1500.0, 1200.0) + 300.0;
+        p.yaw = ig::degToRad(40.0 + i);
+        p.pitch = ig::degToRad(-8.0);
+        poses.push_back(p);
+    }
+    return poses;
+}
+
+void expectSame(const RenderedFrame& a, const RenderedFrame& b) {
+    ASSERT_EQ(a.sequence, b.sequence);
+    ASSERT_TRUE(a.color == b.color) << "frame " << a.sequence;
+    ASSERT_EQ(0, std::memcmp(a.depth.data(), b.depth.data(), a.depth.size() * sizeof(float)));
+    EXPECT_EQ(a.stats.steps, b.stats.steps);
+    EXPECT_EQ(a.stats.restarts, b.stats.restarts);
+    for (int i = 0; i < ig::kControlPointCount; ++i) {
+        EXPECT_EQ(a.controlPoints[i].world, b.controlPoints[i].world);
+        EXPECT_EQ(a.controlPoints[i].pixel, b.controlPoints[i].pixel);
+    }
+}
+
+TEST(FrameStream, OverlappedFramesAreTheFramesRenderFrameGives) {
+    const TerrainMap& map = terrain();
+    const Intrinsics in = Intrinsics::fromFov(203, 120, ig::degToRad(60), 4);
+    const std::vector<Pose> poses = flight(6);
+    for (int levels : {0, ig::kLevelsAuto}) {
+        ig::RenderOptions options;
+        options.levels = levels;
+        const auto caster = ig::makeCaster(CasterKind::Fast, map, options);
+        for (int threads : {1, 2, 4}) {
+            ig::FrameStream stream(*caster, map, threads);
+            stream.submit(poses[0], in, 0.0, 0);
+            for (std::size_t i = 0; i < poses.size(); ++i) {
+                stream.help();
+                if (i + 1 < poses.size()) stream.submit(poses[i + 1], in, 0.1 * (i + 1), i + 1);
+                const RenderedFrame got = stream.take();
+                const RenderedFrame want = ig::renderFrame(*caster, map, poses[i], in, 0.1 * i, i);
+                expectSame(got, want);
+                EXPECT_EQ(got.time, want.time);
+            }
+            EXPECT_EQ(stream.inFlight(), 0);
+        }
+    }
+}
+
+TEST(FrameStream, ManyFramesInFlightComeOutInOrder) {
+    const TerrainMap& map = terrain();
+    const Intrinsics in = Intrinsics::fromFov(96, 64, ig::degToRad(60), 4);
+    const auto caster = ig::makeCaster(CasterKind::Naive, map);  // rows as work units
+    const std::vector<Pose> poses = flight(5);
+    ig::FrameStream stream(*caster, map, 3);
+    for (std::size_t i = 0; i < poses.size(); ++i)
+        stream.submit(poses[i], in, 0.0, i);
+    EXPECT_EQ(stream.inFlight(), 5);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+        expectSame(stream.take(), ig::renderFrame(*caster, map, poses[i], in, 0.0, i));
+    }
+}
+
+TEST(FrameStream, BadInputIsRefusedAndTheStreamGoesOn) {
+    const TerrainMap& map = terrain();
+    const Intrinsics in = Intrinsics::fromFov(64, 48, ig::degToRad(60), 4);
+    const auto caster = ig::makeCaster(CasterKind::Fast, map);
+    ig::FrameStream stream(*caster, map, 2);
+    EXPECT_THROW(stream.take(), std::logic_error);
+    Pose below = flight(1)[0];
+    below.position.z = map.surfaceHeight(below.position.x, below.position.y) - 5.0;
+    EXPECT_THROW(stream.submit(below, in), ig::InputError);
+    Pose nan = flight(1)[0];
+    nan.pitch = std::nan("");
+    EXPECT_THROW(stream.submit(nan, in), ig::InputError);
+    EXPECT_EQ(stream.inFlight(), 0);
+    // The fast caster refuses roll: the frame's error comes out of take().
+    Pose rolled = flight(1)[0];
+    rolled.roll = 0.2;
+    stream.submit(rolled, in);
+    EXPECT_THROW(stream.take(), std::invalid_argument);
+    stream.submit(flight(1)[0], in, 0.0, 7);
+    expectSame(stream.take(), ig::renderFrame(*caster, map, flight(1)[0], in, 0.0, 7));
+}
+
+TEST(FrameStream, FramesLeftInFlightAreFinishedOnDestruction) {
+    const TerrainMap& map = terrain();
+    const Intrinsics in = Intrinsics::fromFov(64, 48, ig::degToRad(60), 4);
+    const auto caster = ig::makeCaster(CasterKind::Fast, map);
+    for (int threads : {1, 2}) {
+        ig::FrameStream stream(*caster, map, threads);
+        for (const Pose& p : flight(3))
+            stream.submit(p, in);
+    }  // must not hang or touch freed frames (ASan, TSan)
+    SUCCEED();
+}
+
+}  // namespace
