@@ -700,11 +700,11 @@ class FastCaster final : public Caster {
         const V4 disc = B * B - 4.0 * A * C;
         const V4 zero = V4{} + 0.0;
         const V4 sq = vsqrt(vmax(disc, zero));
-        const V4 rootNeg = C / (0.5 * (sq - B));
-        const V4 rootPos = -0.5 * (B + sq) / A;
+        // One division: C / (0.5 * (sq - B)) where B < 0, (-0.5 * (B + sq)) / A elsewhere.
+        const M4 negB = B < 0.0;
+        const V4 root0 = (negB ? C : -0.5 * (B + sq)) / (negB ? 0.5 * (sq - B) : A);
         V4 root = zero - 1.0;
-        root = disc >= 0.0 && B < 0.0 ? rootNeg : root;
-        root = disc >= 0.0 && B >= 0.0 && A < 0.0 ? rootPos : root;
+        root = disc >= 0.0 && (negB || A < 0.0) ? root0 : root;
         const V4 endHit = C + B * len + A * len * len <= 0.0 ? len : zero - 1.0;
         root = root >= 0.0 && root <= len ? root : endHit;
         return C <= 0.0 ? zero : root;
