@@ -78,15 +78,22 @@ void FrameStream::work(Job& job) {
     UnitCounters counters;
     int rendered = 0;
     for (;;) {
-        const int unit = job.next.fetch_add(1, std::memory_order_relaxed);
-        if (unit >= job.units) break;
-        try {
-            caster_.renderUnit(job.camera, job.frame, unit, counters);
-        } catch (...) {
-            std::lock_guard lock(mutex_);
-            if (!job.error) job.error = std::current_exception();
+        // Runs of adjacent units, shorter towards the end of the frame (guided): workers on
+        // neighbouring units would share the cache lines of every image row they write.
+        const int left = job.units - job.next.load(std::memory_order_relaxed);
+        const int run = std::clamp(left / (4 * threads_), 1, 16);
+        const int first = job.next.fetch_add(run, std::memory_order_relaxed);
+        if (first >= job.units) break;
+        const int last = std::min(first + run, job.units);
+        for (int unit = first; unit < last; ++unit) {
+            try {
+                caster_.renderUnit(job.camera, job.frame, unit, counters);
+            } catch (...) {
+                std::lock_guard lock(mutex_);
+                if (!job.error) job.error = std::current_exception();
+            }
         }
-        ++rendered;
+        rendered += last - first;
     }
     job.steps.fetch_add(counters.steps, std::memory_order_relaxed);
     job.restarts.fetch_add(counters.restarts, std::memory_order_relaxed);
