@@ -224,16 +224,12 @@ class FastCaster final : public Caster {
                 renderPacket(mv, camera, d0, x0, frame, counters);
             } else {
                 for (int x = x0; x < w; ++x)
-                    renderColumn<true>(mv, camera, d0, x, frame, counters);
+                    renderColumn(mv, camera, d0, x, frame, counters);
             }
             return;
         }
 #endif
-        if (options_.supersample == 1) {
-            renderColumn<true>(mv, camera, d0, unit, frame, counters);
-        } else {
-            renderColumn<false>(mv, camera, d0, unit, frame, counters);
-        }
+        renderColumn(mv, camera, d0, unit, frame, counters);
     }
 
   private:
@@ -477,92 +473,36 @@ class FastCaster final : public Caster {
                              topLevel_ > 0};
     }
 
-    // kOneRay: one ray per pixel (no supersampling), the common case, compiled on its own: the
-    // coherent ray that stays on the ray below's major axis is handled inline, every other case
-    // by castRay.
-    template <bool kOneRay>
+    // One column, bottom to top, the supersample rays of a pixel stacked inside it and averaged
+    // (depth: the nearest).
     void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
                       RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
         const ColumnContext cc = columnContext(mv, camera, d0, x);
-        const glm::dvec3 eye = cc.eye;
-        const double invSx = cc.invSx, invSy = cc.invSy;
         ColumnState st;
         Rgb8* colorOut = frame.color.data() + x;
         float* depthOut = frame.depth.data() + x;
-        if constexpr (kOneRay) {
-            for (int y = h - 1; y >= 0; --y) {
-                const glm::dvec3 d = cc.base + (y + 0.5) * cc.down;
+        const int sub = options_.supersample;
+        const double subStep = 1.0 / sub;
+        for (int y = h - 1; y >= 0; --y) {
+            int sum[3] = {0, 0, 0};
+            float nearest = kSkyDepth;
+            for (int s = sub - 1; s >= 0; --s) {
+                const glm::dvec3 d = cc.base + (y + (s + 0.5) * subStep) * cc.down;
                 Rgb8 c;
                 double tHit = -1.0;
-                const double gx = d.x * invSx, gy = d.y * invSy;
-                const bool majorX = std::abs(gx) >= std::abs(gy);
-                const double gm = majorX ? gx : gy, gn = majorX ? gy : gx;
-                const int sgn = gm > 0 ? 1 : -1;
-                const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-                bool done = false;
-                if (st.havePrev && !st.prevAbove && majorX == st.prevMajorX && sgn == st.prevSgn &&
-                    std::abs(gm) > 1e-9 * len) {
-                    const double inv = 1.0 / std::abs(gm);
-                    const double rn = gn * inv, rz = d.z * inv;
-                    if (rz - st.prevRz >=
-                        (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn)) {
-                        double uNear = std::numeric_limits<double>::infinity();
-                        if (cc.multires) uNear = d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
-                        const ColumnMarch r = majorX
-                                                  ? marchCoherent<true>(mv, cc.eg, sgn, rn, rz,
-                                                                        st.prevU, uNear, st.steps)
-                                                  : marchCoherent<false>(mv, cc.eg, sgn, rn, rz,
-                                                                         st.prevU, uNear, st.steps);
-                        st.prevRn = rn;
-                        st.prevRz = rz;
-                        done = finishCoherent(cc, d, len, len * inv, r, st, c, tHit);
-                        if (!done) {
-                            // A coherent start outside the map: cast afresh (as castRay does).
-                            const TerrainRay ray(map_, eye, d);
-                            const double horiz =
-                                std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-                            double tStop = 0.0;
-                            const LevelHit hit = castFresh(ray, horiz, d0, false, tStop, st.steps);
-                            if (hit.t >= 0.0) {
-                                tHit = hit.t;
-                                c = shadeLevelHit(hit, ray.at(hit.t));
-                            } else {
-                                c = skyColor(options_.sky, ray.dir.z);
-                            }
-                            st.prevU = tStop / (len * inv);
-                            done = true;
-                        }
-                    }
-                }
-                if (!done) castRay(cc, d, st, c, tHit);
-                const std::size_t idx = static_cast<std::size_t>(y) * w;
-                colorOut[idx] = c;
-                depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
+                castRay(cc, d, st, c, tHit);
+                if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
+                sum[0] += c.r;
+                sum[1] += c.g;
+                sum[2] += c.b;
             }
-        } else {
-            const int sub = options_.supersample;
-            const double subStep = 1.0 / sub;
-            for (int y = h - 1; y >= 0; --y) {
-                int sum[3] = {0, 0, 0};
-                float nearest = kSkyDepth;
-                for (int s = sub - 1; s >= 0; --s) {
-                    const glm::dvec3 d = cc.base + (y + (s + 0.5) * subStep) * cc.down;
-                    Rgb8 c;
-                    double tHit = -1.0;
-                    castRay(cc, d, st, c, tHit);
-                    if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
-                    sum[0] += c.r;
-                    sum[1] += c.g;
-                    sum[2] += c.b;
-                }
-                const std::size_t idx = static_cast<std::size_t>(y) * w;
-                const int half = sub / 2;
-                colorOut[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
-                                     static_cast<std::uint8_t>((sum[1] + half) / sub),
-                                     static_cast<std::uint8_t>((sum[2] + half) / sub)};
-                depthOut[idx] = nearest;
-            }
+            const std::size_t idx = static_cast<std::size_t>(y) * w;
+            const int half = sub / 2;
+            colorOut[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
+                                 static_cast<std::uint8_t>((sum[1] + half) / sub),
+                                 static_cast<std::uint8_t>((sum[2] + half) / sub)};
+            depthOut[idx] = nearest;
         }
         counters.steps += st.steps;
         counters.restarts += st.restarts;
