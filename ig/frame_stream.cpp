@@ -44,9 +44,13 @@ FrameStream::~FrameStream() {
     for (const auto& job : jobs)
         arena_->execute([&] { work(*job); });
     std::unique_lock lock(mutex_);
+    // Every unit rendered and every enqueued loop returned (a loop that starts after its
+    // frame's units are gone still runs, finds none, and leaves): nothing touches the stream
+    // once this returns.
     done_.wait(lock, [&] {
-        return std::all_of(jobs_.begin(), jobs_.end(),
-                           [](const auto& j) { return j->finished.load() == j->units; });
+        return outstanding_ == 0 && std::all_of(jobs_.begin(), jobs_.end(), [](const auto& j) {
+                   return j->finished.load() == j->units;
+               });
     });
 }
 
@@ -69,8 +73,18 @@ void FrameStream::submit(const Pose& pose, const Intrinsics& intrinsics, double 
     }
     // One loop per pool worker; enqueued work runs in about the order it was enqueued, so a
     // worker reaches this frame's loop when the frames before it have no units left.
+    {
+        std::lock_guard lock(mutex_);
+        outstanding_ += threads_ - 1;
+    }
     for (int i = 1; i < threads_; ++i) {
-        arena_->enqueue([this, job] { work(*job); });
+        arena_->enqueue([this, job] {
+            work(*job);
+            // The last thing the loop does; the destructor waits for every loop to get here.
+            std::lock_guard lock(mutex_);
+            --outstanding_;
+            done_.notify_all();
+        });
     }
 }
 

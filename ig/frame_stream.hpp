@@ -59,6 +59,7 @@ class FrameStream {
     mutable std::mutex mutex_;
     std::condition_variable done_;
     std::deque<std::shared_ptr<Job>> jobs_;
+    int outstanding_ = 0;  // enqueued worker loops not yet returned (guarded by mutex_)
 };
 
 }  // namespace ig
