@@ -510,13 +510,15 @@ class FastCaster final : public Caster {
 
 #if VIG_CASTER_PACKETS
     // Four adjacent columns cast together, row by row, with AVX2: the rays' set-up, the
-    // coherent march (its set-up, the bound scan in lock step, the exact solve of the step it
-    // may reach) and the colour run on four lanes. A row is cast this way when all four rays
-    // are coherent on the same major axis and direction; a lane that leaves that case (through
-    // the map's side, or past the level-0 distance) is cast again from its unchanged state by
-    // castRay, as are rows where some ray is not coherent (bottom ray, restart, sky above the
-    // map's top). Every operation is the scalar path's, in the same order and precision (no
-    // fused multiply-add), so the image is bit for bit the one column at a time gives.
+    // coherent march's set-up, the exact solve of the steps they reach and the colour run on
+    // four lanes; each lane's bound scan is its own scalar loop. A row is cast this way when all
+    // four rays are coherent on the same major axis and direction. A lane that ends without a
+    // hit (past the map's far edge, over its highest point) ends here too, one that reaches
+    // the level-0 distance goes on into the multiresolution march; one that leaves through a
+    // minor side of the map is cast again from its unchanged state by castRay, as are the rows
+    // where some ray is not coherent (bottom ray, restart, sky above the map's top). Every
+    // operation is the scalar path's, in the same order and precision (no fused multiply-add),
+    // so the image is bit for bit the one column at a time gives.
     using V4 = double __attribute__((vector_size(32)));
     using M4 = decltype(V4{} < V4{});
 
