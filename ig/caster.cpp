@@ -68,6 +68,20 @@ void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& int
     }
 }
 
+RenderedFrame newFrame(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
+                       double time, std::uint64_t sequence) {
+    validateView(map, pose, intrinsics);
+    RenderedFrame frame;
+    frame.sequence = sequence;
+    frame.time = time;
+    frame.pose = pose;
+    frame.intrinsics = intrinsics;
+    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
+    frame.color.resize(n);
+    frame.depth.resize(n);
+    return frame;
+}
+
 void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame) {
     const auto pixels = controlPointPixels(camera.intrinsics());
     for (int i = 0; i < kControlPointCount; ++i) {
@@ -80,15 +94,7 @@ void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFram
 
 RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
                           const Intrinsics& intrinsics, double time, std::uint64_t sequence) {
-    validateView(map, pose, intrinsics);
-    RenderedFrame frame;
-    frame.sequence = sequence;
-    frame.time = time;
-    frame.pose = pose;
-    frame.intrinsics = intrinsics;
-    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
-    frame.color.resize(n);
-    frame.depth.resize(n);
+    RenderedFrame frame = newFrame(map, pose, intrinsics, time, sequence);
     const Camera camera(pose, intrinsics);
 
     const auto start = std::chrono::steady_clock::now();

@@ -14,6 +14,10 @@ std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOption
 // Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.
 void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);
 
+// A frame of the view's size, pose, time and sequence, pixels to be cast (validates the view).
+RenderedFrame newFrame(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
+                       double time, std::uint64_t sequence);
+
 // The frame's nine control points, each cast exactly through its pixel centre.
 void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame);
 

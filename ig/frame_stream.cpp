@@ -2,8 +2,6 @@
 
 #include "ig/caster_impl.hpp"
 
-#include <glm/geometric.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <exception>
@@ -56,27 +54,17 @@ FrameStream::~FrameStream() {
 
 void FrameStream::submit(const Pose& pose, const Intrinsics& intrinsics, double time,
                          std::uint64_t sequence) {
-    validateView(map_, pose, intrinsics);
     auto job = std::make_shared<Job>(pose, intrinsics);
-    job->frame.sequence = sequence;
-    job->frame.time = time;
-    job->frame.pose = pose;
-    job->frame.intrinsics = intrinsics;
-    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
-    job->frame.color.resize(n);
-    job->frame.depth.resize(n);
+    job->frame = newFrame(map_, pose, intrinsics, time, sequence);
     job->units = caster_.workUnits(job->camera);
     job->start = std::chrono::steady_clock::now();
     {
         std::lock_guard lock(mutex_);
         jobs_.push_back(job);
+        outstanding_ += threads_ - 1;
     }
     // One loop per pool worker; enqueued work runs in about the order it was enqueued, so a
     // worker reaches this frame's loop when the frames before it have no units left.
-    {
-        std::lock_guard lock(mutex_);
-        outstanding_ += threads_ - 1;
-    }
     for (int i = 1; i < threads_; ++i) {
         arena_->enqueue([this, job] {
             work(*job);
