@@ -21,6 +21,9 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
                    "Metres between height samples (default: from the georeference, else 10)");
     app.add_option("--height-scale", o.heightScale, "Metres per height unit (default 1)");
     app.add_option("--height-offset", o.heightOffset, "Metres added to every height (default 0)");
+    app.add_option("--void-height", o.voidHeight,
+                   "Metres given to samples the height map has no data for (default: "
+                   "interpolated from the samples around them)");
     app.add_option("--synthetic", o.synthetic,
                    "Synthetic terrain SIZE[:SEED] (power of two up to 16384) instead of files");
 }
@@ -77,7 +80,7 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
                                     spacing);
     }
     if (o.height.empty()) {
-        if (!o.color.empty() || o.spacing || o.heightScale || o.heightOffset) {
+        if (!o.color.empty() || o.spacing || o.heightScale || o.heightOffset || o.voidHeight) {
             throw InputError("--height: terrain flags given without a height map");
         }
         return loadPugetSound();
@@ -88,6 +91,7 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     src.spacing = o.spacing;
     src.heightScale = o.heightScale;
     src.heightOffset = o.heightOffset;
+    src.voidHeight = o.voidHeight;
     return loadTerrain(src);
 }
 
@@ -98,7 +102,14 @@ std::string describeTerrain(const TerrainMap& map) {
                   "%.1f..%.1f m",
                   map.width(), map.height(), map.spacingX(), map.spacingY(), map.extentX() / 1000.0,
                   map.extentY() / 1000.0, map.minHeight(), map.maxHeight());
-    return buf;
+    std::string text = buf;
+    if (map.filledSamples() > 0) {
+        const double total = static_cast<double>(map.width()) * map.height();
+        std::snprintf(buf, sizeof buf, ", %zu samples without data filled (%.2g %%)",
+                      map.filledSamples(), 100.0 * map.filledSamples() / total);
+        text += buf;
+    }
+    return text;
 }
 
 std::pair<int, int> parseSize(const std::string& text, const std::string& what) {

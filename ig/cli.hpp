@@ -21,6 +21,7 @@ struct TerrainOptions {
     std::optional<double> spacing;
     std::optional<double> heightScale;
     std::optional<double> heightOffset;
+    std::optional<double> voidHeight;
     std::string synthetic;
 };
 

@@ -56,6 +56,9 @@ class TerrainMap {
     double maxHeight() const { return maxHeight_; }
     double minHeight() const { return minHeight_; }
     void updateRange();
+    // Samples the source had no data for, filled by the loader (0 for most maps).
+    std::size_t filledSamples() const { return filledSamples_; }
+    void setFilledSamples(std::size_t n) { filledSamples_ = n; }
 
     // Raw maximum of the four samples of cell (cx, cy), cx in [0, width-2], cy in [0, height-2]:
     // a conservative bound on the bilinear surface over the cell. Stored (width-1) per row.
@@ -83,6 +86,7 @@ class TerrainMap {
     std::vector<std::uint16_t> heights_;
     std::vector<Rgb8> colors_;
     std::vector<std::uint16_t> cellMax_;
+    std::size_t filledSamples_ = 0;
 };
 
 // Asks the kernel to back [data, data + bytes) with transparent huge pages, collapsing what is

@@ -22,6 +22,7 @@
 #include <numbers>
 #include <span>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "ig/error.hpp"
@@ -111,6 +112,7 @@ struct HeightRaster {
     bool integer = false;            // raw integer units (PNG/JPEG) in `raw`, else `values`
     std::vector<std::uint16_t> raw;  // integer images
     std::vector<double> values;      // GDAL rasters, metres after the user's scale/offset
+    std::size_t filled = 0;          // samples without data, filled (values only)
     Georef geo;
 };
 
@@ -519,7 +521,8 @@ Georef readGeoref(const std::string& path, GDALDatasetH ds) {
     return geo;
 }
 
-HeightRaster readGdalHeights(const std::string& path, double scale, double offset) {
+HeightRaster readGdalHeights(const std::string& path, double scale, double offset,
+                             const std::optional<double>& voidHeight) {
     QuietGdal quiet;
     GdalDataset ds;
     gdalOpen(path, ds);
@@ -538,23 +541,46 @@ HeightRaster readGdalHeights(const std::string& path, double scale, double offse
                      out.height, GDT_Float64, 0, 0) != CE_None) {
         fail(path, "cannot read heights" + QuietGdal::lastError());
     }
-    int hasNoData = 0;
-    const double noData = GDALGetRasterNoDataValue(band, &hasNoData);
+    // Samples without data: the band's mask (its no-data value, an alpha band or a mask file,
+    // as GDAL reads them) and NaN, which float rasters often use without declaring it.
+    std::vector<std::uint8_t> valid;
+    const int maskFlags = GDALGetMaskFlags(band);
+    if (!(maskFlags & GMF_ALL_VALID)) {
+        valid.resize(w * h);
+        if (GDALRasterIO(GDALGetMaskBand(band), GF_Read, 0, 0, out.width, out.height, valid.data(),
+                         out.width, out.height, GDT_Byte, 0, 0) != CE_None) {
+            fail(path, "cannot read the no-data mask" + QuietGdal::lastError());
+        }
+    }
+    std::size_t voids = 0;
     for (std::size_t r = 0; r < h; ++r) {
         for (std::size_t c = 0; c < w; ++c) {
-            double& v = out.values[r * w + c];
+            const std::size_t k = r * w + c;
+            double& v = out.values[k];
             auto where = [&] {
                 return " at row " + std::to_string(r) + ", column " + std::to_string(c);
             };
-            if (hasNoData && (v == noData || (std::isnan(noData) && std::isnan(v)))) {
-                fail(path, "no-data value (" + formatNumber(noData) + ")" + where() +
-                               "; height maps with holes are not supported");
+            if (std::isnan(v) || (!valid.empty() && valid[k] == 0)) {
+                if (valid.empty()) valid.assign(w * h, 1);
+                valid[k] = 0;
+                ++voids;
+                continue;
             }
             if (!std::isfinite(v)) {
                 fail(path, "non-finite height (" + formatNumber(v) + ")" + where());
             }
             v = v * scale + offset;
             if (!std::isfinite(v)) fail(path, "height out of range after scaling" + where());
+        }
+    }
+    if (voids == w * h) fail(path, "every sample is marked as having no data");
+    if (voids > 0) {
+        if (voidHeight) {
+            for (std::size_t k = 0; k < w * h; ++k)
+                if (!valid[k]) out.values[k] = *voidHeight;
+            out.filled = voids;
+        } else {
+            out.filled = fillVoids(out.values, valid, out.width, out.height);
         }
     }
     out.geo = readGeoref(path, ds.handle);
@@ -613,7 +639,8 @@ ColorRaster readGdalColors(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Loading, georeference and colour resampling.
 
-HeightRaster readHeights(const std::string& path, double scale, double offset) {
+HeightRaster readHeights(const std::string& path, double scale, double offset,
+                         const std::optional<double>& voidHeight) {
     switch (sniff(path)) {
         case FileKind::Png:
             return readPngHeights(path);
@@ -622,7 +649,7 @@ HeightRaster readHeights(const std::string& path, double scale, double offset) {
         case FileKind::Gdal:
             break;
     }
-    return readGdalHeights(path, scale, offset);
+    return readGdalHeights(path, scale, offset, voidHeight);
 }
 
 ColorRaster readColors(const std::string& path) {
@@ -788,6 +815,105 @@ void resampleColors(const ColorRaster& cr, AxisMap mx, AxisMap my, TerrainMap& m
 
 }  // namespace
 
+namespace {
+
+// One level of the void-fill pyramid: each sample the mean of the valid ones among the 2 x 2
+// finer samples it covers, valid when any of them is.
+struct FillLevel {
+    int w = 0, h = 0;
+    std::vector<double> v;
+    std::vector<std::uint8_t> ok;
+};
+
+FillLevel coarsenValid(const double* v, const std::uint8_t* ok, int w, int h) {
+    FillLevel c;
+    c.w = (w + 1) / 2;
+    c.h = (h + 1) / 2;
+    c.v.assign(static_cast<std::size_t>(c.w) * c.h, 0.0);
+    c.ok.assign(c.v.size(), 0);
+    for (int cy = 0; cy < c.h; ++cy) {
+        for (int cx = 0; cx < c.w; ++cx) {
+            double sum = 0.0;
+            int n = 0;
+            for (int y = 2 * cy; y < std::min(2 * cy + 2, h); ++y) {
+                for (int x = 2 * cx; x < std::min(2 * cx + 2, w); ++x) {
+                    const std::size_t k = static_cast<std::size_t>(y) * w + x;
+                    if (ok[k]) {
+                        sum += v[k];
+                        ++n;
+                    }
+                }
+            }
+            const std::size_t k = static_cast<std::size_t>(cy) * c.w + cx;
+            c.v[k] = n > 0 ? sum / n : 0.0;
+            c.ok[k] = n > 0;
+        }
+    }
+    return c;
+}
+
+// Gives the invalid samples of a w x h level the bilinear interpolation of the (filled) coarser
+// level: coarse sample k covers fine samples 2k and 2k + 1, so fine x sits at (x - 0.5) / 2.
+void pullFromCoarse(double* v, const std::uint8_t* ok, int w, int h, const FillLevel& c) {
+    auto axis = [](int fine, int count, int& i0, int& i1, double& t) {
+        const double f = std::clamp((fine - 0.5) * 0.5, 0.0, count - 1.0);
+        i0 = static_cast<int>(f);
+        i1 = std::min(i0 + 1, count - 1);
+        t = f - i0;
+    };
+    for (int y = 0; y < h; ++y) {
+        int y0, y1;
+        double ty;
+        axis(y, c.h, y0, y1, ty);
+        const double* r0 = c.v.data() + static_cast<std::size_t>(y0) * c.w;
+        const double* r1 = c.v.data() + static_cast<std::size_t>(y1) * c.w;
+        for (int x = 0; x < w; ++x) {
+            const std::size_t k = static_cast<std::size_t>(y) * w + x;
+            if (ok[k]) continue;
+            int x0, x1;
+            double tx;
+            axis(x, c.w, x0, x1, tx);
+            const double a = r0[x0] + (r0[x1] - r0[x0]) * tx;
+            const double b = r1[x0] + (r1[x1] - r1[x0]) * tx;
+            v[k] = a + (b - a) * ty;
+        }
+    }
+}
+
+}  // namespace
+
+std::size_t fillVoids(std::vector<double>& values, const std::vector<std::uint8_t>& valid, int w,
+                      int h) {
+    const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * std::max(h, 0);
+    if (w <= 0 || h <= 0 || values.size() != n || valid.size() != n) {
+        throw std::invalid_argument("fillVoids: grid sizes disagree");
+    }
+    const auto voids = static_cast<std::size_t>(std::count(valid.begin(), valid.end(), 0));
+    if (voids == 0) return 0;
+    if (voids == n) throw std::invalid_argument("fillVoids: no valid sample to fill from");
+    // Push: coarser levels until one has no hole (at the latest the 1 x 1 one).
+    std::vector<FillLevel> levels;
+    const double* v = values.data();
+    const std::uint8_t* ok = valid.data();
+    int lw = w, lh = h;
+    for (;;) {
+        levels.push_back(coarsenValid(v, ok, lw, lh));
+        const FillLevel& c = levels.back();
+        if (std::find(c.ok.begin(), c.ok.end(), 0) == c.ok.end()) break;
+        v = c.v.data();
+        ok = c.ok.data();
+        lw = c.w;
+        lh = c.h;
+    }
+    // Pull: each level's holes from the one above it, coarsest first.
+    for (std::size_t l = levels.size() - 1; l > 0; --l) {
+        FillLevel& fine = levels[l - 1];
+        pullFromCoarse(fine.v.data(), fine.ok.data(), fine.w, fine.h, levels[l]);
+    }
+    pullFromCoarse(values.data(), valid.data(), w, h, levels.front());
+    return voids;
+}
+
 double metresPerDegreeLatitude(double latitude) {
     return 111132.954 - 559.822 * std::cos(2 * latitude) + 1.175 * std::cos(4 * latitude);
 }
@@ -807,7 +933,10 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     const double userScale = src.heightScale.value_or(1.0);
     const double userOffset = src.heightOffset.value_or(0.0);
 
-    HeightRaster hr = readHeights(path, userScale, userOffset);
+    if (src.voidHeight && !std::isfinite(*src.voidHeight)) {
+        fail(path, "void height must be finite (got " + formatNumber(*src.voidHeight) + ")");
+    }
+    HeightRaster hr = readHeights(path, userScale, userOffset, src.voidHeight);
     if (hr.width < 2 || hr.height < 2) {
         fail(path, "height map needs at least 2 x 2 samples (has " + std::to_string(hr.width) +
                        " x " + std::to_string(hr.height) + ")");
@@ -862,6 +991,7 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     }
     raw = {};
     map.updateRange();
+    map.setFilledSamples(hr.filled);
 
     if (!hasColor) {
         map.shadeFromHeights();

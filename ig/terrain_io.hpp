@@ -2,8 +2,10 @@
 // TerrainMap.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "ig/terrain.hpp"
 
@@ -16,7 +18,18 @@ struct TerrainSource {
     std::optional<double> spacing;  // metres between samples; overrides the georeference
     std::optional<double> heightScale;   // metres per raw unit (default 1)
     std::optional<double> heightOffset;  // metres added (default 0)
+    // Height (metres) given to the samples the file marks as having no data (its no-data value,
+    // its mask, NaN); unset: they are interpolated from the samples around them (fillVoids).
+    std::optional<double> voidHeight;
 };
+
+// Fills the samples of a w x h grid (rows contiguous) whose `valid` entry is 0 from the valid
+// ones around them, smoothly: push-pull over a pyramid of 2 x 2 means of the valid samples
+// (each level's holes take the bilinear interpolation of the next coarser level). Valid samples
+// are left as they are. Returns how many were filled; throws std::invalid_argument when there is
+// no valid sample or the sizes disagree.
+std::size_t fillVoids(std::vector<double>& values, const std::vector<std::uint8_t>& valid, int w,
+                      int h);
 
 // Default spacing when neither the user nor the file gives one, metres.
 inline constexpr double kDefaultSpacing = 10.0;

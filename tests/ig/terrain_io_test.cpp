@@ -21,6 +21,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,7 @@
 
 namespace {
 
+using ig::fillVoids;
 using ig::InputError;
 using ig::loadTerrain;
 using ig::Rgb8;
@@ -629,26 +631,162 @@ TEST(TerrainIo, TruncatedFilesNameTheFile) {
     expectInputError(src, {"trunc.jpg"});
 }
 
-TEST(TerrainIo, NonFiniteAndNoDataHeightsNameTheSample) {
+TEST(TerrainIo, InfiniteHeightsNameTheSample) {
     const int w = 4, h = 3;
     std::vector<float> z(w * h, 1.0f);
     TerrainSource src;
-    src.heightPath = tmpPath("nan.tif");
-    z[1 * w + 2] = std::numeric_limits<float>::quiet_NaN();
-    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
-    expectInputError(src, {"nan.tif", "row 1", "column 2"});
-
     src.heightPath = tmpPath("inf.tif");
     z[1 * w + 2] = std::numeric_limits<float>::infinity();
     writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
     expectInputError(src, {"inf.tif", "row 1", "column 2"});
+    z[1 * w + 2] = -std::numeric_limits<float>::infinity();
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+    expectInputError(src, {"inf.tif", "row 1", "column 2"});
+}
 
-    src.heightPath = tmpPath("nodata.tif");
-    z[1 * w + 2] = 1.0f;
-    z[2 * w + 3] = -9999.0f;
+// --- Samples without data ------------------------------------------------------------------------
+
+TEST(FillVoids, HoleInAPlaneIsFilledCloseToThePlane) {
+    const int w = 40, h = 30;
+    auto plane = [](int x, int y) { return 100.0 + 2.0 * x - 1.5 * y; };
+    std::vector<double> v(w * h);
+    std::vector<std::uint8_t> ok(w * h, 1);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            v[y * w + x] = plane(x, y);
+    const std::vector<double> original = v;
+    // A 6 x 5 hole in the middle and a single sample at a corner.
+    for (int y = 12; y < 17; ++y)
+        for (int x = 17; x < 23; ++x) {
+            ok[y * w + x] = 0;
+            v[y * w + x] = -9999.0;
+        }
+    ok[0] = 0;
+    v[0] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_EQ(fillVoids(v, ok, w, h), 31u);
+    double worst = 0.0;
+    for (int k = 0; k < w * h; ++k) {
+        ASSERT_TRUE(std::isfinite(v[k])) << k;
+        if (ok[k]) {
+            EXPECT_EQ(v[k], original[k]) << "a valid sample changed at " << k;
+        } else {
+            worst = std::max(worst, std::abs(v[k] - original[k]));
+        }
+    }
+    // The plane rises 12 m across the hole; the fill stays within a sixth of that (1.13 m).
+    EXPECT_LT(worst, 2.0);
+}
+
+TEST(FillVoids, StaysWithinTheValidRange) {
+    // Noisy valid samples around a large hole: no overshoot beyond what surrounds it.
+    const int w = 64, h = 48;
+    std::vector<double> v(w * h);
+    std::vector<std::uint8_t> ok(w * h, 1);
+    std::uint32_t state = 12345;
+    double lo = 1e300, hi = -1e300;
+    for (int k = 0; k < w * h; ++k) {
+        state = state * 1664525u + 1013904223u;
+        v[k] = (state >> 8) % 1000;
+        const int x = k % w, y = k / w;
+        if (x > 10 && x < 50 && y > 5 && y < 40) {
+            ok[k] = 0;
+        } else {
+            lo = std::min(lo, v[k]);
+            hi = std::max(hi, v[k]);
+        }
+    }
+    fillVoids(v, ok, w, h);
+    for (int k = 0; k < w * h; ++k) {
+        EXPECT_GE(v[k], lo) << k;
+        EXPECT_LE(v[k], hi) << k;
+    }
+}
+
+TEST(FillVoids, OneValidSampleFillsEverything) {
+    for (auto [w, h] : {std::pair{1, 7}, std::pair{9, 1}, std::pair{5, 6}}) {
+        std::vector<double> v(w * h, 0.0);
+        std::vector<std::uint8_t> ok(w * h, 0);
+        ok[w * h / 2] = 1;
+        v[w * h / 2] = 42.5;
+        EXPECT_EQ(fillVoids(v, ok, w, h), static_cast<std::size_t>(w * h - 1));
+        for (double x : v)
+            EXPECT_EQ(x, 42.5);
+    }
+}
+
+TEST(FillVoids, RejectsNoValidSampleAndMismatchedSizes) {
+    std::vector<double> v(6, 1.0);
+    std::vector<std::uint8_t> none(6, 0), all(6, 1);
+    EXPECT_THROW(fillVoids(v, none, 3, 2), std::invalid_argument);
+    EXPECT_THROW(fillVoids(v, all, 2, 2), std::invalid_argument);
+    EXPECT_EQ(fillVoids(v, all, 3, 2), 0u);
+    EXPECT_EQ(v, std::vector<double>(6, 1.0));
+}
+
+TEST(TerrainIo, NoDataAndNanSamplesAreFilledAndCounted) {
+    const int w = 24, h = 20;
+    std::vector<float> z(w * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            z[y * w + x] = 50.0f + 3.0f * x + 2.0f * y;
+    const std::vector<float> clean = z;
+    for (int y = 8; y < 11; ++y)
+        for (int x = 10; x < 14; ++x)
+            z[y * w + x] = -9999.0f;
+    z[2 * w + 3] = std::numeric_limits<float>::quiet_NaN();
+    TerrainSource src;
+    src.heightPath = tmpPath("voids.tif");
     const double noData = -9999.0;
     writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr, false, &noData);
-    expectInputError(src, {"nodata.tif", "no-data", "row 2", "column 3"});
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_EQ(map.filledSamples(), 13u);
+    // No -9999 leaks into the map's range; filled samples sit near the plane they interrupt.
+    EXPECT_GE(map.minHeight(), 50.0 - 0.01);
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        for (int x = 0; x < w; ++x) {
+            const double got = map.heightAt(x, h - 1 - fileRow);
+            const double want = clean[fileRow * w + x];
+            const bool hole = std::isnan(z[fileRow * w + x]) || z[fileRow * w + x] == -9999.0f;
+            EXPECT_NEAR(got, want, hole ? 3.0 : 0.01) << "row " << fileRow << " column " << x;
+        }
+    }
+
+    // A given height instead.
+    src.voidHeight = -5.0;
+    const TerrainMap sea = loadTerrain(src);
+    EXPECT_EQ(sea.filledSamples(), 13u);
+    EXPECT_NEAR(sea.heightAt(10, h - 1 - 8), -5.0, 0.01);
+    EXPECT_NEAR(sea.heightAt(3, h - 1 - 2), -5.0, 0.01);
+    EXPECT_NEAR(sea.heightAt(0, 0), clean[(h - 1) * w], 0.01);
+    src.voidHeight = std::numeric_limits<double>::quiet_NaN();
+    expectInputError(src, {"voids.tif", "void height"});
+}
+
+TEST(TerrainIo, IntegerNoDataIsFilled) {
+    const int w = 8, h = 6;
+    std::vector<std::int16_t> z(w * h, 700);
+    z[3 * w + 4] = -32768;
+    TerrainSource src;
+    src.heightPath = tmpPath("int_voids.tif");
+    const double noData = -32768.0;
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Int16, z.data(), nullptr, false, &noData);
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_EQ(map.filledSamples(), 1u);
+    EXPECT_NEAR(map.heightAt(4, h - 1 - 3), 700.0, 0.01);
+    EXPECT_NEAR(map.minHeight(), 700.0, 0.01);
+}
+
+TEST(TerrainIo, AllNoDataIsAnError) {
+    const int w = 4, h = 3;
+    std::vector<float> z(w * h, -9999.0f);
+    TerrainSource src;
+    src.heightPath = tmpPath("all_void.tif");
+    const double noData = -9999.0;
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr, false, &noData);
+    expectInputError(src, {"all_void.tif", "no data"});
+    std::fill(z.begin(), z.end(), std::numeric_limits<float>::quiet_NaN());
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+    expectInputError(src, {"all_void.tif", "no data"});
 }
 
 TEST(TerrainIo, RejectsBadSpacingAndScale) {
