@@ -95,6 +95,16 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     return loadTerrain(src);
 }
 
+Pose defaultViewPose(const TerrainMap& map) {
+    Pose pose;
+    const double x = 0.25 * map.extentX(), y = 0.25 * map.extentY();
+    const double relief = std::max(map.maxHeight() - map.minHeight(), 1.0);
+    pose.position = {x, y, map.surfaceHeight(x, y) + std::max(0.15 * relief, 50.0)};
+    pose.yaw = std::atan2(map.extentX(), map.extentY());
+    pose.pitch = degToRad(-8.0);
+    return pose;
+}
+
 std::string describeTerrain(const TerrainMap& map) {
     char buf[256];
     std::snprintf(buf, sizeof buf,

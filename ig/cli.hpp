@@ -36,6 +36,9 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& what =
 // "x,y,z,yaw,pitch,roll" in metres and degrees; z written "+H" means H metres above the terrain
 // under (x, y). Throws InputError naming `what`.
 Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what = "--pose");
+// A view of any map when the user names none: over the south-west quarter, 15 % of the relief
+// (at least 50 m) above the ground, heading for the far corner, 8 degrees down.
+Pose defaultViewPose(const TerrainMap& map);
 
 // Runs a program's body: an InputError prints "NAME: message" and exits 2, any other exception
 // prints "NAME: error: message" and exits 1; otherwise the body's own exit code.

@@ -701,6 +701,16 @@ bool extentsMatch(const Georef& a, int aw, int ah, const Georef& b, int bw, int 
            std::abs((a.gt[3] + a.gt[5] * ah) - (b.gt[3] + b.gt[5] * bh)) <= tolY;
 }
 
+// Whether the extent of grid `outer` holds that of grid `inner` (both north-up), to within one
+// pixel of `outer`.
+bool extentCovers(const Georef& outer, int ow, int oh, const Georef& inner, int iw, int ih) {
+    const double tolX = outer.gt[1], tolY = -outer.gt[5];
+    return outer.gt[0] <= inner.gt[0] + tolX &&
+           outer.gt[0] + outer.gt[1] * ow >= inner.gt[0] + inner.gt[1] * iw - tolX &&
+           outer.gt[3] >= inner.gt[3] - tolY &&
+           outer.gt[3] + outer.gt[5] * oh <= inner.gt[3] + inner.gt[5] * ih + tolY;
+}
+
 // A geotransform without a coordinate system: take the colour image's when it describes the same
 // grid; otherwise treat coordinates as degrees when they can only be angles (pixels under 0.01
 // units, the whole extent within longitude -180..180 and latitude -90..90), else as metres.
@@ -736,16 +746,19 @@ void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorR
                        static_cast<OGRSpatialReferenceH>(cg.srs.get()))) {
             throw InputError(both + ": coordinate reference systems differ");
         }
-        if (!extentsMatch(hg, hr.width, hr.height, cg, cr.width, cr.height)) {
+        // The colour image may reach beyond the heights (an orthophoto of a wider area): the
+        // part over the map is used.
+        if (!extentsMatch(hg, hr.width, hr.height, cg, cr.width, cr.height) &&
+            !extentCovers(cg, cr.width, cr.height, hg, hr.width, hr.height)) {
             const double hx0 = hg.gt[0], hx1 = hg.gt[0] + hg.gt[1] * hr.width;
             const double hy0 = hg.gt[3], hy1 = hg.gt[3] + hg.gt[5] * hr.height;
             const double cx0 = cg.gt[0], cx1 = cg.gt[0] + cg.gt[1] * cr.width;
             const double cy0 = cg.gt[3], cy1 = cg.gt[3] + cg.gt[5] * cr.height;
             std::ostringstream s;
             s.precision(10);
-            s << both << ": extents do not match (heights x " << hx0 << ".." << hx1 << ", y " << hy1
-              << ".." << hy0 << "; colours x " << cx0 << ".." << cx1 << ", y " << cy1 << ".." << cy0
-              << ")";
+            s << both << ": the colour image does not cover the height map (heights x " << hx0
+              << ".." << hx1 << ", y " << hy1 << ".." << hy0 << "; colours x " << cx0 << ".." << cx1
+              << ", y " << cy1 << ".." << cy0 << ")";
             throw InputError(s.str());
         }
         // Pixel centres in both files: X = g0 + (i + 0.5) g1.

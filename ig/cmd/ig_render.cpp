@@ -171,7 +171,9 @@ int main(int argc, char** argv) {
     app.footer(kConventions);
     ig::TerrainOptions terrain;
     ig::addTerrainOptions(app, terrain);
-    std::string poseText = "52000,38000,+1200,55,-8,0";
+    // The shipped map's view; other maps get ig::defaultViewPose.
+    const std::string shippedPose = "52000,38000,+1200,55,-8,0";
+    std::string poseText;
     std::string sizeText = "720x486";
     double fovDeg = 60.0;
     int margin = 0;
@@ -182,8 +184,10 @@ int main(int argc, char** argv) {
     double haze = 0.0;
     std::string levelsText = "auto";
     int supersample = 1;
-    app.add_option("--pose", poseText, "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H)")
-        ->capture_default_str();
+    app.add_option("--pose", poseText,
+                   "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H). Default: " + shippedPose +
+                       " over the shipped map; over others, above the south-west quarter looking "
+                       "toward the far corner");
     app.add_option("--fov", fovDeg, "Horizontal field of view of the window, degrees")
         ->capture_default_str();
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
@@ -218,7 +222,10 @@ int main(int argc, char** argv) {
         const auto [w, h] = ig::parseSize(sizeText);
         const ig::CasterKind kind = ig::parseCasterKind(casterText);
         const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
-        const ig::Pose pose = ig::parsePose(poseText, map);
+        const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
+        const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
+                              : shippedMap      ? ig::parsePose(shippedPose, map)
+                                                : ig::defaultViewPose(map);
         if (kind == ig::CasterKind::Fast && pose.roll != 0.0) {
             throw ig::InputError(
                 "--pose: the fast caster renders roll = 0 (roll is applied by the post-rendering "

@@ -827,7 +827,7 @@ TEST(TerrainIo, RejectsMismatchedExtentsAndAspect) {
     // Shifted by two pixels east: more than one pixel off.
     double gtC[6] = {gtH[0] + 2 * gtH[1], gtH[1], 0, gtH[3], 0, gtH[5]};
     writeGeoTiff(src.colorPath, w, h, 3, GDT_Byte, rgb.data(), gtC);
-    expectInputError(src, {"ext_h.tif", "ext_c.tif", "extents do not match"});
+    expectInputError(src, {"ext_h.tif", "ext_c.tif", "does not cover"});
     // Half a pixel off is tolerated.
     gtC[0] = gtH[0] + 0.5 * gtH[1];
     writeGeoTiff(src.colorPath, w, h, 3, GDT_Byte, rgb.data(), gtC);
@@ -841,6 +841,41 @@ TEST(TerrainIo, RejectsMismatchedExtentsAndAspect) {
     expectInputError(src, {"asp_h.png", "asp_c.png", "aspect"});
     writePngRgb(src.colorPath, 20, 20, std::vector<Rgb8>(400, Rgb8{1, 1, 1}));
     EXPECT_NO_THROW(loadTerrain(src));
+}
+
+TEST(TerrainIo, ColourImageWiderThanTheHeightsIsCropped) {
+    // Heights 6 x 5; an orthophoto of 12 x 10 pixels of the same size reaching 2 pixels beyond
+    // the heights on the west and north and further on the east and south.
+    const int w = 6, h = 5, cw = 12, ch = 10;
+    const double gtH[6] = {500000.0, 30.0, 0, 5200000.0, 0, -30.0};
+    const double gtC[6] = {gtH[0] - 60.0, 30.0, 0, gtH[3] + 60.0, 0, -30.0};
+    std::vector<float> z(w * h, 10.0f);
+    std::vector<std::uint8_t> rgb(3 * cw * ch);  // band-sequential: r = column, g = row
+    for (int y = 0; y < ch; ++y) {
+        for (int x = 0; x < cw; ++x) {
+            rgb[y * cw + x] = static_cast<std::uint8_t>(10 * x);
+            rgb[cw * ch + y * cw + x] = static_cast<std::uint8_t>(10 * y);
+            rgb[2 * cw * ch + y * cw + x] = 77;
+        }
+    }
+    TerrainSource src;
+    src.heightPath = tmpPath("crop_h.tif");
+    src.colorPath = tmpPath("crop_c.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), gtH, false);
+    writeGeoTiff(src.colorPath, cw, ch, 3, GDT_Byte, rgb.data(), gtC, false);
+    const TerrainMap map = loadTerrain(src);
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        for (int x = 0; x < w; ++x) {
+            const Rgb8 c = map.colorAt(x, h - 1 - fileRow);
+            EXPECT_EQ(c, (Rgb8{static_cast<std::uint8_t>(10 * (x + 2)),
+                               static_cast<std::uint8_t>(10 * (fileRow + 2)), 77}))
+                << "row " << fileRow << " column " << x;
+        }
+    }
+    // Reaching beyond the heights on one side but short of them on another: an error.
+    const double gtShort[6] = {gtH[0] + 60.0, 30.0, 0, gtH[3] + 60.0, 0, -30.0};
+    writeGeoTiff(src.colorPath, cw, ch, 3, GDT_Byte, rgb.data(), gtShort, false);
+    expectInputError(src, {"crop_h.tif", "crop_c.tif", "does not cover"});
 }
 
 TEST(TerrainIo, RejectsTooSmallHeightMap) {
