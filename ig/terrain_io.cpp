@@ -735,7 +735,10 @@ struct AxisMap {
     double a = 1, b = 0;
 };
 
-void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorRaster& cr,
+// The colour pixel coordinate of each height sample, per axis (u = a * i + b), where the files
+// share a coordinate system or none is known; false when their systems differ (the mapping is
+// then not separable: resampleReprojected).
+bool colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorRaster& cr,
                   AxisMap& mx, AxisMap& my) {
     const Georef& hg = hr.geo;
     const Georef& cg = cr.geo;
@@ -744,7 +747,7 @@ void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorR
         if (hg.srs && cg.srs &&
             !OSRIsSame(static_cast<OGRSpatialReferenceH>(hg.srs.get()),
                        static_cast<OGRSpatialReferenceH>(cg.srs.get()))) {
-            throw InputError(both + ": coordinate reference systems differ");
+            return false;
         }
         // The colour image may reach beyond the heights (an orthophoto of a wider area): the
         // part over the map is used.
@@ -766,9 +769,9 @@ void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorR
         mx.b = (hg.gt[0] - cg.gt[0]) / cg.gt[1] + 0.5 * mx.a - 0.5;
         my.a = hg.gt[5] / cg.gt[5];
         my.b = (hg.gt[3] - cg.gt[3]) / cg.gt[5] + 0.5 * my.a - 0.5;
-        return;
+        return true;
     }
-    if (hr.width == cr.width && hr.height == cr.height) return;  // one colour per sample
+    if (hr.width == cr.width && hr.height == cr.height) return true;  // one colour per sample
     const double heightAspect = static_cast<double>(hr.width - 1) / (hr.height - 1);
     const double colorAspect = static_cast<double>(cr.width) / cr.height;
     if (std::abs(colorAspect / heightAspect - 1.0) > 0.02) {
@@ -782,6 +785,7 @@ void colorMapping(const TerrainSource& src, const HeightRaster& hr, const ColorR
     mx.b = -0.5;
     my.a = static_cast<double>(cr.height) / (hr.height - 1);
     my.b = -0.5;
+    return true;
 }
 
 // Index and weight of the two texels around coordinate u on an axis of n texels.
@@ -800,6 +804,16 @@ std::vector<Tap> makeTaps(int samples, int texels, AxisMap m) {
     return taps;
 }
 
+// Bilinear blend of four texels (a, b on the upper row, c, d below), weights from tx, ty.
+inline Rgb8 blendTexels(Rgb8 a, Rgb8 b, Rgb8 c, Rgb8 d, float tx, float ty) {
+    const float w00 = (1 - tx) * (1 - ty), w10 = tx * (1 - ty);
+    const float w01 = (1 - tx) * ty, w11 = tx * ty;
+    auto mix = [&](std::uint8_t p, std::uint8_t q, std::uint8_t s, std::uint8_t t) {
+        return static_cast<std::uint8_t>(w00 * p + w10 * q + w01 * s + w11 * t + 0.5f);
+    };
+    return Rgb8{mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
+}
+
 // Fills the map's colours (rows south first) by bilinear sampling of the north-up colour raster.
 void resampleColors(const ColorRaster& cr, AxisMap mx, AxisMap my, TerrainMap& map) {
     const int w = map.width(), h = map.height();
@@ -814,15 +828,102 @@ void resampleColors(const ColorRaster& cr, AxisMap mx, AxisMap my, TerrainMap& m
         Rgb8* out = map.colors().data() + map.index(0, h - 1 - fileRow);
         for (int ix = 0; ix < w; ++ix) {
             const Tap tx = cols[ix];
-            const float w00 = (1 - tx.w1) * (1 - ty.w1), w10 = tx.w1 * (1 - ty.w1);
-            const float w01 = (1 - tx.w1) * ty.w1, w11 = tx.w1 * ty.w1;
-            const Rgb8 a = r0[tx.i0], b = r0[tx.i1], c = r1[tx.i0], d = r1[tx.i1];
-            auto mix = [&](std::uint8_t p, std::uint8_t q, std::uint8_t s, std::uint8_t t) {
-                return static_cast<std::uint8_t>(w00 * p + w10 * q + w01 * s + w11 * t + 0.5f);
-            };
-            out[ix] =
-                Rgb8{mix(a.r, b.r, c.r, d.r), mix(a.g, b.g, c.g, d.g), mix(a.b, b.b, c.b, d.b)};
+            out[ix] = blendTexels(r0[tx.i0], r0[tx.i1], r1[tx.i0], r1[tx.i1], tx.w1, ty.w1);
         }
+    }
+}
+
+// Fills the map's colours from a colour raster in another coordinate system: each height sample's
+// centre is carried into the colour file's system by GDAL/PROJ on a lattice of every kLattice-th
+// sample (and the last), bilinear in between (projections are smooth: far below a pixel over 16
+// samples), then the colour is sampled bilinearly there.
+void resampleReprojected(const TerrainSource& src, const HeightRaster& hr, const ColorRaster& cr,
+                         TerrainMap& map) {
+    constexpr int kLattice = 16;
+    const std::string both = src.heightPath + " and " + src.colorPath;
+    const Georef& hg = hr.geo;
+    const Georef& cg = cr.geo;
+    auto traditional = [](const Georef& g) {
+        OGRSpatialReferenceH s = OSRClone(static_cast<OGRSpatialReferenceH>(g.srs.get()));
+        OSRSetAxisMappingStrategy(s, OAMS_TRADITIONAL_GIS_ORDER);  // x = easting / longitude
+        return std::unique_ptr<void, void (*)(void*)>(
+            s, [](void* p) { OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p)); });
+    };
+    const auto from = traditional(hg), to = traditional(cg);
+    OGRCoordinateTransformationH ct = OCTNewCoordinateTransformation(
+        static_cast<OGRSpatialReferenceH>(from.get()), static_cast<OGRSpatialReferenceH>(to.get()));
+    if (!ct) {
+        throw InputError(both + ": no transformation between their coordinate reference systems" +
+                         QuietGdal::lastError());
+    }
+    const std::unique_ptr<void, void (*)(void*)> ctGuard(ct, [](void* p) {
+        OCTDestroyCoordinateTransformation(static_cast<OGRCoordinateTransformationH>(p));
+    });
+    const int w = hr.width, h = hr.height;
+    auto lattice = [](int n) {
+        std::vector<int> at;
+        for (int i = 0; i < n - 1; i += kLattice)
+            at.push_back(i);
+        at.push_back(n - 1);
+        return at;
+    };
+    const std::vector<int> lx = lattice(w), ly = lattice(h);
+    // Colour pixel coordinates at the lattice nodes.
+    std::vector<double> u(lx.size() * ly.size()), v(u.size()), z(u.size(), 0.0);
+    std::vector<int> ok(u.size());
+    for (std::size_t j = 0; j < ly.size(); ++j) {
+        for (std::size_t i = 0; i < lx.size(); ++i) {
+            u[j * lx.size() + i] = hg.gt[0] + (lx[i] + 0.5) * hg.gt[1];
+            v[j * lx.size() + i] = hg.gt[3] + (ly[j] + 0.5) * hg.gt[5];
+        }
+    }
+    if (!OCTTransformEx(ct, static_cast<int>(u.size()), u.data(), v.data(), z.data(), ok.data()) ||
+        std::find(ok.begin(), ok.end(), 0) != ok.end()) {
+        throw InputError(both +
+                         ": the height map's positions cannot be carried into the colour "
+                         "image's coordinate reference system");
+    }
+    for (std::size_t k = 0; k < u.size(); ++k) {
+        u[k] = (u[k] - cg.gt[0]) / cg.gt[1] - 0.5;
+        v[k] = (v[k] - cg.gt[3]) / cg.gt[5] - 0.5;
+    }
+    const Rgb8* px = cr.pixels.data();
+    const std::size_t stride = static_cast<std::size_t>(cr.width);
+    std::size_t outside = 0;
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        const std::size_t j = std::min<std::size_t>(fileRow / kLattice, ly.size() - 2);
+        const double ty = ly.size() > 1 ? (fileRow - ly[j]) / double(ly[j + 1] - ly[j]) : 0.0;
+        Rgb8* out = map.colors().data() + map.index(0, h - 1 - fileRow);
+        for (int ix = 0; ix < w; ++ix) {
+            const std::size_t i = std::min<std::size_t>(ix / kLattice, lx.size() - 2);
+            const double tx = (ix - lx[i]) / double(lx[i + 1] - lx[i]);
+            auto at = [&](const std::vector<double>& f) {
+                const std::size_t k = j * lx.size() + i;
+                const double top = f[k] + (f[k + 1] - f[k]) * tx;
+                const double bottom =
+                    f[k + lx.size()] + (f[k + lx.size() + 1] - f[k + lx.size()]) * tx;
+                return top + (bottom - top) * ty;
+            };
+            const double cu = at(u), cv = at(v);
+            // Within one pixel of the colour image's edge counts as covered (as for one system).
+            if (!(cu >= -1.5 && cv >= -1.5 && cu <= cr.width + 0.5 && cv <= cr.height + 0.5)) {
+                ++outside;
+                continue;
+            }
+            const double uc = std::clamp(cu, 0.0, cr.width - 1.0);
+            const double vc = std::clamp(cv, 0.0, cr.height - 1.0);
+            const int u0 = std::min(static_cast<int>(uc), std::max(cr.width - 2, 0));
+            const int v0 = std::min(static_cast<int>(vc), std::max(cr.height - 2, 0));
+            const int u1 = std::min(u0 + 1, cr.width - 1), v1 = std::min(v0 + 1, cr.height - 1);
+            const Rgb8* r0 = px + v0 * stride;
+            const Rgb8* r1 = px + v1 * stride;
+            out[ix] = blendTexels(r0[u0], r0[u1], r1[u0], r1[u1], static_cast<float>(uc - u0),
+                                  static_cast<float>(vc - v0));
+        }
+    }
+    if (outside > 0) {
+        throw InputError(both + ": the colour image does not cover the height map (" +
+                         std::to_string(outside) + " height samples fall outside it)");
     }
 }
 
@@ -1011,8 +1112,11 @@ TerrainMap loadTerrain(const TerrainSource& src) {
         return map;
     }
     AxisMap mx, my;
-    colorMapping(src, hr, cr, mx, my);
-    resampleColors(cr, mx, my, map);
+    if (colorMapping(src, hr, cr, mx, my)) {
+        resampleColors(cr, mx, my, map);
+    } else {
+        resampleReprojected(src, hr, cr, map);
+    }
     return map;
 }
 

@@ -878,6 +878,91 @@ TEST(TerrainIo, ColourImageWiderThanTheHeightsIsCropped) {
     expectInputError(src, {"crop_h.tif", "crop_c.tif", "does not cover"});
 }
 
+// Gives a GeoTIFF the coordinate reference system of an EPSG code.
+void setEpsg(const std::string& path, int epsg) {
+    GDALDatasetH ds = GDALOpen(path.c_str(), GA_Update);
+    ASSERT_NE(ds, nullptr) << path;
+    OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+    ASSERT_EQ(OSRImportFromEPSG(srs, epsg), OGRERR_NONE);
+    GDALSetSpatialRef(ds, srs);
+    OSRDestroySpatialReference(srs);
+    GDALClose(ds);
+}
+
+TEST(TerrainIo, ColourInAnotherCoordinateSystemIsReprojected) {
+    // Heights in UTM zone 10N, colours in WGS84 degrees whose red counts columns and green rows:
+    // each sample's colour tells where in the colour image it was taken.
+    const int w = 40, h = 30, cw = 200, ch = 150;
+    const double gtH[6] = {500000.0, 30.0, 0, 5200000.0, 0, -30.0};
+    OGRSpatialReferenceH utm = OSRNewSpatialReference(nullptr),
+                         wgs = OSRNewSpatialReference(nullptr);
+    ASSERT_EQ(OSRImportFromEPSG(utm, 32610), OGRERR_NONE);
+    ASSERT_EQ(OSRImportFromEPSG(wgs, 4326), OGRERR_NONE);
+    OSRSetAxisMappingStrategy(utm, OAMS_TRADITIONAL_GIS_ORDER);
+    OSRSetAxisMappingStrategy(wgs, OAMS_TRADITIONAL_GIS_ORDER);
+    OGRCoordinateTransformationH ct = OCTNewCoordinateTransformation(utm, wgs);
+    ASSERT_NE(ct, nullptr);
+    auto toLonLat = [&](double x, double y) {
+        double px = x, py = y, pz = 0.0;
+        EXPECT_TRUE(OCTTransform(ct, 1, &px, &py, &pz));
+        return std::pair{px, py};
+    };
+    double lon0 = 1e9, lon1 = -1e9, lat0 = 1e9, lat1 = -1e9;
+    for (double x : {gtH[0], gtH[0] + w * gtH[1]}) {
+        for (double y : {gtH[3], gtH[3] + h * gtH[5]}) {
+            const auto [lon, lat] = toLonLat(x, y);
+            lon0 = std::min(lon0, lon);
+            lon1 = std::max(lon1, lon);
+            lat0 = std::min(lat0, lat);
+            lat1 = std::max(lat1, lat);
+        }
+    }
+    const double margin = 0.002;
+    const double gtC[6] = {lon0 - margin,
+                           (lon1 - lon0 + 2 * margin) / cw,
+                           0,
+                           lat1 + margin,
+                           0,
+                           -(lat1 - lat0 + 2 * margin) / ch};
+    std::vector<float> z(w * h, 10.0f);
+    std::vector<std::uint8_t> rgb(3 * cw * ch);
+    for (int y = 0; y < ch; ++y) {
+        for (int x = 0; x < cw; ++x) {
+            rgb[y * cw + x] = static_cast<std::uint8_t>(x);
+            rgb[cw * ch + y * cw + x] = static_cast<std::uint8_t>(y);
+            rgb[2 * cw * ch + y * cw + x] = 5;
+        }
+    }
+    TerrainSource src;
+    src.heightPath = tmpPath("utm_h.tif");
+    src.colorPath = tmpPath("wgs_c.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), gtH, false);
+    setEpsg(src.heightPath, 32610);
+    writeGeoTiff(src.colorPath, cw, ch, 3, GDT_Byte, rgb.data(), gtC, true);
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_NEAR(map.spacingX(), 30.0, 1e-9);
+    double worst = 0.0;
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        for (int x = 0; x < w; ++x) {
+            const auto [lon, lat] =
+                toLonLat(gtH[0] + (x + 0.5) * gtH[1], gtH[3] + (fileRow + 0.5) * gtH[5]);
+            const double u = (lon - gtC[0]) / gtC[1] - 0.5, v = (lat - gtC[3]) / gtC[5] - 0.5;
+            const Rgb8 c = map.colorAt(x, h - 1 - fileRow);
+            worst = std::max({worst, std::abs(c.r - u), std::abs(c.g - v)});
+            EXPECT_EQ(c.b, 5);
+        }
+    }
+    EXPECT_LE(worst, 0.51);  // only the rounding to 8 bits
+    OCTDestroyCoordinateTransformation(ct);
+    OSRDestroySpatialReference(utm);
+    OSRDestroySpatialReference(wgs);
+
+    // A colour image that misses part of the heights.
+    const double gtSmall[6] = {gtC[0] + 0.3 * (lon1 - lon0), gtC[1], 0, gtC[3], 0, gtC[5]};
+    writeGeoTiff(src.colorPath, cw, ch, 3, GDT_Byte, rgb.data(), gtSmall, true);
+    expectInputError(src, {"utm_h.tif", "wgs_c.tif", "does not cover"});
+}
+
 TEST(TerrainIo, RejectsTooSmallHeightMap) {
     TerrainSource src;
     src.heightPath = tmpPath("one_row.png");
