@@ -3,11 +3,13 @@
 #include "ig/error.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <fstream>
 #include <numbers>
 #include <sstream>
+#include <vector>
 
 namespace sim {
 
@@ -60,8 +62,22 @@ Trajectory Trajectory::loadCsv(const std::string& path) {
 }
 
 Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) {
+    // The header names the columns: the seven of kHeader in any order; others are ignored.
+    constexpr std::string_view kNames[7] = {"t", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"};
+    auto splitFields = [](std::string_view line) {
+        std::vector<std::string_view> fields;
+        while (true) {
+            const std::size_t comma = line.find(',');
+            fields.push_back(trim(line.substr(0, comma)));
+            if (comma == std::string_view::npos) break;
+            line.remove_prefix(comma + 1);
+        }
+        return fields;
+    };
     std::vector<TrajectorySample> samples;
     bool header = false;
+    std::size_t columns = 0;
+    std::size_t at[7] = {};  // the column of each of kNames
     int lineNo = 0;
     while (!text.empty()) {
         const std::size_t eol = text.find('\n');
@@ -70,39 +86,54 @@ Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) 
         ++lineNo;
         const std::string where = name + ":" + std::to_string(lineNo) + ": ";
         if (line.empty() || line.front() == '#') continue;
+        const std::vector<std::string_view> fields = splitFields(line);
         if (!header) {
-            if (stripSpaces(line) != kHeader) {
-                throw ig::InputError(where + "expected the header '" + std::string(kHeader) +
-                                     "', found '" + std::string(line) + "'");
+            const std::string expected = "expected a header naming the columns " +
+                                         std::string(kHeader) +
+                                         " (any order, other columns ignored)";
+            bool seen[7] = {};
+            for (std::size_t c = 0; c < fields.size(); ++c) {
+                std::string lower = stripSpaces(fields[c]);
+                std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char ch) {
+                    return static_cast<char>(std::tolower(ch));
+                });
+                for (int k = 0; k < 7; ++k) {
+                    if (lower != kNames[k]) continue;
+                    if (seen[k]) {
+                        throw ig::InputError(where + "column '" + std::string(kNames[k]) +
+                                             "' appears twice in the header");
+                    }
+                    seen[k] = true;
+                    at[k] = c;
+                }
             }
+            for (int k = 0; k < 7; ++k) {
+                if (!seen[k]) {
+                    throw ig::InputError(where + "no column '" + std::string(kNames[k]) + "'; " +
+                                         expected + ", found '" + std::string(line) + "'");
+                }
+            }
+            columns = fields.size();
             header = true;
             continue;
         }
-        double v[7];
-        int count = 0;
-        while (true) {
-            const std::size_t comma = line.find(',');
-            const std::string_view field = trim(line.substr(0, comma));
-            if (count == 7) {
-                throw ig::InputError(where + "more than 7 columns");
-            }
-            const char* end = field.data() + field.size();
-            const auto [ptr, ec] = std::from_chars(field.data(), end, v[count]);
-            if (field.empty() || ec != std::errc() || ptr != end) {
-                throw ig::InputError(where + "column " + std::to_string(count + 1) + " ('" +
-                                     std::string(field) + "') is not a number");
-            }
-            if (!std::isfinite(v[count])) {
-                throw ig::InputError(where + "column " + std::to_string(count + 1) +
-                                     " is not finite");
-            }
-            ++count;
-            if (comma == std::string_view::npos) break;
-            line.remove_prefix(comma + 1);
+        if (fields.size() != columns) {
+            throw ig::InputError(where + "expected " + std::to_string(columns) +
+                                 " columns as in the header, found " +
+                                 std::to_string(fields.size()));
         }
-        if (count != 7) {
-            throw ig::InputError(where + "expected 7 columns (" + std::string(kHeader) +
-                                 "), found " + std::to_string(count));
+        double v[7];
+        for (int k = 0; k < 7; ++k) {
+            const std::string_view field = fields[at[k]];
+            const std::string column =
+                "column " + std::to_string(at[k] + 1) + " (" + std::string(kNames[k]) + ")";
+            const char* end = field.data() + field.size();
+            const auto [ptr, ec] = std::from_chars(field.data(), end, v[k]);
+            if (field.empty() || ec != std::errc() || ptr != end) {
+                throw ig::InputError(where + column + " '" + std::string(field) +
+                                     "' is not a number");
+            }
+            if (!std::isfinite(v[k])) throw ig::InputError(where + column + " is not finite");
         }
         if (!samples.empty() && !(v[0] > samples.back().t)) {
             throw ig::InputError(where + "time " + std::to_string(v[0]) +

@@ -14,9 +14,10 @@ struct TrajectorySample {
     ig::Pose pose;  // angles unwrapped along the trajectory (shortest arc between rows)
 };
 
-// CSV with header `t,x,y,z,yaw_deg,pitch_deg,roll_deg`; times strictly increasing; metres and
-// degrees (yaw clockwise from north, pitch up, roll right wing down). Blank lines and lines
-// starting with '#' are skipped.
+// CSV whose header names the columns t, x, y, z, yaw_deg, pitch_deg, roll_deg in any order (names
+// compared without case or spaces; other columns are ignored, e.g. speed or a phase label);
+// times strictly increasing; metres and degrees (yaw clockwise from north, pitch up, roll right
+// wing down). Blank lines and lines starting with '#' are skipped.
 class Trajectory {
   public:
     // Throws ig::InputError naming the file (and line) and the problem.

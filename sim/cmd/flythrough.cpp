@@ -44,7 +44,7 @@ own instant and handed to the output. --clock simulated runs the same loop witho
 every render modelled as taking 1/--render-hz s (12 Hz when uncapped): reproducible output.
 
 Stick scripts: "TIME axis pitch|roll|yaw|throttle VALUE [ramp S]" or "TIME button trigger
-down|up" per line. Trajectory CSV: t,x,y,z,yaw_deg,pitch_deg,roll_deg.
+down|up" per line. Trajectory CSV: a header naming t,x,y,z,yaw_deg,pitch_deg,roll_deg (any order; other columns ignored).
 --start X,Y,Z,HEADING (metres, degrees; Z written +H is H metres above the terrain) sets where
 a stick flight begins (default: the scenario's start on Puget Sound, else over the south-west
 of the map heading north-east).)";

@@ -70,16 +70,36 @@ TEST(Trajectory, AnglesTakeTheShortestArc) {
     }
 }
 
+TEST(Trajectory, ColumnsInAnyOrderAndExtraColumnsIgnored) {
+    const Trajectory a = Trajectory::parseCsv(
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,1,2,3,10,-5,2\n2,5,6,7,20,-3,1\n", "plain");
+    // Reordered, upper case, with spaces, CRLF and two columns the product does not use.
+    const Trajectory b = Trajectory::parseCsv(
+        "Roll_deg, phase, T, z, y, x, pitch_deg, speed_mps, yaw_deg\r\n"
+        "2, climb, 0, 3, 2, 1, -5, 80.5, 10\r\n"
+        "1, cruise, 2, 7, 6, 5, -3, n/a, 20\r\n",
+        "reordered");
+    for (double t : {0.0, 0.7, 1.3, 2.0}) {
+        const ig::Pose pa = a.poseAt(t), pb = b.poseAt(t);
+        EXPECT_EQ(pa.position, pb.position) << t;
+        EXPECT_EQ(pa.yaw, pb.yaw) << t;
+        EXPECT_EQ(pa.pitch, pb.pitch) << t;
+        EXPECT_EQ(pa.roll, pb.roll) << t;
+    }
+    EXPECT_EQ(b.poseAt(0.0).position, (glm::dvec3{1, 2, 3}));
+}
+
 TEST(Trajectory, BadFilesNameTheLine) {
     const std::string h = "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n";
     struct Case {
         std::string text, expect;
     };
     const Case cases[] = {
-        {"t,x,y,z,yaw,pitch,roll\n0,0,0,0,0,0,0\n", "bad.csv:1:"},
+        {"t,x,y,z,yaw,pitch,roll\n0,0,0,0,0,0,0\n", "bad.csv:1: no column 'yaw_deg'"},
+        {"t,x,y,z,yaw_deg,pitch_deg,roll_deg,x\n", "bad.csv:1: column 'x' appears twice"},
         {h + "0,0,0,0,0,0\n", "bad.csv:2: expected 7 columns"},
-        {h + "0,0,0,0,0,0,0,0\n", "bad.csv:2: more than 7"},
-        {h + "0,0,0,0,0,0,0\n1,0,abc,0,0,0,0\n", "bad.csv:3: column 3"},
+        {h + "0,0,0,0,0,0,0,0\n", "bad.csv:2: expected 7 columns as in the header, found 8"},
+        {h + "0,0,0,0,0,0,0\n1,0,abc,0,0,0,0\n", "bad.csv:3: column 3 (y)"},
         {h + "0,0,0,0,0,0,0\n0,1,0,0,0,0,0\n", "bad.csv:3: time"},
         {h + "0,0,0,0,0,0,0\n1,nan,0,0,0,0,0\n", "bad.csv:3: column 2"},
         {h + "0,0,0,0,0,0,0\n1,0,0,inf,0,0,0\n", "bad.csv:3: column 4"},
