@@ -587,6 +587,56 @@ HeightRaster readGdalHeights(const std::string& path, double scale, double offse
     return out;
 }
 
+// Colour samples wider than 8 bits (16-bit or float satellite and aerial imagery): one linear
+// stretch for all bands (so the colour balance is kept) from the 2nd to the 98th percentile of
+// the valid samples to 0..255, clipping beyond, as image viewers show such files by default.
+std::vector<Rgb8> readWideColors(const std::string& path, GDALDatasetH ds, int width, int height,
+                                 int bands) {
+    const std::size_t n = static_cast<std::size_t>(width) * height;
+    std::vector<double> v(n * bands);
+    std::vector<std::uint8_t> valid(n, 1);
+    for (int b = 0; b < bands; ++b) {
+        GDALRasterBandH band = GDALGetRasterBand(ds, b + 1);
+        if (GDALRasterIO(band, GF_Read, 0, 0, width, height, v.data() + n * b, width, height,
+                         GDT_Float64, 0, 0) != CE_None) {
+            fail(path, "cannot read colours" + QuietGdal::lastError());
+        }
+        if (!(GDALGetMaskFlags(band) & GMF_ALL_VALID)) {
+            std::vector<std::uint8_t> mask(n);
+            if (GDALRasterIO(GDALGetMaskBand(band), GF_Read, 0, 0, width, height, mask.data(),
+                             width, height, GDT_Byte, 0, 0) != CE_None) {
+                fail(path, "cannot read the no-data mask" + QuietGdal::lastError());
+            }
+            for (std::size_t k = 0; k < n; ++k)
+                valid[k] = valid[k] && mask[k];
+        }
+    }
+    // Percentiles from at most about a million valid samples spread over the image.
+    const std::size_t every = std::max<std::size_t>(1, n * bands / (1u << 20));
+    std::vector<double> sample;
+    for (std::size_t k = 0; k < n * bands; k += every) {
+        if (valid[k % n] && std::isfinite(v[k])) sample.push_back(v[k]);
+    }
+    if (sample.empty()) fail(path, "colour image has no valid sample");
+    auto percentile = [&](double p) {
+        const auto at = sample.begin() + static_cast<std::ptrdiff_t>(p * (sample.size() - 1));
+        std::nth_element(sample.begin(), at, sample.end());
+        return *at;
+    };
+    const double lo = percentile(0.02), hi = percentile(0.98);
+    const double gain = hi > lo ? 255.0 / (hi - lo) : 0.0;
+    auto q = [&](double x) {
+        if (!std::isfinite(x)) return std::uint8_t{0};
+        return static_cast<std::uint8_t>(std::clamp((x - lo) * gain + 0.5, 0.0, 255.0));
+    };
+    std::vector<Rgb8> px(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::uint8_t r = q(v[k]);
+        px[k] = bands == 3 ? Rgb8{r, q(v[n + k]), q(v[2 * n + k])} : Rgb8{r, r, r};
+    }
+    return px;
+}
+
 ColorRaster readGdalColors(const std::string& path) {
     QuietGdal quiet;
     GdalDataset ds;
@@ -600,8 +650,9 @@ ColorRaster readGdalColors(const std::string& path) {
     GDALRasterBandH band1 = GDALGetRasterBand(ds.handle, 1);
     const GDALDataType type = GDALGetRasterDataType(band1);
     if (type != GDT_Byte) {
-        fail(path, std::string("colour image must have 8-bit samples; this one has ") +
-                       GDALGetDataTypeName(type));
+        out.pixels = readWideColors(path, ds.handle, out.width, out.height, bands >= 3 ? 3 : 1);
+        out.geo = readGeoref(path, ds.handle);
+        return out;
     }
     GDALColorTableH palette = GDALGetRasterColorTable(band1);
     if (bands >= 3) {

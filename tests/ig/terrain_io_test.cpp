@@ -963,6 +963,56 @@ TEST(TerrainIo, ColourInAnotherCoordinateSystemIsReprojected) {
     expectInputError(src, {"utm_h.tif", "wgs_c.tif", "does not cover"});
 }
 
+TEST(TerrainIo, SixteenBitAndFloatColoursAreStretchedToEightBits) {
+    // 16-bit imagery: red counts columns, green rows, blue equals red.
+    const int w = 64, h = 32;
+    std::vector<std::uint16_t> rgb(3 * w * h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            rgb[y * w + x] = static_cast<std::uint16_t>(100 * x);
+            rgb[w * h + y * w + x] = static_cast<std::uint16_t>(200 * y);
+            rgb[2 * w * h + y * w + x] = static_cast<std::uint16_t>(100 * x);
+        }
+    }
+    std::vector<float> z(w * h, 1.0f);
+    TerrainSource src;
+    src.heightPath = tmpPath("wide_h.tif");
+    src.colorPath = tmpPath("wide_c.tif");
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+    writeGeoTiff(src.colorPath, w, h, 3, GDT_UInt16, rgb.data(), nullptr);
+    const TerrainMap map = loadTerrain(src);
+    int lowest = 255, highest = 0;
+    for (int iy = 0; iy < h; ++iy) {
+        for (int x = 0; x < w; ++x) {
+            const Rgb8 c = map.colorAt(x, iy);
+            EXPECT_EQ(c.b, c.r) << "one stretch for every band";
+            if (x > 0) {
+                EXPECT_GE(c.r, map.colorAt(x - 1, iy).r);
+            }
+            if (iy > 0) {
+                EXPECT_LE(c.g, map.colorAt(x, iy - 1).g);  // file rows run north first
+            }
+            lowest = std::min(lowest, int{c.r});
+            highest = std::max(highest, int{c.r});
+        }
+    }
+    EXPECT_EQ(lowest, 0);  // clipped below the 2nd percentile
+    EXPECT_EQ(highest, 255);
+    // 3200 sits near the middle of the pooled values 0..6300.
+    EXPECT_NEAR(map.colorAt(32, 0).r, 128, 20);
+
+    // Float samples with NaN: the NaN pixels are black, the rest stretched.
+    std::vector<float> grey(w * h);
+    for (int k = 0; k < w * h; ++k)
+        grey[k] = static_cast<float>(k % w) * 0.01f;
+    grey[5] = std::numeric_limits<float>::quiet_NaN();
+    writeGeoTiff(src.colorPath, w, h, 1, GDT_Float32, grey.data(), nullptr);
+    const TerrainMap greyMap = loadTerrain(src);
+    EXPECT_EQ(greyMap.colorAt(5, h - 1), (Rgb8{0, 0, 0}));
+    EXPECT_EQ(greyMap.colorAt(w - 1, 0), (Rgb8{255, 255, 255}));
+    EXPECT_EQ(greyMap.colorAt(0, 0), (Rgb8{0, 0, 0}));
+}
+
 TEST(TerrainIo, RejectsTooSmallHeightMap) {
     TerrainSource src;
     src.heightPath = tmpPath("one_row.png");
