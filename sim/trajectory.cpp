@@ -7,8 +7,10 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 namespace sim {
@@ -203,6 +205,52 @@ ig::Pose Trajectory::poseAt(double t) const {
     p.pitch = interp([](const ig::Pose& q) { return q.pitch; });
     p.roll = interp([](const ig::Pose& q) { return q.roll; });
     return p;
+}
+
+FittedTrajectory fitTrajectoryToMap(const Trajectory& trajectory, const ig::TerrainMap& map) {
+    const std::vector<TrajectorySample>& in = trajectory.samples();
+    double x0 = in.front().pose.position.x, x1 = x0;
+    double y0 = in.front().pose.position.y, y1 = y0;
+    double zLow = 0.0;
+    for (const TrajectorySample& s : in) {
+        x0 = std::min(x0, s.pose.position.x);
+        x1 = std::max(x1, s.pose.position.x);
+        y0 = std::min(y0, s.pose.position.y);
+        y1 = std::max(y1, s.pose.position.y);
+        zLow = std::min(zLow, s.pose.position.z);
+    }
+    FittedTrajectory out;
+    const double span = std::max(x1 - x0, y1 - y0);
+    const double room = 0.6 * std::min(map.extentX(), map.extentY());
+    out.scale = span > room ? room / span : 1.0;
+    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
+    const double mx = 0.5 * map.extentX(), my = 0.5 * map.extentY();
+    std::vector<TrajectorySample> samples = in;
+    for (TrajectorySample& s : samples) {
+        s.pose.position.x = mx + out.scale * (s.pose.position.x - cx);
+        s.pose.position.y = my + out.scale * (s.pose.position.y - cy);
+        s.pose.position.z = out.scale * (s.pose.position.z - zLow);
+    }
+    // The highest ground under the curve between the samples and two cells to each side.
+    const Trajectory flat = Trajectory::fromSamples(samples, "fitted trajectory");
+    const double reach = 2.0 * std::max(map.spacingX(), map.spacingY());
+    const double t0 = flat.startTime(), t1 = flat.endTime();
+    constexpr int kProbes = 400;
+    out.ground = -std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= kProbes; ++i) {
+        const glm::dvec3 p = flat.poseAt(t0 + (t1 - t0) * i / kProbes).position;
+        for (const auto& [dx, dy] :
+             {std::pair{0.0, 0.0}, std::pair{reach, 0.0}, std::pair{-reach, 0.0},
+              std::pair{0.0, reach}, std::pair{0.0, -reach}}) {
+            const double x = std::clamp(p.x + dx, 0.0, map.extentX());
+            const double y = std::clamp(p.y + dy, 0.0, map.extentY());
+            out.ground = std::max(out.ground, map.surfaceHeight(x, y));
+        }
+    }
+    for (TrajectorySample& s : samples)
+        s.pose.position.z += out.ground;
+    out.trajectory = Trajectory::fromSamples(std::move(samples), "fitted trajectory");
+    return out;
 }
 
 }  // namespace sim

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "ig/camera.hpp"
+#include "ig/terrain.hpp"
 
 #include <string>
 #include <string_view>
@@ -35,5 +36,17 @@ class Trajectory {
   private:
     std::vector<TrajectorySample> samples_;
 };
+
+// A trajectory laid over another map: its horizontal path scaled about its centre by `scale`
+// (1 when it fits in 60 % of the map's smaller side, less when it would not) and moved to the
+// map's centre; its heights taken as heights above `ground`, the highest terrain under and
+// beside the path (heights below 0 keep their distance to the lowest one); times and angles
+// unchanged, so a shape flown over one map can be flown over any.
+struct FittedTrajectory {
+    Trajectory trajectory;
+    double scale = 1.0;
+    double ground = 0.0;
+};
+FittedTrajectory fitTrajectoryToMap(const Trajectory& trajectory, const ig::TerrainMap& map);
 
 }  // namespace sim

@@ -24,7 +24,9 @@ constexpr const char* kNotes = R"(For base frames spread along each trajectory, 
 is rendered by the fast caster at time t (roll 0), warped by each model to t + k * 1001/60000 s,
 and compared with a true render at that pose (the reference caster where the pose is rolled):
 PSNR and mean absolute error (% of full scale) over the field's lines, averaged over base frames.
-Without --trajectory every CSV in the shipped data/trajectories folder is evaluated.)";
+Without --trajectory every CSV in the shipped data/trajectories folder is evaluated; over a map
+other than the shipped one each is laid over it: moved to its centre, scaled to fit, heights taken
+above the highest ground under the path.)";
 
 std::vector<int> parseHorizons(const std::string& text) {
     std::vector<int> ks;
@@ -163,7 +165,8 @@ int main(int argc, char** argv) {
         config.baseFrames = frames;
         config.timingRepeats = repeats;
         config.useSky = !noSky;
-        if (trajectories.empty()) {
+        const bool shippedTrajectories = trajectories.empty();
+        if (shippedTrajectories) {
             const std::filesystem::path dir = std::filesystem::path(VIG_DATA_DIR) / "trajectories";
             std::error_code ec;
             for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
@@ -180,6 +183,16 @@ int main(int argc, char** argv) {
 
         const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         std::printf("terrain: %s\n", ig::describeTerrain(map).c_str());
+        // The shipped trajectories are flown over Puget Sound; over another map they are laid
+        // over it (scaled to fit, heights above its highest ground under the path).
+        if (shippedTrajectories && !(terrain.height.empty() && terrain.synthetic.empty())) {
+            for (std::size_t i = 0; i < loaded.size(); ++i) {
+                const sim::FittedTrajectory f = sim::fitTrajectoryToMap(loaded[i], map);
+                std::printf("%s: laid over the map, scale %.3g, heights above %.1f m\n",
+                            trajectories[i].c_str(), f.scale, f.ground);
+                loaded[i] = f.trajectory;
+            }
+        }
         const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
         const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
 

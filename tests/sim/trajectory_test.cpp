@@ -1,6 +1,7 @@
 #include "sim/trajectory.hpp"
 
 #include "ig/error.hpp"
+#include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 #include "prp/evaluation.hpp"
 
@@ -159,6 +160,66 @@ TEST(WarpEvalPugetSound, PolynomialBeatsHoldAtEveryHorizonOnEachTrajectory) {
         ++checked;
     }
     EXPECT_GE(checked, 5);
+}
+
+}  // namespace
+}  // namespace sim
+
+namespace sim {
+namespace {
+
+// Every shipped trajectory laid over a small rough map and a large flat one: inside the map,
+// above its ground, the same shape (scaled), times and angles unchanged.
+TEST(FitTrajectoryToMap, ShippedShapesFitAnyMap) {
+    ig::TerrainMap flat(400, 300, 100.0, 100.0, 1.0, 250.0);  // 40 x 30 km at 250 m
+    flat.updateRange();
+    const ig::TerrainMap small = ig::makeSyntheticTerrain(256, 5, 5.0);  // 1.3 km, rough
+    for (const auto& entry : std::filesystem::directory_iterator("data/trajectories")) {
+        if (entry.path().extension() != ".csv") continue;
+        const Trajectory tr = Trajectory::loadCsv(entry.path().string());
+        for (const ig::TerrainMap* map : {static_cast<const ig::TerrainMap*>(&flat), &small}) {
+            SCOPED_TRACE(entry.path().string() + " over " + std::to_string(map->width()));
+            const sim::FittedTrajectory f = sim::fitTrajectoryToMap(tr, *map);
+            ASSERT_GT(f.scale, 0.0);
+            EXPECT_LE(f.scale, 1.0);
+            if (map == &flat) {
+                EXPECT_EQ(f.scale, 1.0);
+                EXPECT_NEAR(f.ground, 250.0, 1e-9);
+            }
+            const auto& a = tr.samples();
+            const auto& b = f.trajectory.samples();
+            ASSERT_EQ(a.size(), b.size());
+            for (std::size_t i = 0; i < a.size(); ++i) {
+                EXPECT_EQ(a[i].t, b[i].t);
+                EXPECT_NEAR(a[i].pose.yaw, b[i].pose.yaw, 1e-12);
+                EXPECT_NEAR(a[i].pose.pitch, b[i].pose.pitch, 1e-12);
+                EXPECT_NEAR(a[i].pose.roll, b[i].pose.roll, 1e-12);
+                if (i > 0) {  // the horizontal shape is scaled, not bent
+                    const glm::dvec2 da{a[i].pose.position.x - a[0].pose.position.x,
+                                        a[i].pose.position.y - a[0].pose.position.y};
+                    const glm::dvec2 db{b[i].pose.position.x - b[0].pose.position.x,
+                                        b[i].pose.position.y - b[0].pose.position.y};
+                    EXPECT_NEAR(db.x, f.scale * da.x, 1e-6);
+                    EXPECT_NEAR(db.y, f.scale * da.y, 1e-6);
+                    EXPECT_NEAR(b[i].pose.position.z - b[0].pose.position.z,
+                                f.scale * (a[i].pose.position.z - a[0].pose.position.z), 1e-6);
+                }
+            }
+            // Inside the map and above its ground all along, by the path's own lowest height.
+            const double t0 = f.trajectory.startTime(), t1 = f.trajectory.endTime();
+            double lowest = 1e300;
+            for (const auto& s : a)
+                lowest = std::min(lowest, s.pose.position.z);
+            for (int k = 0; k <= 200; ++k) {
+                const glm::dvec3 p = f.trajectory.poseAt(t0 + (t1 - t0) * k / 200).position;
+                EXPECT_GT(p.x, 0.0);
+                EXPECT_LT(p.x, map->extentX());
+                EXPECT_GT(p.y, 0.0);
+                EXPECT_LT(p.y, map->extentY());
+                EXPECT_GE(p.z - map->surfaceHeight(p.x, p.y), f.scale * lowest - 1e-6);
+            }
+        }
+    }
 }
 
 }  // namespace
