@@ -18,6 +18,7 @@
 #include "ig/multires_march.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
+#include "ig/slope_bound.hpp"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define VIG_CASTER_PACKETS 1
@@ -171,6 +172,7 @@ class FastCaster final : public Caster {
         }
         pyramid_ = std::make_unique<TerrainPyramid>(map, options_.levels);
         topLevel_ = pyramid_->levelCount() - 1;
+        slopes_ = std::make_unique<SlopeBlocks>(map);
     }
     CasterKind kind() const override { return CasterKind::Fast; }
 
@@ -316,8 +318,7 @@ class FastCaster final : public Caster {
         double d0;
         double invSx, invSy;
         double maxSlope;
-        // The most the terrain can rise per minor grid unit across a major-x (y) ray's track.
-        double slopeX, slopeY;
+        double spacingX, spacingY;
         bool multires;
     };
 
@@ -328,7 +329,37 @@ class FastCaster final : public Caster {
         int prevSgn = 0;
         double prevRn = 0.0, prevRz = 0.0, prevU = 0.0;
         std::uint64_t steps = 0, restarts = 0;
+        WedgeSlope wedge;  // the terrain's slope bound over the column's wedge, by distance
     };
+
+    // Starts a column's state: its slope bounds look at the wedge its rays sweep.
+    void startColumn(const Camera& camera, const ColumnContext& cc, ColumnState& st) const {
+        const glm::dvec3 last = cc.base + static_cast<double>(camera.intrinsics().height) * cc.down;
+        double reach = 0.0;
+        for (const double x : {0.0, map_.extentX()})
+            for (const double y : {0.0, map_.extentY()})
+                reach = std::max(reach, std::hypot(x - cc.eye.x, y - cc.eye.y));
+        st.wedge.reset(slopes_.get(), {cc.eye.x, cc.eye.y}, {cc.base.x, cc.base.y},
+                       {last.x, last.y}, reach, cc.maxSlope);
+    }
+
+    // Whether this ray (rn minor cells and rz metres per major unit) climbs over the ray below
+    // fast enough to stay clear of the terrain up to where that ray stopped: per major unit it
+    // must rise more than the steepest terrain within that distance of the eye, in the column's
+    // wedge, rises across the gap between them. Tested with the map's global bound first (no
+    // local bound exceeds it, so a pass there is a pass); the same arithmetic in both paths
+    // (the images are compared bit for bit).
+    static bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn,
+                            double rz) {
+        const double sMajor = majorX ? cc.spacingX : cc.spacingY;
+        const double sMinor = majorX ? cc.spacingY : cc.spacingX;
+        const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
+        if (climb >= cc.maxSlope * sMinor * gap) return true;
+        // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
+        const double reach =
+            st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
+        return climb >= st.wedge.upTo(reach) * sMinor * gap;
+    }
 
     // One ray of a column, any case: coherent, restarted, past the level-0 distance, straight
     // down. Sets the colour and the hit distance (negative: sky) and moves the state on.
@@ -360,11 +391,10 @@ class FastCaster final : public Caster {
         const int sgn = gm > 0 ? 1 : -1;
         const double rn = gn * inv, rz = d.z * inv, lenPerU = len * inv;
         // At equal u this ray is (rz - prevRz) * u higher than the ray below and |rn - prevRn| * u
-        // minor cells to the side, where the terrain is at most maxSlope times that higher: when
-        // the climb wins, it cannot meet the terrain before the ray below stopped.
-        const bool coherent =
-            st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
-            rz - st.prevRz >= (majorX ? cc.slopeX : cc.slopeY) * std::abs(rn - st.prevRn);
+        // minor cells to the side, where the terrain is at most its slope bound times that
+        // higher: when the climb wins, it cannot meet the terrain before the ray below stopped.
+        const bool coherent = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
+                              climbsClear(cc, st, majorX, rn, rz);
         if (st.havePrev && !coherent) ++st.restarts;
         bool resolved = false;
         if (coherent && st.prevAbove) {
@@ -468,8 +498,8 @@ class FastCaster final : public Caster {
                              invSx,
                              invSy,
                              map_.maxSlope(),
-                             map_.spacingY() * map_.maxSlope(),
-                             map_.spacingX() * map_.maxSlope(),
+                             map_.spacingX(),
+                             map_.spacingY(),
                              topLevel_ > 0};
     }
 
@@ -480,6 +510,7 @@ class FastCaster final : public Caster {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
         const ColumnContext cc = columnContext(mv, camera, d0, x);
         ColumnState st;
+        startColumn(camera, cc, st);
         Rgb8* colorOut = frame.color.data() + x;
         float* depthOut = frame.depth.data() + x;
         const int sub = options_.supersample;
@@ -747,8 +778,12 @@ class FastCaster final : public Caster {
             done[l] = false;
         }
         const V4 dRn = rn - prevRn;
-        const M4 coherent =
-            rz - prevRz >= (kMajorX ? cc[0].slopeX : cc[0].slopeY) * (dRn < 0.0 ? -dRn : dRn);
+        const double sMinor = kMajorX ? cc[0].spacingY : cc[0].spacingX;
+        M4 coherent = rz - prevRz >= cc[0].maxSlope * sMinor * (dRn < 0.0 ? -dRn : dRn);
+        if (vmask(coherent) != 15) {
+            for (int l = 0; l < 4; ++l)
+                coherent[l] = climbsClear(cc[l], st[l], kMajorX, rn[l], rz[l]) ? -1 : 0;
+        }
         V4 uNear = zero + std::numeric_limits<double>::infinity();
         if (cc[0].multires) uNear = cc[0].d0 / (vsqrt(dx * dx + dy * dy) * inv);
         // marchCoherent's set-up.
@@ -913,6 +948,7 @@ class FastCaster final : public Caster {
         V4 bx, by, bz;
         for (int l = 0; l < 4; ++l) {
             cc[l] = columnContext(mv, camera, d0, x0 + l);
+            startColumn(camera, cc[l], st[l]);
             bx[l] = cc[l].base.x;
             by[l] = cc[l].base.y;
             bz[l] = cc[l].base.z;
@@ -1109,6 +1145,7 @@ class FastCaster final : public Caster {
     const TerrainMap& map_;
     RenderOptions options_;
     std::unique_ptr<TerrainPyramid> pyramid_;
+    std::unique_ptr<SlopeBlocks> slopes_;
     int topLevel_ = 0;
 };
 

@@ -1,0 +1,162 @@
+// Local slope bounds of the fast caster's coherence test: they bound the terrain where they
+// claim to, and a steep feature in one place no longer costs coherence everywhere.
+#include "ig/slope_bound.hpp"
+#include "ig/caster.hpp"
+#include "ig/terrain.hpp"
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <numbers>
+
+namespace {
+
+using ig::SlopeBlocks;
+using ig::TerrainMap;
+using ig::WedgeSlope;
+
+TerrainMap makeMap(int w, int h, double spacing, const std::function<int(int, int)>& raw) {
+    TerrainMap map(w, h, spacing, spacing, 0.5, -40.0);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix)
+            map.setRaw(ix, iy, static_cast<std::uint16_t>(raw(ix, iy)));
+    map.updateRange();
+    return map;
+}
+
+// Rolling hills with a few towers (5 x 5 samples raised 300 m).
+TerrainMap hillsWithTowers(int n, bool towers) {
+    return makeMap(n, n, 10.0, [n, towers](int ix, int iy) {
+        int v = 2000 + static_cast<int>(300 * std::sin(ix * 0.05) * std::cos(iy * 0.04));
+        if (towers) {
+            for (const auto& [tx, ty] : {std::pair{n / 2, n / 2}, std::pair{n / 5, 4 * n / 5},
+                                         std::pair{4 * n / 5, n / 3}}) {
+                if (std::abs(ix - tx) <= 2 && std::abs(iy - ty) <= 2) v += 600;
+            }
+        }
+        return v;
+    });
+}
+
+// The bound of one cell's bilinear surface gradient, as TerrainMap computes its global one.
+double cellGradient(const TerrainMap& map, int cx, int cy) {
+    const double h00 = map.heightAt(cx, cy), h10 = map.heightAt(cx + 1, cy);
+    const double h01 = map.heightAt(cx, cy + 1), h11 = map.heightAt(cx + 1, cy + 1);
+    const double gx = std::max(std::abs(h10 - h00), std::abs(h11 - h01)) / map.spacingX();
+    const double gy = std::max(std::abs(h01 - h00), std::abs(h11 - h10)) / map.spacingY();
+    return std::sqrt(gx * gx + gy * gy);
+}
+
+double gradientAt(const TerrainMap& map, double x, double y) {
+    const int cx = std::clamp(static_cast<int>(x / map.spacingX()), 0, map.width() - 2);
+    const int cy = std::clamp(static_cast<int>(y / map.spacingY()), 0, map.height() - 2);
+    return cellGradient(map, cx, cy);
+}
+
+TEST(SlopeBlocks, BoundEveryCellAndStayLowAwayFromSteepGround) {
+    const TerrainMap map = hillsWithTowers(200, true);
+    const SlopeBlocks blocks(map);
+    double lowest = 1e300;
+    for (int cy = 0; cy + 1 < map.height(); ++cy) {
+        for (int cx = 0; cx + 1 < map.width(); ++cx) {
+            const double g = cellGradient(map, cx, cy);
+            // Anywhere in the cell, and any box that touches it.
+            for (const double fx : {0.0, 0.5, 0.999}) {
+                for (const double fy : {0.0, 0.5, 0.999}) {
+                    const double x = (cx + fx) * map.spacingX(), y = (cy + fy) * map.spacingY();
+                    ASSERT_GE(blocks.at(x, y), g) << cx << "," << cy;
+                    ASSERT_GE(blocks.maxOver(x - 50.0, y, x, y + 3.0), g);
+                }
+            }
+            lowest = std::min(lowest,
+                              blocks.at((cx + 0.5) * map.spacingX(), (cy + 0.5) * map.spacingY()));
+        }
+    }
+    EXPECT_LE(blocks.at(0.0, 0.0), map.maxSlope());
+    EXPECT_LT(lowest, 0.1 * map.maxSlope()) << "away from the towers the bound is the hills'";
+}
+
+TEST(WedgeSlope, CoversEveryPointOfItsWedge) {
+    const TerrainMap map = hillsWithTowers(200, true);
+    const SlopeBlocks blocks(map);
+    std::uint32_t state = 7;
+    auto uniform = [&state] {
+        state = state * 1664525u + 1013904223u;
+        return (state >> 8) / 16777216.0;
+    };
+    const double extent = map.extentX();
+    for (int trial = 0; trial < 60; ++trial) {
+        const glm::dvec2 eye{uniform() * extent, uniform() * extent};
+        const double theta = 2 * std::numbers::pi * uniform();
+        const double spread = (trial % 3 == 0 ? 1.5 : 0.2) * uniform();  // up to ~86 degrees
+        const glm::dvec2 a{std::cos(theta), std::sin(theta)};
+        const glm::dvec2 b{std::cos(theta + spread), std::sin(theta + spread)};
+        WedgeSlope wedge;
+        wedge.reset(&blocks, eye, 3.0 * a, 0.5 * b, 1.5 * extent, map.maxSlope());
+        double previous = 0.0;
+        for (double d = 0.0; d < 1.5 * extent; d += 37.0) {
+            const double bound = wedge.upTo(d);
+            ASSERT_GE(bound, previous) << "the bound only grows with distance";
+            ASSERT_LE(bound, map.maxSlope());
+            previous = bound;
+            // Points of the wedge within distance d.
+            for (int k = 0; k < 8; ++k) {
+                const double r = d * uniform(), phi = theta + spread * uniform();
+                const glm::dvec2 p = eye + r * glm::dvec2{std::cos(phi), std::sin(phi)};
+                if (p.x < 0 || p.y < 0 || p.x > extent || p.y > extent) continue;
+                ASSERT_GE(bound, gradientAt(map, p.x, p.y))
+                    << "trial " << trial << " d " << d << " point " << p.x << "," << p.y;
+            }
+        }
+    }
+    // A wedge wider than a right angle falls back to the global bound.
+    WedgeSlope wide;
+    wide.reset(&blocks, {100.0, 100.0}, {1.0, 0.0}, {-1.0, 0.2}, 3000.0, map.maxSlope());
+    EXPECT_EQ(wide.upTo(10.0), map.maxSlope());
+}
+
+// Towers on the map cost coherence only in the columns whose rays pass over them: the image
+// stays exact (as the reference caster's), and only a few rays restart (with the map's one
+// global bound, the towers' slope, every ray past the first few rows of every column would).
+TEST(FastCaster, SteepFeaturesCostCoherenceOnlyWhereTheyAre) {
+    const TerrainMap hills = hillsWithTowers(400, false), towers = hillsWithTowers(400, true);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(160, 120, ig::degToRad(60), 0);
+    const auto reference = ig::makeCaster(ig::CasterKind::Reference, towers);
+    const auto fast = ig::makeCaster(ig::CasterKind::Fast, towers);
+    const auto fastHills = ig::makeCaster(ig::CasterKind::Fast, hills);
+    std::uint64_t restartsTowers = 0, restartsHills = 0, pixels = 0;
+    int towerPixels = 0;
+    for (const double yaw : {20.0, 135.0, 250.0}) {
+        for (const double pitch : {-5.0, -15.0}) {
+            ig::Pose pose;
+            pose.position = {1300.0, 1100.0, 1200.0};
+            pose.yaw = ig::degToRad(yaw);
+            pose.pitch = ig::degToRad(pitch);
+            const auto ref = ig::renderFrame(*reference, towers, pose, in);
+            const auto got = ig::renderFrame(*fast, towers, pose, in);
+            const auto plain = ig::renderFrame(*fastHills, hills, pose, in);
+            restartsTowers += got.stats.restarts;
+            pixels += ref.depth.size();
+            restartsHills += plain.stats.restarts;
+            for (std::size_t i = 0; i < ref.depth.size(); ++i) {
+                if (!std::isfinite(ref.depth[i])) {
+                    ASSERT_FALSE(std::isfinite(got.depth[i])) << i;
+                    continue;
+                }
+                ASSERT_NEAR(got.depth[i], ref.depth[i], 1e-3 * ref.depth[i])
+                    << "yaw " << yaw << " pitch " << pitch << " pixel " << i;
+                towerPixels += std::abs(plain.depth[i] - ref.depth[i]) > 0.01 * ref.depth[i];
+            }
+        }
+    }
+    EXPECT_GT(towerPixels, 100) << "the towers are in view";
+    // Measured: 3.2 % of the rays (the hills alone: 0.03 %).
+    EXPECT_LT(restartsTowers, pixels / 20)
+        << "towers " << restartsTowers << ", hills alone " << restartsHills << ", of " << pixels;
+    EXPECT_LT(restartsHills, pixels / 1000);
+}
+
+}  // namespace
