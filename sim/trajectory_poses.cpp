@@ -2,6 +2,7 @@
 
 #include "ig/error.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace sim {
@@ -21,6 +22,23 @@ void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap
             throw ig::InputError(name + ": " + buf);
         }
     };
+    const double far = std::max(map.extentX(), map.extentY());
+    bool near = false;
+    for (const TrajectorySample& s : trajectory.samples()) {
+        const glm::dvec3 p = s.pose.position;
+        near = near ||
+               (p.x > -far && p.y > -far && p.x < map.extentX() + far && p.y < map.extentY() + far);
+    }
+    if (!near) {
+        const glm::dvec3 p = trajectory.samples().front().pose.position;
+        char buf[320];
+        std::snprintf(buf, sizeof buf,
+                      "every position lies far off the map (the first at %.1f, %.1f; the map "
+                      "spans x 0..%.1f, y 0..%.1f m): positions are metres east and north of the "
+                      "map's south-west sample",
+                      p.x, p.y, map.extentX(), map.extentY());
+        throw ig::InputError(name + ": " + buf);
+    }
     for (const TrajectorySample& s : trajectory.samples())
         check(s.t);
     for (double t = trajectory.startTime(); t < trajectory.endTime(); t += step)

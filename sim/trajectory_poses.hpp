@@ -26,7 +26,9 @@ class TrajectoryPoses final : public PoseSource {
 
 // Throws ig::InputError naming `name` when the trajectory passes within
 // `clearance` metres of the terrain surface (checked every `step` seconds and
-// at every sample).
+// at every sample), or when every sample lies further from the map than the
+// map's own size (positions in another frame, such as UTM or degrees, instead
+// of metres from the map's south-west sample).
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
                               const std::string& name, double clearance = 1.0, double step = 0.05);
 

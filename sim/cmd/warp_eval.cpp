@@ -6,6 +6,7 @@
 #include "prp/evaluation.hpp"
 #include "sim/plot.hpp"
 #include "sim/trajectory.hpp"
+#include "sim/trajectory_poses.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -193,6 +194,8 @@ int main(int argc, char** argv) {
                 loaded[i] = f.trajectory;
             }
         }
+        for (std::size_t i = 0; i < loaded.size(); ++i)
+            sim::checkTrajectoryClearance(loaded[i], map, trajectories[i]);
         const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
         const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
 

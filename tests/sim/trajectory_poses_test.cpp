@@ -74,4 +74,27 @@ TEST(TrajectoryPoses, TrajectoryIntoTheGroundIsRefusedByName) {
     }
 }
 
+TEST(TrajectoryPoses, TrajectoryFarOffTheMapIsRefusedByName) {
+    // A 1.9 km map; a trajectory written in UTM eastings and northings.
+    const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
+    const sim::Trajectory utm = sim::Trajectory::parseCsv(
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,500000,5200000,3000,0,-5,0\n"
+        "1,500100,5200000,3000,0,-5,0\n",
+        "utm.csv");
+    try {
+        sim::checkTrajectoryClearance(utm, map, "utm.csv");
+        FAIL() << "expected an InputError";
+    } catch (const ig::InputError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("utm.csv"), std::string::npos) << what;
+        EXPECT_NE(what.find("off the map"), std::string::npos) << what;
+    }
+    // Approaching from just outside the map is fine.
+    const sim::Trajectory approach = sim::Trajectory::parseCsv(
+        "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,-1500,900,3000,90,-5,0\n"
+        "1,-1400,900,3000,90,-5,0\n",
+        "approach.csv");
+    EXPECT_NO_THROW(sim::checkTrajectoryClearance(approach, map, "approach.csv"));
+}
+
 }  // namespace
