@@ -521,7 +521,28 @@ Georef readGeoref(const std::string& path, GDALDatasetH ds) {
     return geo;
 }
 
-HeightRaster readGdalHeights(const std::string& path, double scale, double offset,
+// Metres per unit of a band's vertical unit name (GDALGetRasterUnitType); 0 when unknown.
+double verticalUnitMetres(std::string name) {
+    std::transform(name.begin(), name.end(), name.begin(),
+                   [](unsigned char c) { return c == '_' || c == '-' ? ' ' : std::tolower(c); });
+    while (!name.empty() && name.back() == ' ')
+        name.pop_back();
+    while (!name.empty() && name.front() == ' ')
+        name.erase(name.begin());
+    for (const char* m : {"", "m", "metre", "meter", "metres", "meters"})
+        if (name == m) return 1.0;
+    for (const char* f : {"ft", "foot", "feet", "international foot", "foot international"})
+        if (name == f) return 0.3048;
+    for (const char* f : {"us survey foot", "us ft", "ftus", "foot us", "us foot", "survey foot"})
+        if (name == f) return 1200.0 / 3937.0;
+    if (name == "cm" || name == "centimetre" || name == "centimeter") return 0.01;
+    if (name == "dm" || name == "decimetre" || name == "decimeter") return 0.1;
+    if (name == "mm" || name == "millimetre" || name == "millimeter") return 0.001;
+    if (name == "km" || name == "kilometre" || name == "kilometer") return 1000.0;
+    return 0.0;
+}
+
+HeightRaster readGdalHeights(const std::string& path, double scale, double offset, bool userScale,
                              const std::optional<double>& voidHeight) {
     QuietGdal quiet;
     GdalDataset ds;
@@ -541,6 +562,26 @@ HeightRaster readGdalHeights(const std::string& path, double scale, double offse
                      out.height, GDT_Float64, 0, 0) != CE_None) {
         fail(path, "cannot read heights" + QuietGdal::lastError());
     }
+    // What the values are: the band's own scale and offset (GDAL's raw * scale + offset), in its
+    // vertical unit unless the user says how many metres a unit is.
+    int hasBandScale = 0, hasBandOffset = 0;
+    const double bandScale = GDALGetRasterScale(band, &hasBandScale);
+    const double bandOffset = GDALGetRasterOffset(band, &hasBandOffset);
+    if (!std::isfinite(bandScale) || bandScale == 0.0 || !std::isfinite(bandOffset)) {
+        fail(path, "band scale " + formatNumber(bandScale) + " / offset " +
+                       formatNumber(bandOffset) + " cannot give heights");
+    }
+    double unit = 1.0;
+    if (!userScale) {
+        const char* unitName = GDALGetRasterUnitType(band);
+        unit = verticalUnitMetres(unitName ? unitName : "");
+        if (unit == 0.0) {
+            fail(path, std::string("vertical unit '") + unitName +
+                           "' is not one this reader knows (m, ft, US survey foot, cm, km...); "
+                           "give --height-scale, metres per unit");
+        }
+    }
+    const double toMetres = bandScale * unit, toMetresOffset = bandOffset * unit;
     // Samples without data: the band's mask (its no-data value, an alpha band or a mask file,
     // as GDAL reads them) and NaN, which float rasters often use without declaring it.
     std::vector<std::uint8_t> valid;
@@ -569,7 +610,7 @@ HeightRaster readGdalHeights(const std::string& path, double scale, double offse
             if (!std::isfinite(v)) {
                 fail(path, "non-finite height (" + formatNumber(v) + ")" + where());
             }
-            v = v * scale + offset;
+            v = (v * toMetres + toMetresOffset) * scale + offset;
             if (!std::isfinite(v)) fail(path, "height out of range after scaling" + where());
         }
     }
@@ -690,7 +731,7 @@ ColorRaster readGdalColors(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Loading, georeference and colour resampling.
 
-HeightRaster readHeights(const std::string& path, double scale, double offset,
+HeightRaster readHeights(const std::string& path, double scale, double offset, bool userScale,
                          const std::optional<double>& voidHeight) {
     switch (sniff(path)) {
         case FileKind::Png:
@@ -700,7 +741,7 @@ HeightRaster readHeights(const std::string& path, double scale, double offset,
         case FileKind::Gdal:
             break;
     }
-    return readGdalHeights(path, scale, offset, voidHeight);
+    return readGdalHeights(path, scale, offset, userScale, voidHeight);
 }
 
 ColorRaster readColors(const std::string& path) {
@@ -1101,7 +1142,8 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     if (src.voidHeight && !std::isfinite(*src.voidHeight)) {
         fail(path, "void height must be finite (got " + formatNumber(*src.voidHeight) + ")");
     }
-    HeightRaster hr = readHeights(path, userScale, userOffset, src.voidHeight);
+    HeightRaster hr =
+        readHeights(path, userScale, userOffset, src.heightScale.has_value(), src.voidHeight);
     if (hr.width < 2 || hr.height < 2) {
         fail(path, "height map needs at least 2 x 2 samples (has " + std::to_string(hr.width) +
                        " x " + std::to_string(hr.height) + ")");

@@ -1013,6 +1013,50 @@ TEST(TerrainIo, SixteenBitAndFloatColoursAreStretchedToEightBits) {
     EXPECT_EQ(greyMap.colorAt(0, 0), (Rgb8{0, 0, 0}));
 }
 
+// Sets band 1's vertical unit, scale and offset (GDAL's metadata) of a GeoTIFF.
+void setBandUnits(const std::string& path, const char* unit, double scale, double offset) {
+    GDALDatasetH ds = GDALOpen(path.c_str(), GA_Update);
+    ASSERT_NE(ds, nullptr) << path;
+    GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+    GDALSetRasterUnitType(band, unit);
+    GDALSetRasterScale(band, scale);
+    GDALSetRasterOffset(band, offset);
+    GDALClose(ds);
+}
+
+TEST(TerrainIo, BandScaleOffsetAndVerticalUnitsGiveMetres) {
+    const int w = 3, h = 2;
+    const std::vector<std::int16_t> z = {0, 100, 200, 300, 400, 500};
+    TerrainSource src;
+    src.heightPath = tmpPath("units.tif");
+    auto heightAt = [&](const TerrainMap& map, int k) {
+        return map.heightAt(k % w, h - 1 - k / w);
+    };
+    // Feet: metres = raw * 0.3048.
+    writeGeoTiff(src.heightPath, w, h, 1, GDT_Int16, z.data(), nullptr, false);
+    setBandUnits(src.heightPath, "ft", 1.0, 0.0);
+    TerrainMap map = loadTerrain(src);
+    for (int k = 0; k < w * h; ++k)
+        EXPECT_NEAR(heightAt(map, k), z[k] * 0.3048, 0.01) << k;
+    // US survey feet, with a band scale and offset: (raw * 0.1 + 20) US feet.
+    setBandUnits(src.heightPath, "US survey foot", 0.1, 20.0);
+    map = loadTerrain(src);
+    for (int k = 0; k < w * h; ++k)
+        EXPECT_NEAR(heightAt(map, k), (z[k] * 0.1 + 20.0) * 1200.0 / 3937.0, 0.001) << k;
+    // The user's scale says what a unit is (it replaces the unit, not the band's scale), and
+    // the user's offset comes last.
+    src.heightScale = 2.0;
+    src.heightOffset = -1.0;
+    map = loadTerrain(src);
+    for (int k = 0; k < w * h; ++k)
+        EXPECT_NEAR(heightAt(map, k), (z[k] * 0.1 + 20.0) * 2.0 - 1.0, 0.001) << k;
+    // An unknown unit without a user scale is an error naming it.
+    src.heightScale.reset();
+    src.heightOffset.reset();
+    setBandUnits(src.heightPath, "furlong", 1.0, 0.0);
+    expectInputError(src, {"units.tif", "furlong", "--height-scale"});
+}
+
 TEST(TerrainIo, RejectsTooSmallHeightMap) {
     TerrainSource src;
     src.heightPath = tmpPath("one_row.png");
