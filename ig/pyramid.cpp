@@ -16,7 +16,7 @@ inline int ceilHalf(int n) {
     return (n + 1) / 2;
 }
 
-void fillCellMax(PyramidLevel& level, std::vector<std::uint16_t>& cellMax) {
+void fillCellMax(PyramidLevel& level, LargeVector<std::uint16_t>& cellMax) {
     const int cw = level.width - 1, ch = level.height - 1;
     cellMax.resize(static_cast<std::size_t>(cw) * ch);
     tbb::parallel_for(tbb::blocked_range<int>(0, ch), [&](const tbb::blocked_range<int>& rows) {
@@ -106,7 +106,7 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
         const int j = static_cast<int>(nodes_.size());
         const int nw = ceilHalf(nodeW_.back()), nh = ceilHalf(nodeH_.back());
         const int fw = nodeW_.back(), fh = nodeH_.back();
-        std::vector<std::uint16_t> node(static_cast<std::size_t>(nw) * nh);
+        LargeVector<std::uint16_t> node(static_cast<std::size_t>(nw) * nh);
         auto finer = [&](int fx, int fy) -> std::uint16_t {
             return j == 1 ? map.cellMaxRaw(fx, fy)
                           : nodes_[j - 1][static_cast<std::size_t>(fy) * fw + fx];
@@ -148,7 +148,7 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
                 }
             }
         }
-        std::vector<std::uint16_t>& node = nodes_[j];
+        LargeVector<std::uint16_t>& node = nodes_[j];
         for (std::size_t i = 0; i < node.size(); ++i)
             node[i] = std::max(node[i], upFiner[i]);
         up.swap(upFiner);

@@ -55,15 +55,15 @@ class TerrainPyramid {
 
   private:
     struct LevelStore {
-        std::vector<std::uint16_t> heights;
-        std::vector<Rgb8> colors;
-        std::vector<std::uint16_t> cellMax;
+        LargeVector<std::uint16_t> heights;
+        LargeVector<Rgb8> colors;
+        LargeVector<std::uint16_t> cellMax;
     };
 
     const TerrainMap& map_;
     std::vector<PyramidLevel> levels_;
     std::vector<LevelStore> store_;                  // store_[k] backs levels_[k], k >= 1
-    std::vector<std::vector<std::uint16_t>> nodes_;  // nodes_[0] unused
+    std::vector<LargeVector<std::uint16_t>> nodes_;  // nodes_[0] unused
     std::vector<int> nodeW_, nodeH_;
 };
 

@@ -6,6 +6,8 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <new>
 
 #ifndef MADV_COLLAPSE
 #define MADV_COLLAPSE 25  // Linux 6.1; older C libraries lack the name
@@ -30,6 +32,25 @@ void adviseHugePages(const void* data, std::size_t bytes) {
     if (end <= begin) return;
     void* p = reinterpret_cast<void*>(begin);
     if (madvise(p, end - begin, MADV_HUGEPAGE) == 0) madvise(p, end - begin, MADV_COLLAPSE);
+}
+
+void* allocateLarge(std::size_t bytes) {
+    constexpr std::size_t kHuge = std::size_t{2} << 20;
+    if (bytes < 2 * kHuge) return ::operator new(bytes);
+    const std::size_t rounded = (bytes + kHuge - 1) & ~(kHuge - 1);
+    void* p = std::aligned_alloc(kHuge, rounded);
+    if (!p) throw std::bad_alloc();
+    if (gHugePageAdvice.load()) madvise(p, rounded, MADV_HUGEPAGE);
+    return p;
+}
+
+void deallocateLarge(void* p, std::size_t bytes) noexcept {
+    constexpr std::size_t kHuge = std::size_t{2} << 20;
+    if (bytes < 2 * kHuge) {
+        ::operator delete(p);
+    } else {
+        std::free(p);
+    }
 }
 
 TerrainMap::TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,

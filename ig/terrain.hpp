@@ -1,11 +1,36 @@
 // Terrain map: a heightfield of integer heights with scale/offset and an RGB8 colour per sample.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 namespace ig {
+
+// Allocator for the maps' large arrays: a block of 4 MiB or more is aligned to 2 MiB and
+// advised for transparent huge pages before anything touches it, so its pages fault in 2 MiB
+// at a time (a march over a large map from DRAM with 4 KiB pages misses the TLB nearly every
+// step). Smaller blocks come from operator new. See adviseHugePages.
+void* allocateLarge(std::size_t bytes);
+void deallocateLarge(void* p, std::size_t bytes) noexcept;
+
+template <class T>
+struct LargeAllocator {
+    using value_type = T;
+    LargeAllocator() = default;
+    template <class U>
+    LargeAllocator(const LargeAllocator<U>&) noexcept {}
+    T* allocate(std::size_t n) { return static_cast<T*>(allocateLarge(n * sizeof(T))); }
+    void deallocate(T* p, std::size_t n) noexcept { deallocateLarge(p, n * sizeof(T)); }
+    template <class U>
+    bool operator==(const LargeAllocator<U>&) const noexcept {
+        return true;
+    }
+};
+
+template <class T>
+using LargeVector = std::vector<T, LargeAllocator<T>>;
 
 struct Rgb8 {
     std::uint8_t r = 0, g = 0, b = 0;
@@ -46,10 +71,10 @@ class TerrainMap {
     void surfaceColor(double x, double y, float rgb[3]) const;
 
     // Raw storage, rows south first.
-    const std::vector<std::uint16_t>& rawHeights() const { return heights_; }
-    std::vector<std::uint16_t>& rawHeights() { return heights_; }
-    const std::vector<Rgb8>& colors() const { return colors_; }
-    std::vector<Rgb8>& colors() { return colors_; }
+    const LargeVector<std::uint16_t>& rawHeights() const { return heights_; }
+    LargeVector<std::uint16_t>& rawHeights() { return heights_; }
+    const LargeVector<Rgb8>& colors() const { return colors_; }
+    LargeVector<Rgb8>& colors() { return colors_; }
 
     // Highest and lowest surface heights in metres, and the per-cell maxima below (all
     // recomputed by updateRange(): call it after changing heights).
@@ -83,9 +108,9 @@ class TerrainMap {
     double spacingX_ = 1.0, spacingY_ = 1.0;
     double heightScale_ = 1.0, heightOffset_ = 0.0;
     double maxHeight_ = 0.0, minHeight_ = 0.0, maxSlope_ = 0.0;
-    std::vector<std::uint16_t> heights_;
-    std::vector<Rgb8> colors_;
-    std::vector<std::uint16_t> cellMax_;
+    LargeVector<std::uint16_t> heights_;
+    LargeVector<Rgb8> colors_;
+    LargeVector<std::uint16_t> cellMax_;
     std::size_t filledSamples_ = 0;
 };
 
