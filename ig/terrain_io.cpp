@@ -93,6 +93,24 @@ FileKind sniff(const std::string& path) {
     return FileKind::Gdal;
 }
 
+// Whether a PNG or JPEG comes with a georeference beside it (a world file such as photo.jgw,
+// or GDAL's photo.jpg.aux.xml): then GDAL reads it, georeference included.
+bool hasGeoSidecar(const std::string& path) {
+    namespace fs = std::filesystem;
+    const std::string ext = lowerExtension(path);
+    std::vector<std::string> sidecars = {".wld"};
+    if (ext == ".png") sidecars = {".pgw", ".pngw", ".wld"};
+    if (ext == ".jpg" || ext == ".jpeg") sidecars = {".jgw", ".jpgw", ".jpegw", ".wld"};
+    std::error_code ec;
+    for (std::string e : sidecars) {
+        if (fs::exists(fs::path(path).replace_extension(e), ec)) return true;
+        for (char& c : e)
+            c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+        if (fs::exists(fs::path(path).replace_extension(e), ec)) return true;
+    }
+    return fs::exists(path + ".aux.xml", ec);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Rasters as read, rows in file order, then normalised to north-up, east-right.
 
@@ -735,9 +753,11 @@ HeightRaster readHeights(const std::string& path, double scale, double offset, b
                          const std::optional<double>& voidHeight) {
     switch (sniff(path)) {
         case FileKind::Png:
-            return readPngHeights(path);
+            if (!hasGeoSidecar(path)) return readPngHeights(path);
+            break;
         case FileKind::Jpeg:
-            return readJpegHeights(path);
+            if (!hasGeoSidecar(path)) return readJpegHeights(path);
+            break;
         case FileKind::Gdal:
             break;
     }
@@ -747,9 +767,11 @@ HeightRaster readHeights(const std::string& path, double scale, double offset, b
 ColorRaster readColors(const std::string& path) {
     switch (sniff(path)) {
         case FileKind::Png:
-            return readPngColors(path);
+            if (!hasGeoSidecar(path)) return readPngColors(path);
+            break;
         case FileKind::Jpeg:
-            return readJpegColors(path);
+            if (!hasGeoSidecar(path)) return readJpegColors(path);
+            break;
         case FileKind::Gdal:
             break;
     }

@@ -1057,6 +1057,42 @@ TEST(TerrainIo, BandScaleOffsetAndVerticalUnitsGiveMetres) {
     expectInputError(src, {"units.tif", "furlong", "--height-scale"});
 }
 
+TEST(TerrainIo, PngWithWorldFilesIsGeoreferenced) {
+    // 16-bit PNG heights, 6 x 5 samples of 25 m, and a PNG photo of 12 x 10 pixels of 25 m
+    // reaching two pixels beyond the heights on the west and north: each with a world file
+    // (pixel size x, rotation, rotation, pixel size y, then the upper-left pixel's centre).
+    const int w = 6, h = 5, cw = 12, ch = 10;
+    TerrainSource src;
+    src.heightPath = tmpPath("world_h.png");
+    src.colorPath = tmpPath("world_c.png");
+    std::vector<std::uint16_t> z(w * h);
+    for (int k = 0; k < w * h; ++k)
+        z[k] = static_cast<std::uint16_t>(100 + k);
+    writePng16Grey(src.heightPath, w, h, z);
+    std::vector<Rgb8> px(cw * ch);
+    for (int y = 0; y < ch; ++y)
+        for (int x = 0; x < cw; ++x)
+            px[y * cw + x] =
+                Rgb8{static_cast<std::uint8_t>(10 * x), static_cast<std::uint8_t>(10 * y), 9};
+    writePngRgb(src.colorPath, cw, ch, px);
+    writeText(tmpPath("world_h.pgw"), "25\n0\n0\n-25\n500012.5\n5199987.5\n");
+    writeText(tmpPath("world_c.pgw"), "25\n0\n0\n-25\n499962.5\n5200037.5\n");
+    const TerrainMap map = loadTerrain(src);
+    EXPECT_DOUBLE_EQ(map.spacingX(), 25.0);
+    EXPECT_DOUBLE_EQ(map.spacingY(), 25.0);
+    for (int fileRow = 0; fileRow < h; ++fileRow) {
+        for (int x = 0; x < w; ++x) {
+            EXPECT_NEAR(map.heightAt(x, h - 1 - fileRow), 100 + fileRow * w + x, 0.01);
+            EXPECT_EQ(map.colorAt(x, h - 1 - fileRow),
+                      (Rgb8{static_cast<std::uint8_t>(10 * (x + 2)),
+                            static_cast<std::uint8_t>(10 * (fileRow + 2)), 9}))
+                << "row " << fileRow << " column " << x;
+        }
+    }
+    std::filesystem::remove(tmpPath("world_h.pgw"));
+    std::filesystem::remove(tmpPath("world_c.pgw"));
+}
+
 TEST(TerrainIo, RejectsTooSmallHeightMap) {
     TerrainSource src;
     src.heightPath = tmpPath("one_row.png");
