@@ -108,7 +108,9 @@ void WedgeSlope::fill(int last) {
                     y0 = std::min(y0, v.y);
                     y1 = std::max(y1, v.y);
                 }
-                m = std::max(m, blocks_->maxOver(x0, y0, x1, y1));
+                // A hundredth of a block more on every side against rounding at block edges.
+                const double pad = 0.01 * piece_;
+                m = std::max(m, blocks_->maxOver(x0 - pad, y0 - pad, x1 + pad, y1 + pad));
             }
         }
         profile_[filled_] = m;

@@ -58,7 +58,8 @@ class WedgeSlope {
     double upTo(double distance) {
         if (!blocks_) return global_;
         const double r = distance * invStep_;
-        const int i = r < kRings - 1 ? static_cast<int>(r) : kRings - 1;
+        // Out of range or NaN: the whole wedge.
+        const int i = r < 0.0 ? 0 : (r < kRings - 1 ? static_cast<int>(r) : kRings - 1);
         if (i >= filled_) fill(i);
         return profile_[i];
     }

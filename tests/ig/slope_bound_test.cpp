@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <numbers>
 
 namespace {
@@ -112,6 +113,12 @@ TEST(WedgeSlope, CoversEveryPointOfItsWedge) {
             }
         }
     }
+    // Distances out of range: negative as zero, NaN as the whole wedge.
+    WedgeSlope edge;
+    edge.reset(&blocks, {10.0, 10.0}, {1.0, 1.0}, {1.0, 0.9}, 1.5 * extent, map.maxSlope());
+    EXPECT_EQ(edge.upTo(-5.0), edge.upTo(0.0));
+    EXPECT_EQ(edge.upTo(std::numeric_limits<double>::quiet_NaN()), edge.upTo(1e30));
+    EXPECT_GT(edge.upTo(1e30), 0.0);
     // A wedge wider than a right angle falls back to the global bound.
     WedgeSlope wide;
     wide.reset(&blocks, {100.0, 100.0}, {1.0, 0.0}, {-1.0, 0.2}, 3000.0, map.maxSlope());
