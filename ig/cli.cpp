@@ -99,8 +99,11 @@ Pose defaultViewPose(const TerrainMap& map) {
     Pose pose;
     const double x = 0.25 * map.extentX(), y = 0.25 * map.extentY();
     const double relief = std::max(map.maxHeight() - map.minHeight(), 1.0);
-    pose.position = {x, y, map.surfaceHeight(x, y) + std::max(0.15 * relief, 50.0)};
-    pose.yaw = std::atan2(map.extentX(), map.extentY());
+    // High enough to see over the relief ahead.
+    pose.position = {
+        x, y,
+        std::max(map.surfaceHeight(x, y) + 0.15 * relief + 50.0, map.minHeight() + 0.6 * relief)};
+    pose.yaw = std::atan2(map.extentX(), map.extentY());  // toward the far corner
     pose.pitch = degToRad(-8.0);
     return pose;
 }

@@ -37,7 +37,8 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& what =
 // under (x, y). Throws InputError naming `what`.
 Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what = "--pose");
 // A view of any map when the user names none: over the south-west quarter, 15 % of the relief
-// (at least 50 m) above the ground, heading for the far corner, 8 degrees down.
+// and 50 m above the ground (and at least 60 % of the relief above the lowest point), heading for
+// the far corner, 8 degrees down. Stick flights over such maps start there too.
 Pose defaultViewPose(const TerrainMap& map);
 
 // Runs a program's body: an InputError prints "NAME: message" and exits 2, any other exception

@@ -1,5 +1,7 @@
 #include "sim/scenario.hpp"
 
+#include "ig/cli.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -59,13 +61,11 @@ Scenario defaultScenario() {
 }
 
 FlightState startOverMap(const ig::TerrainMap& map, const FlightLimits& limits) {
+    // Where ig-render looks from on a map it has no view for.
+    const ig::Pose view = ig::defaultViewPose(map);
     FlightState s;
-    const double x = 0.25 * map.extentX(), y = 0.25 * map.extentY();
-    const double relief = std::max(map.maxHeight() - map.minHeight(), 1.0);
-    s.position = {
-        x, y,
-        std::max(map.surfaceHeight(x, y) + 0.15 * relief + 50.0, map.minHeight() + 0.6 * relief)};
-    s.heading = std::atan2(map.extentX(), map.extentY());  // toward the far corner
+    s.position = view.position;
+    s.heading = view.yaw;
     s.speed = limits.cruiseSpeed;
     return s;
 }
