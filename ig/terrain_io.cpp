@@ -582,9 +582,8 @@ HeightRaster readGdalHeights(const std::string& path, double scale, double offse
     }
     // What the values are: the band's own scale and offset (GDAL's raw * scale + offset), in its
     // vertical unit unless the user says how many metres a unit is.
-    int hasBandScale = 0, hasBandOffset = 0;
-    const double bandScale = GDALGetRasterScale(band, &hasBandScale);
-    const double bandOffset = GDALGetRasterOffset(band, &hasBandOffset);
+    const double bandScale = GDALGetRasterScale(band, nullptr);    // 1 when the band has none
+    const double bandOffset = GDALGetRasterOffset(band, nullptr);  // 0 likewise
     if (!std::isfinite(bandScale) || bandScale == 0.0 || !std::isfinite(bandOffset)) {
         fail(path, "band scale " + formatNumber(bandScale) + " / offset " +
                        formatNumber(bandOffset) + " cannot give heights");
