@@ -330,6 +330,18 @@ class FastCaster final : public Caster {
         double prevRn = 0.0, prevRz = 0.0, prevU = 0.0;
         std::uint64_t steps = 0, restarts = 0;
         WedgeSlope wedge;  // the terrain's slope bound over the column's wedge, by distance
+        // Clearance chain of the restarted rays (see restartInChain): segment j says a ray with
+        // minor slope in [rnLo, rnHi] and height slope at most rzHi passed above the cell maxima
+        // within one minor cell of its track from the previous segment's end (0 for the first)
+        // to `end`.
+        struct Segment {
+            double rnLo, rnHi, rzHi, end;
+        };
+        static constexpr int kChain = 16;
+        Segment chain[kChain];
+        int chainLength = 0;
+        bool chainMajorX = false;
+        int chainSgn = 0;
     };
 
     // Starts a column's state: its slope bounds look at the wedge its rays sweep.
@@ -393,8 +405,8 @@ class FastCaster final : public Caster {
         // At equal u this ray is (rz - prevRz) * u higher than the ray below and |rn - prevRn| * u
         // minor cells to the side, where the terrain is at most its slope bound times that
         // higher: when the climb wins, it cannot meet the terrain before the ray below stopped.
-        const bool coherent = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn &&
-                              climbsClear(cc, st, majorX, rn, rz);
+        const bool sameAxis = st.havePrev && st.prevMajorX == majorX && st.prevSgn == sgn;
+        const bool coherent = sameAxis && climbsClear(cc, st, majorX, rn, rz);
         if (st.havePrev && !coherent) ++st.restarts;
         bool resolved = false;
         if (coherent && st.prevAbove) {
@@ -415,6 +427,9 @@ class FastCaster final : public Caster {
         st.prevSgn = sgn;
         st.prevRn = rn;
         st.prevRz = rz;
+        if (!resolved && st.havePrev && !coherent && sameAxis) {
+            resolved = restartInChain(cc, d, len, lenPerU, inv, majorX, sgn, rn, rz, st, c, tHit);
+        }
         if (!resolved) {
             // Bottom ray, restart, or a coherent start outside the map.
             const TerrainRay ray(map_, cc.eye, d);
@@ -430,6 +445,133 @@ class FastCaster final : public Caster {
             st.prevU = tStop / lenPerU;
         }
         st.havePrev = true;
+    }
+
+    // A restarted ray (its climb over the ray below does not outrun the slope bound: steep
+    // features around) starts as far out as the column's clearance chain proves it clear:
+    // any ray whose track stays within one minor cell of a ray X's at equal u, and which climbs
+    // at least as fast, is above the terrain wherever X passed above the cell maxima within one
+    // minor cell of its own track. The ray then scans on from there against those widened maxima
+    // to where it first comes near the terrain (its own link of the chain), and marches
+    // coherently from there to its hit. Without a chain to start from it scans from the eye,
+    // but only where the ray below stopped within kChainReach major cells (a long empty march is
+    // left to the hierarchical fresh cast). False when the march cannot run (the eye is off the
+    // map, or a start off it): the ray is cast fresh.
+    static constexpr double kChainReach = 4096.0;
+
+    bool restartInChain(const ColumnContext& cc, const glm::dvec3& d, double len, double lenPerU,
+                        double inv, bool majorX, int sgn, double rn, double rz, ColumnState& st,
+                        Rgb8& c, double& tHit) const {
+        if (st.chainLength == 0 || st.chainMajorX != majorX || st.chainSgn != sgn) {
+            st.chainLength = 0;
+            st.chainMajorX = majorX;
+            st.chainSgn = sgn;
+        }
+        // The links that hold for this ray, from the eye on (a little under one cell of gap
+        // allows for the fixed-point tracks).
+        double start = 0.0;
+        int held = 0;
+        for (; held < st.chainLength; ++held) {
+            const ColumnState::Segment& g = st.chain[held];
+            const double gap = std::max(std::abs(rn - g.rnLo), std::abs(rn - g.rnHi));
+            if (!(rz >= g.rzHi) || !(gap * g.end <= 0.99)) break;
+            start = g.end;
+        }
+        st.chainLength = held;
+        if (start == 0.0) {
+            // A new chain: worth it where this ray's track stays near the one below (not near the
+            // nadir, where tracks fan out) and the march is short; it starts where the ray comes
+            // down through the map's highest point.
+            if (!cc.eg.inside || !(st.prevU <= kChainReach) ||
+                !(std::abs(rn - st.prevRn) * st.prevU <= 0.99)) {
+                return false;
+            }
+            const double dzr = rz * cc.mv->invScale;
+            if (cc.eg.zRaw > cc.mv->maxRaw) {
+                if (!(dzr < 0.0)) return false;
+                start = (cc.eg.zRaw - cc.mv->maxRaw) / -dzr;
+            }
+        }
+        const double clear =
+            majorX ? clearanceScan<true>(*cc.mv, cc.eg, sgn, rn, rz, start, st.steps)
+                   : clearanceScan<false>(*cc.mv, cc.eg, sgn, rn, rz, start, st.steps);
+        if (clear > start) {
+            if (st.chainLength == ColumnState::kChain) {
+                // Full: the two oldest links become one covering both rays.
+                ColumnState::Segment& a = st.chain[0];
+                const ColumnState::Segment& b = st.chain[1];
+                a = {std::min(a.rnLo, b.rnLo), std::max(a.rnHi, b.rnHi), std::max(a.rzHi, b.rzHi),
+                     b.end};
+                std::copy(st.chain + 2, st.chain + st.chainLength, st.chain + 1);
+                --st.chainLength;
+            }
+            st.chain[st.chainLength++] = {rn, rn, rz, clear};
+        }
+        double uNear = std::numeric_limits<double>::infinity();
+        if (cc.multires) uNear = cc.d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
+        const ColumnMarch r =
+            majorX ? marchCoherent<true>(*cc.mv, cc.eg, sgn, rn, rz, clear, uNear, st.steps)
+                   : marchCoherent<false>(*cc.mv, cc.eg, sgn, rn, rz, clear, uNear, st.steps);
+        return finishCoherent(cc, d, len, lenPerU, r, st, c, tHit);
+    }
+
+    // From u = uStart, the first step (its start u, not before uStart) where the ray comes down
+    // to the largest cell maximum within one minor cell of the cells it crosses; where it
+    // leaves the map or climbs over its highest point first, there. The step loop of
+    // marchCoherent with the widened bound.
+    template <bool kMajorX>
+    static double clearanceScan(const MapView& mv, const EyeGrid& eg, int sgn, double rn, double rz,
+                                double uStart, std::uint64_t& steps) {
+        const std::uint16_t* __restrict__ cellMax = mv.cellMax;
+        const std::ptrdiff_t stride = mv.width - 1;
+        const int majorCount = kMajorX ? mv.width : mv.height;
+        const int minorCount = kMajorX ? mv.height : mv.width;
+        const int lastMinorCell = minorCount - 2;
+        const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
+        const double gm0 = em + sgn * uStart;
+        const long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
+        if (m < 0 || m > majorCount - 1) return uStart;
+        const double u = (m - em) * sgn;
+        constexpr double kFix = 4294967296.0;  // 2^32
+        std::int64_t n = roundToInt64((en + rn * u) * kFix);
+        const std::int64_t dn = roundToInt64(rn * kFix);
+        const std::int64_t minorLimit = static_cast<std::int64_t>(minorCount - 1) << 32;
+        if (n < 0 || n > minorLimit) return uStart;
+        const double dzr = rz * mv.invScale;
+        const bool rising = dzr >= 0.0;
+        double zLow = eg.zRaw + dzr * u + (rising ? 0.0 : dzr);
+        const std::int64_t majorSteps = sgn > 0 ? majorCount - 1 - m : m;
+        const std::ptrdiff_t minorStride = kMajorX ? stride : 1;
+        for (std::int64_t k = 0; k < majorSteps; ++k) {
+            const std::int64_t next = n + dn;
+            if (static_cast<std::uint64_t>(next) > static_cast<std::uint64_t>(minorLimit)) {
+                steps += static_cast<std::uint64_t>(k);
+                return std::max(uStart, u + static_cast<double>(k));
+            }
+            const int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
+            const int cb = std::min(static_cast<int>(next >> 32), lastMinorCell);
+            const int lo = std::max(std::min(ca, cb) - 1, 0);
+            const int hi = std::min(std::max(ca, cb) + 1, lastMinorCell);
+            const std::ptrdiff_t mc = m + sgn * k + (sgn > 0 ? 0 : -1);
+            const std::uint16_t* cell = cellMax + (kMajorX ? mc : mc * stride) +
+                                        static_cast<std::ptrdiff_t>(lo) * minorStride;
+            int bound = 0;
+            for (int i = lo; i <= hi; ++i, cell += minorStride)
+                bound = std::max(bound, static_cast<int>(*cell));
+            if (zLow <= bound) {
+                steps += static_cast<std::uint64_t>(k + 1);
+                return std::max(uStart, u + static_cast<double>(k));
+            }
+            if (rising && zLow > mv.maxRaw) {
+                // Over the map's highest point, climbing: clear to the end.
+                steps += static_cast<std::uint64_t>(k + 1);
+                return std::max(uStart, u + static_cast<double>(majorSteps));
+            }
+            n = next;
+            zLow += dzr;
+        }
+        steps += static_cast<std::uint64_t>(majorSteps);
+        return std::max(uStart, u + static_cast<double>(majorSteps));
     }
 
     // The outcome of a coherent march: colour, hit distance and the next start. False when the

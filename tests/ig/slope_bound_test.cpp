@@ -12,6 +12,8 @@
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -164,6 +166,66 @@ TEST(FastCaster, SteepFeaturesCostCoherenceOnlyWhereTheyAre) {
     EXPECT_LT(restartsTowers, pixels / 20)
         << "towers " << restartsTowers << ", hills alone " << restartsHills << ", of " << pixels;
     EXPECT_LT(restartsHills, pixels / 1000);
+}
+
+// A surface model of needles (buildings of 2 x 2 samples on rolling ground, at 3 m): the slope
+// test fails nearly everywhere, and restarted rays start from the column's clearance chain
+// instead of from the eye. Every depth stays the reference's; the work is a fraction of what
+// restarting from the eye took.
+TEST(FastCaster, NeedleCityRestartsFromTheClearanceChain) {
+    std::uint32_t state = 11;
+    std::vector<std::pair<int, int>> needles;
+    for (int k = 0; k < 500; ++k) {
+        state = state * 1664525u + 1013904223u;
+        needles.emplace_back((state >> 8) % 298, (state >> 20) % 298);
+    }
+    TerrainMap city(300, 300, 3.0, 3.0, 0.1, 0.0);
+    for (int iy = 0; iy < 300; ++iy)
+        for (int ix = 0; ix < 300; ++ix)
+            city.setRaw(
+                ix, iy,
+                static_cast<std::uint16_t>(500 + 200 * std::sin(ix * 0.03) * std::cos(iy * 0.02)));
+    for (std::size_t k = 0; k < needles.size(); ++k) {
+        const auto [x, y] = needles[k];
+        const auto add = static_cast<std::uint16_t>(200 + 10 * (k % 100));  // 20..119 m
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i)
+                city.setRaw(x + i, y + j, static_cast<std::uint16_t>(city.raw(x + i, y + j) + add));
+    }
+    city.updateRange();
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(160, 120, ig::degToRad(60), 0);
+    const auto reference = ig::makeCaster(ig::CasterKind::Reference, city);
+    const auto naive = ig::makeCaster(ig::CasterKind::Naive, city);
+    const auto fast = ig::makeCaster(ig::CasterKind::Fast, city);
+    std::uint64_t fastSteps = 0, naiveSteps = 0, restarts = 0, pixels = 0;
+    for (const double yaw : {30.0, 120.0, 215.0, 300.0}) {
+        for (const double pitch : {-6.0, -14.0}) {
+            ig::Pose pose;
+            pose.position = {450.0, 450.0, 250.0};
+            pose.yaw = ig::degToRad(yaw);
+            pose.pitch = ig::degToRad(pitch);
+            const auto ref = ig::renderFrame(*reference, city, pose, in);
+            const auto got = ig::renderFrame(*fast, city, pose, in);
+            const auto plain = ig::renderFrame(*naive, city, pose, in);
+            fastSteps += got.stats.steps;
+            naiveSteps += plain.stats.steps;
+            restarts += got.stats.restarts;
+            pixels += ref.depth.size();
+            for (std::size_t i = 0; i < ref.depth.size(); ++i) {
+                if (!std::isfinite(ref.depth[i])) {
+                    ASSERT_FALSE(std::isfinite(got.depth[i])) << i;
+                    continue;
+                }
+                ASSERT_NEAR(got.depth[i], ref.depth[i], 1e-3 * ref.depth[i])
+                    << "yaw " << yaw << " pitch " << pitch << " pixel " << i;
+            }
+        }
+    }
+    // Measured: 81 % of rays restart; fast 1.16 M steps against naive 5.74 M (restarting from
+    // the eye, before the chain: 2.51 M).
+    EXPECT_GT(restarts, pixels / 4) << "the needles defeat the slope test";
+    EXPECT_LT(fastSteps, naiveSteps / 4)
+        << "fast " << fastSteps << " naive " << naiveSteps << " restarts " << restarts;
 }
 
 }  // namespace
