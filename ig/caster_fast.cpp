@@ -198,7 +198,7 @@ class FastCaster final : public Caster {
 
     int workUnits(const Camera& camera) const override {
         const int w = camera.intrinsics().width;
-        return usePackets() ? (w + 3) / 4 : w;
+        return usePackets() && !linear() ? (w + 3) / 4 : w;
     }
 
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
@@ -219,8 +219,12 @@ class FastCaster final : public Caster {
                          offset,
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
+        if (linear() && options_.supersample == 1) {
+            renderLinearColumn(mv, camera, d0, unit, frame, counters);
+            return;
+        }
 #if VIG_CASTER_PACKETS
-        if (usePackets()) {
+        if (usePackets() && !linear()) {
             const int x0 = 4 * unit;
             if (x0 + 4 <= w) {
                 renderPacket(mv, camera, d0, x0, frame, counters);
@@ -240,6 +244,13 @@ class FastCaster final : public Caster {
             throw std::invalid_argument(
                 "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
         }
+    }
+
+    // The multiresolution caster: coherent rays find their level-0 hit between the major grid
+    // lines where they pass from above to below the surface, by linear interpolation (the
+    // paper's discrete traversal, no exact solve); see linearRay.
+    bool linear() const {
+        return options_.levels != 0;
     }
 
     // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
@@ -447,6 +458,366 @@ class FastCaster final : public Caster {
         st.havePrev = true;
     }
 
+    // The multiresolution caster's coherent ray (levels != 0): where the ray climbs clear of the
+    // ray below (the same proof as castRay's), it marches from where that ray stopped, sampling
+    // the surface where it crosses major grid lines (the bilinear surface there, linear along
+    // the line) and taking its hit between the last line it passed above and the first it is
+    // under, by linear interpolation of its height over the surface. False (state untouched)
+    // for every other case, which castRay then casts.
+    [[gnu::always_inline]] bool linearRay(const ColumnContext& cc, const glm::dvec3& d,
+                                          ColumnState& st, Rgb8& c, double& tHit) const {
+        if (!st.havePrev) return false;
+        const double gx = d.x * cc.invSx, gy = d.y * cc.invSy;
+        const bool majorX = std::abs(gx) >= std::abs(gy);
+        const double gm = majorX ? gx : gy, gn = majorX ? gy : gx;
+        const int sgn = gm > 0 ? 1 : -1;
+        if (st.prevMajorX != majorX || st.prevSgn != sgn) return false;
+        const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        if (!(std::abs(gm) > 1e-9 * len)) return false;
+        const double inv = 1.0 / std::abs(gm);
+        const double rn = gn * inv, rz = d.z * inv;
+        if (!climbsClear(cc, st, majorX, rn, rz)) return false;
+        tHit = -1.0;
+        if (st.prevAbove) {
+            c = skyColor(options_.sky, d.z / len);
+        } else {
+            double uNear = std::numeric_limits<double>::infinity();
+            if (cc.multires) uNear = cc.d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
+            const ColumnMarch r =
+                majorX ? marchLinear<true>(*cc.mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps)
+                       : marchLinear<false>(*cc.mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps);
+            if (r.kind == ColumnMarch::kFresh) return false;
+            if (r.kind == ColumnMarch::kFar) {
+                linearFar(cc, d, len, inv, majorX, sgn, rn, rz, r.u, st.prevU, st.prevAbove,
+                          st.steps, c, tHit);
+            } else {
+                finishCoherent(cc, d, len, len * inv, r, st, c, tHit);
+            }
+        }
+        st.prevRn = rn;
+        st.prevRz = rz;
+        return true;
+    }
+
+    // marchCoherent's march on the surface sampled at major grid lines, linear between them.
+    // The march goes from node A (the grid line at or before uStart; uStart itself when that
+    // line is behind the eye) to the following lines; the hit lies between the last node the
+    // ray passed above and the first it is under.
+    template <bool kMajorX>
+    [[gnu::always_inline]] static ColumnMarch marchLinear(const MapView& mv, const EyeGrid& eg,
+                                                          int sgn, double rn, double rz,
+                                                          double uStart, double uNear,
+                                                          std::uint64_t& steps) {
+        const std::uint16_t* __restrict__ heights = mv.heights;
+        const int w = mv.width;
+        const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
+        const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
+        ColumnMarch out;
+        out.u = uStart;
+        const double gm0 = em + sgn * uStart;
+        const long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
+        const double u = (m - em) * sgn;
+        const double dzr = rz * mv.invScale;
+        const bool rising = dzr >= 0.0;
+        double uA, above, zA;
+        if (u >= 0.0) {
+            if (m < 0 || m > majorCount - 1) {
+                const bool ahead = sgn > 0 ? m < 0 : m > majorCount - 1;
+                out.kind = ahead || !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
+                return out;
+            }
+            const double nA = en + rn * u;
+            if (!(nA >= 0.0) || nA > minorCount - 1.0) {
+                out.kind = !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
+                return out;
+            }
+            uA = u;
+            zA = eg.zRaw + dzr * u;
+            above = zA - lineSample<kMajorX>(heights, w, minorCount, m, nA);
+        } else {
+            // Line m is behind the eye: node A is the start itself, inside the map.
+            const double gn0 = en + rn * uStart;
+            if (!eg.inside || !(gm0 >= 0.0) || gm0 > majorCount - 1.0 || !(gn0 >= 0.0) ||
+                gn0 > minorCount - 1.0) {
+                out.kind = ColumnMarch::kFresh;
+                return out;
+            }
+            uA = uStart;
+            zA = eg.zRaw + dzr * uStart;
+            above = zA - levelSurface<kMajorX>(levelZero(mv), gm0, gn0);
+        }
+        // Lines m + sgn, m + 2 sgn, ... up to the major end or the level-0 distance.
+        constexpr std::int64_t kMany = std::int64_t{1} << 40;
+        const std::int64_t majorSteps = sgn > 0 ? majorCount - 1 - m : m;
+        std::int64_t nearSteps = kMany;
+        if (uNear < 1e12) nearSteps = std::max<long>(0, -floorToLong(u - uNear));
+        const std::int64_t total = std::min(majorSteps, nearSteps);
+        std::int64_t k = 0;
+        double uHit = -1.0;
+        if (above <= 0.0) {
+            uHit = uA;
+        } else {
+            for (; k < total; ++k) {
+                const long lineB = m + sgn * (k + 1);
+                const double uB = (static_cast<double>(lineB) - em) * sgn;
+                const double nB = en + rn * uB;
+                if (!(nB >= 0.0) || nB > minorCount - 1.0) {
+                    steps += static_cast<std::uint64_t>(k + 1);
+                    out.kind = ColumnMarch::kStop;
+                    out.u = std::max(uA, uStart);
+                    return out;
+                }
+                if (rising && zA > mv.maxRaw) {
+                    steps += static_cast<std::uint64_t>(k + 1);
+                    out.kind = ColumnMarch::kAbove;
+                    out.u = std::max(uA, uStart);
+                    return out;
+                }
+                const double zB = eg.zRaw + dzr * uB;
+                const double below = zB - lineSample<kMajorX>(heights, w, minorCount, lineB, nB);
+                if (below <= 0.0) {
+                    uHit = uA + (uB - uA) * (above / (above - below));
+                    break;
+                }
+                above = below;
+                uA = uB;
+                zA = zB;
+            }
+        }
+        steps += static_cast<std::uint64_t>(k + 1);
+        if (uHit < 0.0) {
+            out.u = std::max(uA, uStart);
+            out.kind = total == nearSteps && nearSteps < majorSteps + 1 ? ColumnMarch::kFar
+                                                                        : ColumnMarch::kStop;
+            return out;
+        }
+        out.kind = ColumnMarch::kHit;
+        out.u = uHit;
+        const double pm = em + sgn * uHit, pn = en + rn * uHit;
+        const int cm = std::clamp(static_cast<int>(pm), 0, majorCount - 2);
+        const int cn = std::clamp(static_cast<int>(pn), 0, minorCount - 2);
+        out.cx = kMajorX ? cm : cn;
+        out.cy = kMajorX ? cn : cm;
+        out.fx = kMajorX ? pm - cm : pn - cn;
+        out.fy = kMajorX ? pn - cn : pm - cm;
+        return out;
+    }
+
+    // Height (raw) where the ray crosses level-0 major line `line` at minor coordinate n >= 0,
+    // linear along the line.
+    template <bool kMajorX>
+    [[gnu::always_inline]] static double lineSample(const std::uint16_t* heights, int w,
+                                                    int minorCount, long line, double n) {
+        const int i = std::min(static_cast<int>(n), minorCount - 2);
+        const double f = n - i;
+        const std::uint16_t* p = heights + (kMajorX ? line + static_cast<std::ptrdiff_t>(i) * w
+                                                    : line * static_cast<std::ptrdiff_t>(w) + i);
+        const double h0 = p[0];
+        return h0 + f * (static_cast<double>(p[kMajorX ? w : 1]) - h0);
+    }
+
+    static PyramidLevel levelZero(const MapView& mv) {
+        PyramidLevel l;
+        l.width = mv.width;
+        l.height = mv.height;
+        l.heights = mv.heights;
+        return l;
+    }
+
+    // Where a ray of the multiresolution caster has passed the level-0 distance above the
+    // terrain: on over the coarser levels, each band of distance [d0 2^k, d0 2^(k+1)) sampled
+    // where the ray crosses level k's major grid lines, its surface blended toward level k + 1's
+    // by distance (weight D / (d0 2^k) - 1), the hit between the last line passed above and the
+    // first under, its colour the same blend of the two levels' colours.
+    // Sets the colour, the hit distance (negative: sky), where the ray stopped (uStop) and
+    // whether it climbed over the map's highest point (above).
+    void linearFar(const ColumnContext& cc, const glm::dvec3& d, double len, double inv,
+                   bool majorX, int sgn, double rn, double rz, double uStart, double& uStop,
+                   bool& above, std::uint64_t& steps, Rgb8& c, double& tHit) const {
+        const double hs = std::sqrt(d.x * d.x + d.y * d.y) * inv;  // metres per major unit
+        const FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, uStart, steps)
+                                : marchLinearFar<false>(cc, sgn, rn, rz, hs, uStart, steps);
+        uStop = std::max(f.u, uStart);
+        above = f.kind == ColumnMarch::kAbove;
+        tHit = -1.0;
+        if (f.kind != ColumnMarch::kHit) {
+            c = skyColor(options_.sky, d.z / len);
+            return;
+        }
+        tHit = f.u * len * inv;
+        float rgb[3];
+        const double s = 1.0 / (1 << f.level);
+        levelColor(pyramid_->level(f.level), f.gx * s, f.gy * s, rgb);
+        if (f.weight > 0.0) {
+            float p[3];
+            levelColor(pyramid_->level(f.level + 1), 0.5 * f.gx * s, 0.5 * f.gy * s, p);
+            const float w = static_cast<float>(f.weight);
+            for (int i = 0; i < 3; ++i)
+                rgb[i] += (p[i] - rgb[i]) * w;
+        }
+        c = haze(rgb, tHit);
+    }
+
+    struct FarHit {
+        ColumnMarch::Kind kind = ColumnMarch::kStop;
+        double u = 0.0;             // level-0 major units from the eye
+        int level = 0;              // the band's level
+        double weight = 0.0;        // of level + 1
+        double gx = 0.0, gy = 0.0;  // level-0 grid coordinates of the hit
+    };
+
+    // Height (raw) of a level's surface where it crosses major line `line` at minor coordinate
+    // `n` (both in the level's grid units), linear along the line.
+    template <bool kMajorX>
+    [[gnu::always_inline]] static double lineSample(const PyramidLevel& l, long line, double n) {
+        const int minorCount = kMajorX ? l.height : l.width;
+        const int i = std::min(static_cast<int>(n), minorCount - 2);
+        const double f = n - i;
+        const std::ptrdiff_t minorStride = kMajorX ? l.width : 1;
+        const std::uint16_t* p =
+            l.heights + (kMajorX ? line + static_cast<std::ptrdiff_t>(i) * l.width
+                                 : line * static_cast<std::ptrdiff_t>(l.width) + i);
+        const double h0 = p[0];
+        return h0 + f * (static_cast<double>(p[minorStride]) - h0);
+    }
+
+    // A level's bilinear surface (raw) at its grid coordinates (major m, minor n), clamped.
+    template <bool kMajorX>
+    static double levelSurface(const PyramidLevel& l, double m, double n) {
+        const double gx = std::clamp(kMajorX ? m : n, 0.0, l.width - 1.0);
+        const double gy = std::clamp(kMajorX ? n : m, 0.0, l.height - 1.0);
+        const int ix = std::min(static_cast<int>(gx), l.width - 2);
+        const int iy = std::min(static_cast<int>(gy), l.height - 2);
+        const double fx = gx - ix, fy = gy - iy;
+        const std::uint16_t* p = l.heights + l.index(ix, iy);
+        const double a = p[0] + fx * (static_cast<double>(p[1]) - p[0]);
+        const double b = p[l.width] + fx * (static_cast<double>(p[l.width + 1]) - p[l.width]);
+        return a + fy * (b - a);
+    }
+
+    template <bool kMajorX>
+    FarHit marchLinearFar(const ColumnContext& cc, int sgn, double rn, double rz, double hs,
+                          double uStart, std::uint64_t& steps) const {
+        FarHit out;
+        out.u = uStart;
+        if (!(hs > 0.0)) return out;
+        const MapView& mv = *cc.mv;
+        const double em = kMajorX ? cc.eg.gx : cc.eg.gy, en = kMajorX ? cc.eg.gy : cc.eg.gx;
+        const double dzr = rz * mv.invScale;
+        const bool rising = dzr >= 0.0;
+        int k = 0;
+        double dk = cc.d0;
+        while (k < topLevel_ && uStart * hs >= 2.0 * dk) {
+            ++k;
+            dk *= 2.0;
+        }
+        double u = uStart;
+        std::uint64_t count = 0;
+        for (;;) {
+            const PyramidLevel& l = pyramid_->level(k);
+            const PyramidLevel* p = k < topLevel_ ? &pyramid_->level(k + 1) : nullptr;
+            const double size = static_cast<double>(1 << k), invSize = 1.0 / size;
+            const double uEnd = p ? 2.0 * dk / hs : std::numeric_limits<double>::infinity();
+            const int majorCount = kMajorX ? l.width : l.height;
+            const int minorCount = kMajorX ? l.height : l.width;
+            // The first line of this level at or after u.
+            const double gm = (em + sgn * u) * invSize;
+            long line = sgn > 0 ? -floorToLong(-gm) : floorToLong(gm);
+            double ul = ((line * size) - em) * sgn;
+            double n = (en + rn * ul) * invSize;
+            auto surface = [&](long ln, double nn, double uu) {
+                const double hk = lineSample<kMajorX>(l, ln, nn);
+                if (!p) return std::pair{hk, 0.0};
+                const double w = std::clamp(uu * hs / dk - 1.0, 0.0, 1.0);
+                if (w == 0.0) return std::pair{hk, 0.0};
+                const double hp = levelSurface<kMajorX>(*p, 0.5 * ln, 0.5 * nn);
+                return std::pair{hk + w * (hp - hk), w};
+            };
+            double zr = cc.eg.zRaw + dzr * ul;
+            double above = 0.0, weight = 0.0;
+            bool started = false, first = true;
+            // Steps are skipped where the ray passes over the max-height nodes that bound this
+            // band's two levels (node level k + 1, or k at the top band).
+            const int j = std::max(p ? k + 1 : k, 1);
+            const bool skip = j < pyramid_->nodeLevelCount();
+            const int shift = j - k;
+            const int lastNm = skip ? (kMajorX ? pyramid_->nodesX(j) : pyramid_->nodesY(j)) - 1 : 0;
+            const int lastNn = skip ? (kMajorX ? pyramid_->nodesY(j) : pyramid_->nodesX(j)) - 1 : 0;
+            for (;;) {
+                ++count;
+                if (line < 0 || line > majorCount - 1 || !(n >= 0.0) || n > minorCount - 1.0) {
+                    steps += count;
+                    out.kind = ColumnMarch::kStop;
+                    out.u = ul;
+                    return out;
+                }
+                if (rising && zr > mv.maxRaw) {
+                    steps += count;
+                    out.kind = ColumnMarch::kAbove;
+                    out.u = ul;
+                    return out;
+                }
+                if (skip && !first) {
+                    // The piece of ray since the previous line, against the nodes under it.
+                    const double zLow = rising ? zr - dzr * size : zr;
+                    const double nPrev = n - rn;
+                    const int cm = static_cast<int>(sgn > 0 ? line - 1 : line) >> shift;
+                    const int na = std::min(static_cast<int>(std::min(n, nPrev)) >> shift, lastNn);
+                    const int nb = std::min(static_cast<int>(std::max(n, nPrev)) >> shift, lastNn);
+                    const int nm = std::min(cm, lastNm);
+                    int bound = 0;
+                    for (int c = std::max(na, 0); c <= nb; ++c)
+                        bound = std::max<int>(bound, kMajorX ? pyramid_->nodeMaxRaw(j, nm, c)
+                                                             : pyramid_->nodeMaxRaw(j, c, nm));
+                    if (zLow > bound) {
+                        started = false;
+                        if (ul >= uEnd) break;
+                        line += sgn;
+                        ul += size;
+                        n += rn;
+                        zr += dzr * size;
+                        continue;
+                    }
+                    if (!started) {
+                        // The previous line, passed over without a sample: the ray is above it.
+                        const auto [ha, wa] = surface(line - sgn, nPrev, ul - size);
+                        above = zr - dzr * size - ha;
+                        weight = wa;
+                        started = true;
+                    }
+                }
+                first = false;
+                const auto [h, w] = surface(line, n, ul);
+                const double diff = zr - h;
+                if (diff <= 0.0) {
+                    const double f = started ? above / (above - diff) : 1.0;
+                    // Between the previous line (one level-k cell back) and this one.
+                    const double back = (1.0 - f) * size;
+                    steps += count;
+                    out.kind = ColumnMarch::kHit;
+                    out.u = ul - back;
+                    out.level = k;
+                    out.weight = started ? weight + f * (w - weight) : w;
+                    const double gmHit = em + sgn * out.u, gnHit = en + rn * out.u;
+                    out.gx = kMajorX ? gmHit : gnHit;
+                    out.gy = kMajorX ? gnHit : gmHit;
+                    return out;
+                }
+                if (ul >= uEnd) break;
+                above = diff;
+                weight = w;
+                started = true;
+                line += sgn;
+                ul += size;
+                n += rn;
+                zr += dzr * size;
+            }
+            u = ul;
+            ++k;
+            dk *= 2.0;
+        }
+    }
+
     // A restarted ray (its climb over the ray below does not outrun the slope bound: steep
     // features around) starts as far out as the column's clearance chain proves it clear:
     // any ray whose track stays within one minor cell of a ray X's at equal u, and which climbs
@@ -645,6 +1016,56 @@ class FastCaster final : public Caster {
                              topLevel_ > 0};
     }
 
+    // One column of the multiresolution caster (one ray per pixel), bottom to top: four rows at
+    // a time with AVX2 where they are coherent with the ray below them, else one by one.
+    void renderLinearColumn(const MapView& mv, const Camera& camera, double d0, int x,
+                            RenderedFrame& frame, UnitCounters& counters) const {
+        const int w = camera.intrinsics().width, h = camera.intrinsics().height;
+        const ColumnContext cc = columnContext(mv, camera, d0, x);
+        ColumnState st;
+        startColumn(camera, cc, st);
+        Rgb8* colorOut = frame.color.data() + x;
+        float* depthOut = frame.depth.data() + x;
+#if VIG_CASTER_PACKETS
+        const bool rows = usePackets();
+#endif
+        int single = 0;  // rows to cast one by one before trying four again
+        for (int y = h - 1; y >= 0;) {
+#if VIG_CASTER_PACKETS
+            if (rows && single == 0 && y >= 3 && st.havePrev) {
+                Rgb8 c[4];
+                double tHit[4];
+                const RowsOutcome r = linearRows(cc, st, y, c, tHit);
+                if (r == RowsOutcome::kFar) {
+                    // Every ray above starts past the level-0 distance too.
+                    single = h;
+                } else if (r == RowsOutcome::kOther) {
+                    single = 4;
+                } else {
+                    for (int l = 0; l < 4; ++l) {
+                        const std::size_t idx = static_cast<std::size_t>(y - l) * w;
+                        colorOut[idx] = c[l];
+                        depthOut[idx] = tHit[l] >= 0.0 ? static_cast<float>(tHit[l]) : kSkyDepth;
+                    }
+                    y -= 4;
+                    continue;
+                }
+            }
+            if (single > 0) --single;
+#endif
+            const glm::dvec3 d = cc.base + (y + 0.5) * cc.down;
+            Rgb8 c;
+            double tHit = -1.0;
+            if (!linearRay(cc, d, st, c, tHit)) castRay(cc, d, st, c, tHit);
+            const std::size_t idx = static_cast<std::size_t>(y) * w;
+            colorOut[idx] = c;
+            depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
+            --y;
+        }
+        counters.steps += st.steps;
+        counters.restarts += st.restarts;
+    }
+
     // One column, bottom to top, the supersample rays of a pixel stacked inside it and averaged
     // (depth: the nearest).
     void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
@@ -664,7 +1085,7 @@ class FastCaster final : public Caster {
                 const glm::dvec3 d = cc.base + (y + (s + 0.5) * subStep) * cc.down;
                 Rgb8 c;
                 double tHit = -1.0;
-                castRay(cc, d, st, c, tHit);
+                if (!linear() || !linearRay(cc, d, st, c, tHit)) castRay(cc, d, st, c, tHit);
                 if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
                 sum[0] += c.r;
                 sum[1] += c.g;
@@ -1082,6 +1503,261 @@ class FastCaster final : public Caster {
 
     // Columns x0 .. x0 + 3, one row at a time: packetRow where the four rays allow, castRay
     // for the rest.
+    // Rows y, y - 1, y - 2, y - 3 of one column (bottom to top) cast together by the
+    // multiresolution caster: when each of the four rays climbs clear of the ray below them
+    // (the column state; the same proof as linearRay's, against that one ray), all four march
+    // from where it stopped, over the same major grid lines in step, each lane sampling the
+    // surface on its own track; linearRay's march and hit, lane by lane. A lane that reaches the
+    // level-0 distance goes on alone into linearFar. False (state untouched) when some lane is
+    // not such a ray: the rows are then cast one by one.
+    enum class RowsOutcome{kDone, kFar, kOther};
+    VIG_CASTER_AVX2 RowsOutcome linearRows(const ColumnContext& cc, ColumnState& st, int y,
+                                           Rgb8 c[4], double tHit[4]) const {
+        const V4 yy = V4{static_cast<double>(y), static_cast<double>(y - 1),
+                         static_cast<double>(y - 2), static_cast<double>(y - 3)} +
+                      0.5;
+        const V4 dx = cc.base.x + yy * cc.down.x, dy = cc.base.y + yy * cc.down.y,
+                 dz = cc.base.z + yy * cc.down.z;
+        const V4 gx = dx * cc.invSx, gy = dy * cc.invSy;
+        const int mx = vmask((gx < 0.0 ? -gx : gx) >= (gy < 0.0 ? -gy : gy));
+        if (mx != (st.prevMajorX ? 15 : 0)) return RowsOutcome::kOther;
+        return st.prevMajorX ? linearRowsAxis<true>(cc, st, dx, dy, dz, gx, gy, c, tHit)
+                             : linearRowsAxis<false>(cc, st, dx, dy, dz, gx, gy, c, tHit);
+    }
+
+    // The surface where each lane crosses level-0 major line `line` at minor coordinate n
+    // (in [0, lastN] in every lane), linear along the line: lineSample on four lanes.
+    template <bool kMajorX>
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 sampleLine4(const MapView& mv, long line, V4 n,
+                                                                 double lastN) {
+        const V4 i = vmin(vfloor(n), V4{} + (lastN - 1.0));
+        const V4 f = n - i;
+        const __m128i ii = _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(i));
+        const int i0 = _mm_cvtsi128_si32(ii), i1 = _mm_extract_epi32(ii, 1),
+                  i2 = _mm_extract_epi32(ii, 2), i3 = _mm_extract_epi32(ii, 3);
+        const std::uint16_t* h = mv.heights;
+        __m128i a, b;
+        if (kMajorX) {
+            // Minor along y: the two samples are a row apart.
+            const std::ptrdiff_t w = mv.width;
+            const std::uint16_t* col = h + line;
+            const std::uint16_t *p0 = col + i0 * w, *p1 = col + i1 * w, *p2 = col + i2 * w,
+                                *p3 = col + i3 * w;
+            a = _mm_setr_epi32(p0[0], p1[0], p2[0], p3[0]);
+            b = _mm_setr_epi32(p0[w], p1[w], p2[w], p3[w]);
+        } else {
+            // Minor along x: the two samples are adjacent, one 32-bit load.
+            const auto* row = reinterpret_cast<const unsigned char*>(h + line * mv.width);
+            int v[4];
+            std::memcpy(&v[0], row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
+            std::memcpy(&v[1], row + 2 * static_cast<std::ptrdiff_t>(i1), 4);
+            std::memcpy(&v[2], row + 2 * static_cast<std::ptrdiff_t>(i2), 4);
+            std::memcpy(&v[3], row + 2 * static_cast<std::ptrdiff_t>(i3), 4);
+            const __m128i g = _mm_setr_epi32(v[0], v[1], v[2], v[3]);
+            a = _mm_and_si128(g, _mm_set1_epi32(0xFFFF));
+            b = _mm_srli_epi32(g, 16);
+        }
+        const V4 h0 = toV4(a), h1 = toV4(b);
+        return h0 + f * (h1 - h0);
+    }
+
+    template <bool kMajorX>
+    [[gnu::always_inline]] VIG_CASTER_AVX2 RowsOutcome linearRowsAxis(const ColumnContext& cc,
+                                                                      ColumnState& st, V4 dx, V4 dy,
+                                                                      V4 dz, V4 gx, V4 gy,
+                                                                      Rgb8 c[4],
+                                                                      double tHit[4]) const {
+        const MapView& mv = *cc.mv;
+        const V4 zero = V4{} + 0.0;
+        const V4 gm = kMajorX ? gx : gy, gn = kMajorX ? gy : gx;
+        const int sgn = st.prevSgn;
+        const V4 len = vsqrt(dx * dx + dy * dy + dz * dz);
+        const V4 absGm = gm < 0.0 ? -gm : gm;
+        if (vmask(sgn > 0 ? gm > 0.0 : gm <= 0.0) != 15) return RowsOutcome::kOther;
+        if (vmask(absGm > 1e-9 * len) != 15) return RowsOutcome::kOther;
+        const V4 inv = 1.0 / absGm;
+        const V4 rn = gn * inv, rz = dz * inv;
+        // Each lane against the ray below the four.
+        {
+            const double sMinor = kMajorX ? cc.spacingY : cc.spacingX;
+            const V4 dRn = rn - st.prevRn;
+            const V4 gap = dRn < 0.0 ? -dRn : dRn, climb = rz - st.prevRz;
+            const int clear = vmask(climb >= cc.maxSlope * sMinor * gap);
+            for (int l = 0; l < 4; ++l) {
+                if (!((clear >> l) & 1) && !climbsClear(cc, st, kMajorX, rn[l], rz[l]))
+                    return RowsOutcome::kOther;
+            }
+        }
+        if (st.prevAbove) {
+            // The ray below climbed over the map's highest point; these climb faster: sky.
+            for (int l = 0; l < 4; ++l) {
+                tHit[l] = -1.0;
+                c[l] = skyColor(options_.sky, dz[l] / len[l]);
+            }
+            st.prevRn = rn[3];
+            st.prevRz = rz[3];
+            return RowsOutcome::kDone;
+        }
+        const double em = kMajorX ? cc.eg.gx : cc.eg.gy, en = kMajorX ? cc.eg.gy : cc.eg.gx;
+        const int w = mv.width;
+        const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
+        const double uStart = st.prevU;
+        const double gm0 = em + sgn * uStart;
+        const long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
+        const double u = (m - em) * sgn;
+        if (!(u >= 0.0) || m < 0 || m > majorCount - 1) return RowsOutcome::kOther;
+        const double lastN = minorCount - 1.0;
+        const V4 nA = en + rn * u;
+        if (vmask(nA >= 0.0 && nA <= lastN) != 15) return RowsOutcome::kOther;
+        const V4 lastCell = zero + (minorCount - 2.0);
+        const V4 dzr = rz * mv.invScale;
+        const M4 rising = dzr >= 0.0;
+        V4 zA = cc.eg.zRaw + dzr * u;
+        V4 above = zA - sampleLine4<kMajorX>(mv, m, nA, lastN);
+        const double majorSteps = sgn > 0 ? majorCount - 1.0 - m : static_cast<double>(m);
+        V4 nearSteps = zero + 1099511627776.0;  // 2^40
+        if (cc.multires) {
+            const V4 uNear = cc.d0 / (vsqrt(dx * dx + dy * dy) * inv);
+            nearSteps = vmax(zero, -vfloor(u - uNear));
+        }
+        // Past the level-0 distance already: the rows go one by one (coherently, linearFar).
+        if (vmask(nearSteps <= 0.0) != 0) return RowsOutcome::kFar;
+        const V4 total = vmin(nearSteps, zero + majorSteps);
+        // Per lane: the hit (uHit >= 0) or where it stopped (uEnd) and how.
+        enum : int{kLaneHit, kLaneStop, kLaneAbove, kLaneFar};
+        int kind[4] = {kLaneStop, kLaneStop, kLaneStop, kLaneStop};
+        double uEnd[4] = {uStart, uStart, uStart, uStart};
+        std::uint64_t steps = 0;
+        V4 uHit = zero - 1.0;
+        M4 active = above > 0.0;
+        if (const int first = 15 & ~vmask(active)) {
+            for (int l = 0; l < 4; ++l) {
+                if ((first >> l) & 1) {
+                    kind[l] = kLaneHit;
+                    uHit[l] = u;
+                    ++steps;
+                }
+            }
+        }
+        double uA = u;
+        long k = 0;
+        // Steps no lane can end on but by a hit (with a margin for rounding): neither past its
+        // step count, nor off a minor side, nor over the map's highest point while climbing.
+        const V4 absRn = rn < 0.0 ? -rn : rn;
+        const V4 toSide = rn > 0.0 ? lastN - nA : nA;
+        const V4 huge = zero + 1e300;
+        const V4 sideSteps = absRn > 0.0 ? toSide / absRn - 2.0 : huge;
+        const V4 topSteps = dzr > 0.0        ? (mv.maxRaw - cc.eg.zRaw) / dzr - u - 2.0
+                            : zA > mv.maxRaw ? zero
+                                             : huge;
+        const V4 bound = vmin(total, vmin(sideSteps, topSteps));
+        const double safe = std::min(std::min(bound[0], bound[1]), std::min(bound[2], bound[3]));
+        const long kSafe = safe > 0.0 ? static_cast<long>(safe) : 0;
+        for (; k < kSafe; ++k) {
+            const long lineB = m + sgn * (k + 1);
+            const double uB = (static_cast<double>(lineB) - em) * sgn;
+            const V4 nB = en + rn * uB;
+            const V4 zB = cc.eg.zRaw + dzr * uB;
+            const V4 below = zB - sampleLine4<kMajorX>(mv, lineB, nB, lastN);
+            const M4 hitNow = active & (below <= 0.0);
+            const int hits = vmask(hitNow);
+            if (hits) {
+                uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
+                for (int l = 0; l < 4; ++l) {
+                    if ((hits >> l) & 1) {
+                        kind[l] = kLaneHit;
+                        steps += static_cast<std::uint64_t>(k + 1);
+                    }
+                }
+                active = active & ~hitNow;
+                if (vmask(active) == 0) break;
+            }
+            above = below;
+            uA = uB;
+            zA = zB;
+        }
+        for (; vmask(active) != 0; ++k) {
+            const double kd = static_cast<double>(k);
+            const M4 exhausted = active && kd >= total;
+            const M4 far = exhausted && total == nearSteps && nearSteps < majorSteps + 1.0;
+            const long lineB = m + sgn * (k + 1);
+            const double uB = (static_cast<double>(lineB) - em) * sgn;
+            const V4 nB = en + rn * uB;
+            const M4 leave = active && !exhausted && !(nB >= 0.0 && nB <= lastN);
+            const M4 over = active && !exhausted && !leave && rising && zA > mv.maxRaw;
+            const int ended = vmask(exhausted || leave || over);
+            if (ended) {
+                for (int l = 0; l < 4; ++l) {
+                    if (!((ended >> l) & 1)) continue;
+                    kind[l] = far[l] ? kLaneFar : over[l] ? kLaneAbove : kLaneStop;
+                    uEnd[l] = std::max(uA, uStart);
+                    steps += static_cast<std::uint64_t>(exhausted[l] ? k : k + 1);
+                }
+                active = active && !(exhausted || leave || over);
+                if (vmask(active) == 0) break;
+            }
+            const V4 zB = cc.eg.zRaw + dzr * uB;
+            const V4 below =
+                zB - sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
+            const M4 hitNow = active && below <= 0.0;
+            const int hits = vmask(hitNow);
+            if (hits) {
+                uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
+                for (int l = 0; l < 4; ++l) {
+                    if ((hits >> l) & 1) {
+                        kind[l] = kLaneHit;
+                        steps += static_cast<std::uint64_t>(k + 1);
+                    }
+                }
+                active = active && !hitNow;
+            }
+            above = below;
+            uA = uB;
+            zA = zB;
+        }
+        // Colours of the hits.
+        const V4 pm = em + sgn * uHit, pn = en + rn * uHit;
+        const M4 hitLane = uHit >= 0.0;
+        const V4 cm = hitLane ? vmax(zero, vmin(vfloor(pm), zero + (majorCount - 2.0))) : zero;
+        const V4 cn = hitLane ? vmax(zero, vmin(vfloor(pn), lastCell)) : zero;
+        const V4 fm = hitLane ? pm - cm : zero, fn = hitLane ? pn - cn : zero;
+        V4 rgb[3];
+        cellColor4(mv, kMajorX ? cm : cn, kMajorX ? cn : cm, kMajorX ? fm : fn, kMajorX ? fn : fm,
+                   rgb);
+        const V4 t = uHit * len * inv;
+        for (int l = 0; l < 4; ++l) {
+            tHit[l] = -1.0;
+            if (kind[l] == kLaneHit) {
+                tHit[l] = t[l];
+                float f[3] = {static_cast<float>(rgb[0][l]), static_cast<float>(rgb[1][l]),
+                              static_cast<float>(rgb[2][l])};
+                c[l] = haze(f, tHit[l]);
+                uEnd[l] = uHit[l];
+            } else if (kind[l] == kLaneFar) {
+                // From where the lane below stopped when it climbs clear of that one too (with
+                // the map's slope bound): the far march stays coherent.
+                double from = uEnd[l];
+                if (l > 0 && kind[l - 1] != kLaneStop && uEnd[l - 1] > from) {
+                    const double sMinor = kMajorX ? cc.spacingY : cc.spacingX;
+                    if (rz[l] - rz[l - 1] >= cc.maxSlope * sMinor * std::abs(rn[l] - rn[l - 1]))
+                        from = uEnd[l - 1];
+                }
+                bool overTop = false;
+                linearFar(cc, glm::dvec3(dx[l], dy[l], dz[l]), len[l], inv[l], kMajorX, sgn, rn[l],
+                          rz[l], from, uEnd[l], overTop, steps, c[l], tHit[l]);
+                if (overTop) kind[l] = kLaneAbove;
+            } else {
+                c[l] = skyColor(options_.sky, dz[l] / len[l]);
+            }
+        }
+        st.prevU = uEnd[3];
+        st.prevAbove = kind[3] == kLaneAbove;
+        st.prevRn = rn[3];
+        st.prevRz = rz[3];
+        st.steps += steps;
+        return RowsOutcome::kDone;
+    }
+
     VIG_CASTER_AVX2 void renderPacket(const MapView& mv, const Camera& camera, double d0, int x0,
                                       RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;

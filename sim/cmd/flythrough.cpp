@@ -99,6 +99,7 @@ int main(int argc, char** argv) {
     double fovDeg = 60.0;
     int margin = 48;
     int renderThreads = 0;
+    std::string levelsText = "auto";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false;
 
@@ -133,6 +134,10 @@ int main(int argc, char** argv) {
     app.add_option("--render-threads", renderThreads,
                    "Renderer worker threads (0: all cores but one, which the field loop keeps)")
         ->capture_default_str();
+    app.add_option("--levels", levelsText,
+                   "Renderer: coarser levels where a voxel shrinks below a pixel, auto (the "
+                   "multiresolution caster) | 0 (single level, exact)")
+        ->capture_default_str();
     app.add_flag("--terrain-points-only", terrainPointsOnly,
                  "Fit the warp to terrain control points only (default: sky directions too)");
     app.add_flag("--agc", agc, "Automatic gain control");
@@ -154,6 +159,8 @@ int main(int argc, char** argv) {
         }
         if (margin < 0 || margin > 2048) throw ig::InputError("--margin: must be 0..2048 pixels");
         if (renderThreads < 0) throw ig::InputError("--render-threads: must be 0 or more");
+        ig::RenderOptions renderOptions;
+        renderOptions.levels = ig::parseLevels(levelsText);
         const auto [width, height] = ig::parseSize(sizeText);
         const std::optional<prp::PixelFormat> prpFormat = prp::parsePixelFormat(formatText);
         if (!prpFormat) {
@@ -278,7 +285,8 @@ int main(int argc, char** argv) {
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
-        sim::FrameRenderer renderer = sim::makeCasterRenderer(map, geometry);
+        sim::FrameRenderer renderer =
+            sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions);
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
 
