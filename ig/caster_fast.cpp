@@ -635,9 +635,37 @@ class FastCaster final : public Caster {
                    bool majorX, int sgn, double rn, double rz, double uStart, double& uStop,
                    bool& above, std::uint64_t& steps, Rgb8& c, double& tHit) const {
         const double hs = std::sqrt(d.x * d.x + d.y * d.y) * inv;  // metres per major unit
-        const FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, uStart, steps)
-                                : marchLinearFar<false>(cc, sgn, rn, rz, hs, uStart, steps);
-        uStop = std::max(f.u, uStart);
+        // Far rays pass over long stretches of terrain between hits (a row's hit moves by many
+        // cells there): skip them down the max-height nodes, which bound every display level
+        // and so any blend of two, before sampling lines.
+        const double lenPerU = len * inv;
+        double from = uStart;
+        {
+            const TerrainRay ray(map_, cc.eye, d);
+            double t0, t1;
+            if (!clipToMapBox(map_, ray, t0, t1) || !(t1 > uStart * lenPerU)) {
+                uStop = uStart;
+                above = false;
+                tHit = -1.0;
+                c = skyColor(options_.sky, d.z / len);
+                return;
+            }
+            const double t =
+                skipEmptySpace(*pyramid_, ray, std::max(t0, uStart * lenPerU), t1, steps);
+            if (t < 0.0) {
+                // Nothing met up to where the ray leaves the map box: through its top (every
+                // ray above does too) or a side.
+                uStop = std::max(uStart, t1 / lenPerU);
+                above = ray.dir.z >= 0.0 && ray.origin.z + t1 * ray.dir.z >= map_.maxHeight();
+                tHit = -1.0;
+                c = skyColor(options_.sky, d.z / len);
+                return;
+            }
+            from = std::max(uStart, t / lenPerU);
+        }
+        const FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, steps)
+                                : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, steps);
+        uStop = std::max(f.u, from);
         above = f.kind == ColumnMarch::kAbove;
         tHit = -1.0;
         if (f.kind != ColumnMarch::kHit) {
@@ -734,8 +762,36 @@ class FastCaster final : public Caster {
                 return std::pair{hk + w * (hp - hk), w};
             };
             double zr = cc.eg.zRaw + dzr * ul;
-            double above = 0.0, weight = 0.0;
+            double above = 0.0, weight = 0.0, uA = ul - size;
             bool started = false, first = true;
+            if (u < ul && line >= 0 && line <= majorCount - 1) {
+                // Node A is the start itself (inside the map), on the blended surface there.
+                const double gmu = (em + sgn * u) * invSize, gnu = (en + rn * u) * invSize;
+                if (gmu >= 0.0 && gmu <= majorCount - 1.0 && gnu >= 0.0 &&
+                    gnu <= minorCount - 1.0) {
+                    double h = levelSurface<kMajorX>(l, gmu, gnu), w = 0.0;
+                    if (p) {
+                        w = std::clamp(u * hs / dk - 1.0, 0.0, 1.0);
+                        if (w > 0.0) h += w * (levelSurface<kMajorX>(*p, 0.5 * gmu, 0.5 * gnu) - h);
+                    }
+                    above = cc.eg.zRaw + dzr * u - h;
+                    weight = w;
+                    uA = u;
+                    started = true;
+                    first = false;
+                    if (above <= 0.0) {
+                        steps += count + 1;
+                        out.kind = ColumnMarch::kHit;
+                        out.u = u;
+                        out.level = k;
+                        out.weight = w;
+                        const double gmHit = em + sgn * u, gnHit = en + rn * u;
+                        out.gx = kMajorX ? gmHit : gnHit;
+                        out.gy = kMajorX ? gnHit : gmHit;
+                        return out;
+                    }
+                }
+            }
             // Steps are skipped where the ray passes over the max-height nodes that bound this
             // band's two levels (node level k + 1, or k at the top band).
             const int j = std::max(p ? k + 1 : k, 1);
@@ -783,6 +839,7 @@ class FastCaster final : public Caster {
                         const auto [ha, wa] = surface(line - sgn, nPrev, ul - size);
                         above = zr - dzr * size - ha;
                         weight = wa;
+                        uA = ul - size;
                         started = true;
                     }
                 }
@@ -791,11 +848,10 @@ class FastCaster final : public Caster {
                 const double diff = zr - h;
                 if (diff <= 0.0) {
                     const double f = started ? above / (above - diff) : 1.0;
-                    // Between the previous line (one level-k cell back) and this one.
-                    const double back = (1.0 - f) * size;
+                    // Between the previous node (a line, or the start) and this line.
                     steps += count;
                     out.kind = ColumnMarch::kHit;
-                    out.u = ul - back;
+                    out.u = started ? uA + f * (ul - uA) : ul;
                     out.level = k;
                     out.weight = started ? weight + f * (w - weight) : w;
                     const double gmHit = em + sgn * out.u, gnHit = en + rn * out.u;
@@ -806,6 +862,7 @@ class FastCaster final : public Caster {
                 if (ul >= uEnd) break;
                 above = diff;
                 weight = w;
+                uA = ul;
                 started = true;
                 line += sgn;
                 ul += size;
@@ -1639,6 +1696,7 @@ class FastCaster final : public Caster {
                 }
             }
         }
+        int hitMask = 0;  // lanes that hit in the loops below
         double uA = u;
         long k = 0;
         // Steps no lane can end on but by a hit (with a margin for rounding): neither past its
@@ -1663,12 +1721,9 @@ class FastCaster final : public Caster {
             const int hits = vmask(hitNow);
             if (hits) {
                 uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
-                for (int l = 0; l < 4; ++l) {
-                    if ((hits >> l) & 1) {
-                        kind[l] = kLaneHit;
-                        steps += static_cast<std::uint64_t>(k + 1);
-                    }
-                }
+                hitMask |= hits;
+                steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
+                         static_cast<std::uint64_t>(k + 1);
                 active = active & ~hitNow;
                 if (vmask(active) == 0) break;
             }
@@ -1703,18 +1758,17 @@ class FastCaster final : public Caster {
             const int hits = vmask(hitNow);
             if (hits) {
                 uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
-                for (int l = 0; l < 4; ++l) {
-                    if ((hits >> l) & 1) {
-                        kind[l] = kLaneHit;
-                        steps += static_cast<std::uint64_t>(k + 1);
-                    }
-                }
+                hitMask |= hits;
+                steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
+                         static_cast<std::uint64_t>(k + 1);
                 active = active && !hitNow;
             }
             above = below;
             uA = uB;
             zA = zB;
         }
+        for (int l = 0; l < 4; ++l)
+            if ((hitMask >> l) & 1) kind[l] = kLaneHit;
         // Colours of the hits.
         const V4 pm = em + sgn * uHit, pn = en + rn * uHit;
         const M4 hitLane = uHit >= 0.0;
@@ -1725,6 +1779,27 @@ class FastCaster final : public Caster {
         cellColor4(mv, kMajorX ? cm : cn, kMajorX ? cn : cm, kMajorX ? fm : fn, kMajorX ? fn : fm,
                    rgb);
         const V4 t = uHit * len * inv;
+        if (vmask(hitLane) == 15 && !(options_.sky.hazeDistance > 0.0)) {
+            // All four hit, no haze (the common case): quantize on four lanes, as quantize().
+            alignas(16) int q[3][4];
+            for (int ch = 0; ch < 3; ++ch) {
+                __m128 v = _mm256_cvtpd_ps(reinterpret_cast<__m256d>(rgb[ch]));
+                v = _mm_add_ps(v, _mm_set1_ps(0.5f));
+                v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.0f));
+                _mm_store_si128(reinterpret_cast<__m128i*>(q[ch]), _mm_cvttps_epi32(v));
+            }
+            for (int l = 0; l < 4; ++l) {
+                c[l] = Rgb8{static_cast<std::uint8_t>(q[0][l]), static_cast<std::uint8_t>(q[1][l]),
+                            static_cast<std::uint8_t>(q[2][l])};
+                tHit[l] = t[l];
+            }
+            st.prevU = uHit[3];
+            st.prevAbove = false;
+            st.prevRn = rn[3];
+            st.prevRz = rz[3];
+            st.steps += steps;
+            return RowsOutcome::kDone;
+        }
         for (int l = 0; l < 4; ++l) {
             tHit[l] = -1.0;
             if (kind[l] == kLaneHit) {
