@@ -1590,27 +1590,40 @@ class FastCaster final : public Caster {
         const V4 i = vmin(vfloor(n), V4{} + (lastN - 1.0));
         const V4 f = n - i;
         const __m128i ii = _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(i));
-        const int i0 = _mm_cvtsi128_si32(ii), i1 = _mm_extract_epi32(ii, 1),
-                  i2 = _mm_extract_epi32(ii, 2), i3 = _mm_extract_epi32(ii, 3);
         const std::uint16_t* h = mv.heights;
         __m128i a, b;
         if (kMajorX) {
-            // Minor along y: the two samples are a row apart.
-            const std::ptrdiff_t w = mv.width;
-            const std::uint16_t* col = h + line;
-            const std::uint16_t *p0 = col + i0 * w, *p1 = col + i1 * w, *p2 = col + i2 * w,
-                                *p3 = col + i3 * w;
-            a = _mm_setr_epi32(p0[0], p1[0], p2[0], p3[0]);
-            b = _mm_setr_epi32(p0[w], p1[w], p2[w], p3[w]);
+            // Minor along y: the two samples are a row apart. Offsets in 32 bits (the packet
+            // paths run on maps of fewer than 2^31 samples).
+            const int w = mv.width;
+            const __m128i off = _mm_add_epi32(_mm_mullo_epi32(ii, _mm_set1_epi32(w)),
+                                              _mm_set1_epi32(static_cast<int>(line)));
+            const int o0 = _mm_cvtsi128_si32(off), o1 = _mm_extract_epi32(off, 1),
+                      o2 = _mm_extract_epi32(off, 2), o3 = _mm_extract_epi32(off, 3);
+            __m128i v = _mm_cvtsi32_si128(h[o0]);
+            v = _mm_insert_epi16(v, h[o1], 1);
+            v = _mm_insert_epi16(v, h[o2], 2);
+            v = _mm_insert_epi16(v, h[o3], 3);
+            v = _mm_insert_epi16(v, h[o0 + w], 4);
+            v = _mm_insert_epi16(v, h[o1 + w], 5);
+            v = _mm_insert_epi16(v, h[o2 + w], 6);
+            v = _mm_insert_epi16(v, h[o3 + w], 7);
+            a = _mm_cvtepu16_epi32(v);
+            b = _mm_cvtepu16_epi32(_mm_srli_si128(v, 8));
         } else {
             // Minor along x: the two samples are adjacent, one 32-bit load.
             const auto* row = reinterpret_cast<const unsigned char*>(h + line * mv.width);
+            const int i0 = _mm_cvtsi128_si32(ii), i1 = _mm_extract_epi32(ii, 1),
+                      i2 = _mm_extract_epi32(ii, 2), i3 = _mm_extract_epi32(ii, 3);
             int v[4];
             std::memcpy(&v[0], row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
             std::memcpy(&v[1], row + 2 * static_cast<std::ptrdiff_t>(i1), 4);
             std::memcpy(&v[2], row + 2 * static_cast<std::ptrdiff_t>(i2), 4);
             std::memcpy(&v[3], row + 2 * static_cast<std::ptrdiff_t>(i3), 4);
-            const __m128i g = _mm_setr_epi32(v[0], v[1], v[2], v[3]);
+            __m128i g = _mm_cvtsi32_si128(v[0]);
+            g = _mm_insert_epi32(g, v[1], 1);
+            g = _mm_insert_epi32(g, v[2], 2);
+            g = _mm_insert_epi32(g, v[3], 3);
             a = _mm_and_si128(g, _mm_set1_epi32(0xFFFF));
             b = _mm_srli_epi32(g, 16);
         }
