@@ -635,36 +635,38 @@ class FastCaster final : public Caster {
                    bool majorX, int sgn, double rn, double rz, double uStart, double& uStop,
                    bool& above, std::uint64_t& steps, Rgb8& c, double& tHit) const {
         const double hs = std::sqrt(d.x * d.x + d.y * d.y) * inv;  // metres per major unit
-        // Far rays pass over long stretches of terrain between hits (a row's hit moves by many
-        // cells there): skip them down the max-height nodes, which bound every display level
-        // and so any blend of two, before sampling lines.
+        // Far rays may pass over long stretches of terrain between hits (a row's hit moves by
+        // many cells there): after a few lines without a hit they skip down the max-height
+        // nodes, which bound every display level and so any blend of two.
         const double lenPerU = len * inv;
         double from = uStart;
-        {
+        FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, kFarLines, steps)
+                          : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, kFarLines, steps);
+        if (f.kind == ColumnMarch::kFar) {
             const TerrainRay ray(map_, cc.eye, d);
             double t0, t1;
-            if (!clipToMapBox(map_, ray, t0, t1) || !(t1 > uStart * lenPerU)) {
-                uStop = uStart;
+            const double tFrom = f.u * lenPerU;
+            if (!clipToMapBox(map_, ray, t0, t1) || !(t1 > tFrom)) {
+                uStop = f.u;
                 above = false;
                 tHit = -1.0;
                 c = skyColor(options_.sky, d.z / len);
                 return;
             }
-            const double t =
-                skipEmptySpace(*pyramid_, ray, std::max(t0, uStart * lenPerU), t1, steps);
+            const double t = skipEmptySpace(*pyramid_, ray, std::max(t0, tFrom), t1, steps);
             if (t < 0.0) {
                 // Nothing met up to where the ray leaves the map box: through its top (every
                 // ray above does too) or a side.
-                uStop = std::max(uStart, t1 / lenPerU);
+                uStop = std::max(f.u, t1 / lenPerU);
                 above = ray.dir.z >= 0.0 && ray.origin.z + t1 * ray.dir.z >= map_.maxHeight();
                 tHit = -1.0;
                 c = skyColor(options_.sky, d.z / len);
                 return;
             }
-            from = std::max(uStart, t / lenPerU);
+            from = std::max(f.u, t / lenPerU);
+            f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, -1, steps)
+                       : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, -1, steps);
         }
-        const FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, steps)
-                                : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, steps);
         uStop = std::max(f.u, from);
         above = f.kind == ColumnMarch::kAbove;
         tHit = -1.0;
@@ -685,6 +687,9 @@ class FastCaster final : public Caster {
         }
         c = haze(rgb, tHit);
     }
+
+    // Lines a far ray samples before it skips down the max-height nodes.
+    static constexpr long kFarLines = 16;
 
     struct FarHit {
         ColumnMarch::Kind kind = ColumnMarch::kStop;
@@ -724,8 +729,10 @@ class FastCaster final : public Caster {
     }
 
     template <bool kMajorX>
+    // The band march from uStart; with budget >= 0, after that many lines it stops (kind kFar)
+    // at u, up to which the ray is clear.
     FarHit marchLinearFar(const ColumnContext& cc, int sgn, double rn, double rz, double hs,
-                          double uStart, std::uint64_t& steps) const {
+                          double uStart, long budget, std::uint64_t& steps) const {
         FarHit out;
         out.u = uStart;
         if (!(hs > 0.0)) return out;
@@ -801,6 +808,13 @@ class FastCaster final : public Caster {
             const int lastNn = skip ? (kMajorX ? pyramid_->nodesY(j) : pyramid_->nodesX(j)) - 1 : 0;
             for (;;) {
                 ++count;
+                if (budget >= 0 && static_cast<long>(count) > budget && !first) {
+                    // Clear up to the previous line.
+                    steps += count;
+                    out.kind = ColumnMarch::kFar;
+                    out.u = std::max(u, ul - size);
+                    return out;
+                }
                 if (line < 0 || line > majorCount - 1 || !(n >= 0.0) || n > minorCount - 1.0) {
                     steps += count;
                     out.kind = ColumnMarch::kStop;
@@ -1089,6 +1103,8 @@ class FastCaster final : public Caster {
         int single = 0;  // rows to cast one by one before trying four again
         for (int y = h - 1; y >= 0;) {
 #if VIG_CASTER_PACKETS
+            // Sky above the map's highest point goes four rows at a time again.
+            if (single > 0 && st.prevAbove) single = 0;
             if (rows && single == 0 && y >= 3 && st.havePrev) {
                 Rgb8 c[4];
                 double tHit[4];
