@@ -325,6 +325,68 @@ TEST(MultiresCaster, NearTerrainIsLevelZeroSampledOnGridLines) {
     EXPECT_LT(mae, 0.2);
 }
 
+// The multiresolution caster against the exact single level where every hit is nearer than
+// the level-0 distance, in the cases its march treats apart: every heading (both major axes,
+// both directions), the eye outside the map looking in, rays leaving through the map's sides,
+// cells that are not square, the eye within a cell of the terrain. Depths stay within the
+// length of one cell along the ray of the exact ones wherever both hit, and sky stays sky.
+TEST(MultiresCaster, NearTerrainAgreesWithLevelZeroInEveryCase) {
+    // 257 x 193 samples at 12 x 7 m: hills, so hits are spread over the cells.
+    TerrainMap map(257, 193, 12.0, 7.0, 0.05, 100.0);
+    for (int y = 0; y < map.height(); ++y) {
+        for (int x = 0; x < map.width(); ++x) {
+            const double h = 400.0 + 300.0 * std::sin(x * 0.07) * std::cos(y * 0.05) +
+                             80.0 * std::sin(x * 0.31 + y * 0.17);
+            map.setRaw(x, y, static_cast<std::uint16_t>(std::lround(h / 0.05)));
+        }
+    }
+    map.updateRange();
+    const Intrinsics in = Intrinsics::fromFov(160, 120, ig::degToRad(50));
+    const double d0 = in.focal * std::max(map.spacingX(), map.spacingY());
+    const double cell = std::hypot(map.spacingX(), map.spacingY());
+    struct Case {
+        double x, y, above, yaw, pitch;
+    };
+    std::vector<Case> cases;
+    for (double yaw : {0.0, 37.0, 90.0, 135.0, 180.0, 225.0, 300.0})
+        cases.push_back({1540.0, 670.0, 60.0, yaw, -25.0});
+    cases.push_back({-300.0, 670.0, 700.0, 0.0, -15.0});    // outside, looking in along x
+    cases.push_back({1540.0, -250.0, 700.0, 90.0, -20.0});  // outside, looking in along y
+    cases.push_back({3000.0, 1300.0, 300.0, 10.0, -30.0});  // rays leave through a side
+    cases.push_back({1540.0, 670.0, 3.0, 45.0, -10.0});     // the eye within a cell of the terrain
+    std::uint64_t both = 0, close = 0, sky = 0, skyAgree = 0, pixels = 0;
+    for (const Case& c : cases) {
+        Pose pose;
+        const double ground = map.surfaceHeight(std::clamp(c.x, 0.0, map.extentX()),
+                                                std::clamp(c.y, 0.0, map.extentY()));
+        pose.position = {c.x, c.y, ground + c.above};
+        pose.yaw = ig::degToRad(c.yaw);
+        pose.pitch = ig::degToRad(c.pitch);
+        const auto single = renderWith(map, pose, in, 0, 1);
+        const auto multi = renderWith(map, pose, in, ig::kLevelsAuto, 1);
+        for (std::size_t i = 0; i < single.depth.size(); ++i) {
+            const float a = single.depth[i], b = multi.depth[i];
+            ++pixels;
+            if (std::isinf(a) || std::isinf(b)) {
+                ++sky;
+                skyAgree += std::isinf(a) && std::isinf(b);
+                continue;
+            }
+            if (!(a < 0.9 * d0)) continue;  // past the level-0 distance: coarser levels
+            ++both;
+            close += std::abs(double(a) - b) <= cell;
+        }
+    }
+    std::printf(
+        "near terrain, %zu cases: %.3f %% of %llu near hits within a cell of level 0's, "
+        "%.3f %% of %llu sky pixels sky in both\n",
+        cases.size(), 100.0 * close / both, static_cast<unsigned long long>(both),
+        100.0 * skyAgree / sky, static_cast<unsigned long long>(sky));
+    ASSERT_GT(both, pixels / 2);
+    EXPECT_GE(close, both * 995 / 1000);
+    EXPECT_GE(skyAgree, sky * 99 / 100);
+}
+
 // Mean colour error of levels 0 and auto against a 4x4-supersampled reference over a sweep.
 struct SupersampledError {
     double single = 0.0, multi = 0.0;
