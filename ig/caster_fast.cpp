@@ -1733,7 +1733,9 @@ class FastCaster final : public Caster {
         const V4 absRn = rn < 0.0 ? -rn : rn;
         const V4 toSide = rn > 0.0 ? lastN - nA : nA;
         const V4 huge = zero + 1e300;
-        const V4 sideSteps = absRn > 0.0 ? toSide / absRn - 2.0 : huge;
+        // (1e-6 of a cell kept from the side, beyond rounding, where the track is nearly along
+        // the major axis: the loop's samples must not go below the first row or column.)
+        const V4 sideSteps = absRn > 0.0 ? (toSide - 1e-6) / absRn - 2.0 : huge;
         const V4 topSteps = dzr > 0.0        ? (mv.maxRaw - cc.eg.zRaw) / dzr - u - 2.0
                             : zA > mv.maxRaw ? zero
                                              : huge;
