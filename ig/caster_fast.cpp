@@ -219,8 +219,12 @@ class FastCaster final : public Caster {
                          offset,
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
-        if (linear() && options_.supersample == 1) {
-            renderLinearColumn(mv, camera, d0, unit, frame, counters);
+        if (linear()) {
+            if (options_.supersample == 1) {
+                renderLinearColumn<false>(mv, camera, d0, unit, frame, counters);
+            } else {
+                renderLinearColumn<true>(mv, camera, d0, unit, frame, counters);
+            }
             return;
         }
 #if VIG_CASTER_PACKETS
@@ -255,11 +259,17 @@ class FastCaster final : public Caster {
 
     // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
     bool usePackets() const {
+        return useVectors() && options_.supersample == 1;
+    }
+
+    // Four lanes with AVX2: four columns (single level, one ray per pixel) or four rows of a
+    // column (multiresolution, any number of rays per pixel).
+    bool useVectors() const {
 #if VIG_CASTER_PACKETS
         static const bool hasAvx2 = __builtin_cpu_supports("avx2");
         // Vector gathers index colour bytes with 32-bit offsets.
         const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
-        return options_.packets && options_.supersample == 1 && hasAvx2 && fits;
+        return options_.packets && hasAvx2 && fits;
 #else
         return false;
 #endif
@@ -1087,53 +1097,89 @@ class FastCaster final : public Caster {
                              topLevel_ > 0};
     }
 
-    // One column of the multiresolution caster (one ray per pixel), bottom to top: four rows at
-    // a time with AVX2 where they are coherent with the ray below them, else one by one.
+    // One column of the multiresolution caster, bottom to top: four rays at a time with AVX2
+    // where they are coherent with the ray below them, else one by one. With kSuper, the
+    // supersample rays of each pixel are stacked in the column (as renderColumn casts them) and
+    // averaged, the depth the nearest.
+    template <bool kSuper>
     void renderLinearColumn(const MapView& mv, const Camera& camera, double d0, int x,
                             RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
+        const int sub = kSuper ? options_.supersample : 1;
+        const double subStep = 1.0 / sub;
         const ColumnContext cc = columnContext(mv, camera, d0, x);
         ColumnState st;
         startColumn(camera, cc, st);
         Rgb8* colorOut = frame.color.data() + x;
         float* depthOut = frame.depth.data() + x;
+        // Ray v of the column (from the top) runs through image row y + (s + 0.5) / sub,
+        // v = y * sub + s.
+        auto rowOf = [&](int v) {
+            if constexpr (kSuper) return (v / sub) + ((v % sub) + 0.5) * subStep;
+            return v + 0.5;
+        };
+        int sum[3] = {0, 0, 0};
+        float nearest = kSkyDepth;
+        auto put = [&](int v, Rgb8 c, double tHit) {
+            if constexpr (kSuper) {
+                if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
+                sum[0] += c.r;
+                sum[1] += c.g;
+                sum[2] += c.b;
+                if (v % sub != 0) return;
+                const std::size_t idx = static_cast<std::size_t>(v / sub) * w;
+                const int half = sub / 2;
+                colorOut[idx] = Rgb8{static_cast<std::uint8_t>((sum[0] + half) / sub),
+                                     static_cast<std::uint8_t>((sum[1] + half) / sub),
+                                     static_cast<std::uint8_t>((sum[2] + half) / sub)};
+                depthOut[idx] = nearest;
+                sum[0] = sum[1] = sum[2] = 0;
+                nearest = kSkyDepth;
+            } else {
+                const std::size_t idx = static_cast<std::size_t>(v) * w;
+                colorOut[idx] = c;
+                depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
+            }
+        };
 #if VIG_CASTER_PACKETS
-        const bool rows = usePackets();
+        const bool rows = useVectors();
 #endif
-        int single = 0;  // rows to cast one by one before trying four again
-        for (int y = h - 1; y >= 0;) {
+        const int rays = h * sub;
+        int single = 0;  // rays to cast one by one before trying four again
+        for (int v = rays - 1; v >= 0;) {
 #if VIG_CASTER_PACKETS
-            // Sky above the map's highest point goes four rows at a time again.
+            // Sky above the map's highest point goes four rays at a time again.
             if (single > 0 && st.prevAbove) single = 0;
-            if (rows && single == 0 && y >= 3 && st.havePrev) {
+            if (rows && single == 0 && v >= 3 && st.havePrev) {
                 Rgb8 c[4];
                 double tHit[4];
-                const RowsOutcome r = linearRows(cc, st, y, c, tHit);
+                RowsOutcome r;
+                if constexpr (kSuper) {
+                    const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
+                    r = linearRows(cc, st, yy, c, tHit);
+                } else {
+                    r = linearRows(cc, st, v, c, tHit);
+                }
                 if (r == RowsOutcome::kFar) {
                     // Every ray above starts past the level-0 distance too.
-                    single = h;
+                    single = rays;
                 } else if (r == RowsOutcome::kOther) {
                     single = 4;
                 } else {
-                    for (int l = 0; l < 4; ++l) {
-                        const std::size_t idx = static_cast<std::size_t>(y - l) * w;
-                        colorOut[idx] = c[l];
-                        depthOut[idx] = tHit[l] >= 0.0 ? static_cast<float>(tHit[l]) : kSkyDepth;
-                    }
-                    y -= 4;
+                    for (int l = 0; l < 4; ++l)
+                        put(v - l, c[l], tHit[l]);
+                    v -= 4;
                     continue;
                 }
             }
             if (single > 0) --single;
 #endif
-            const glm::dvec3 d = cc.base + (y + 0.5) * cc.down;
+            const glm::dvec3 d = cc.base + rowOf(v) * cc.down;
             Rgb8 c;
             double tHit = -1.0;
             if (!linearRay(cc, d, st, c, tHit)) castRay(cc, d, st, c, tHit);
-            const std::size_t idx = static_cast<std::size_t>(y) * w;
-            colorOut[idx] = c;
-            depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
-            --y;
+            put(v, c, tHit);
+            --v;
         }
         counters.steps += st.steps;
         counters.restarts += st.restarts;
@@ -1576,19 +1622,31 @@ class FastCaster final : public Caster {
 
     // Columns x0 .. x0 + 3, one row at a time: packetRow where the four rays allow, castRay
     // for the rest.
-    // Rows y, y - 1, y - 2, y - 3 of one column (bottom to top) cast together by the
-    // multiresolution caster: when each of the four rays climbs clear of the ray below them
+    // Four consecutive rays of one column (bottom to top, through image rows rowY) cast together
+    // by the multiresolution caster: when each of the four climbs clear of the ray below them
     // (the column state; the same proof as linearRay's, against that one ray), all four march
     // from where it stopped, over the same major grid lines in step, each lane sampling the
     // surface on its own track; linearRay's march and hit, lane by lane. A lane that reaches the
-    // level-0 distance goes on alone into linearFar. False (state untouched) when some lane is
-    // not such a ray: the rows are then cast one by one.
+    // level-0 distance goes on alone into linearFar. kDone when cast (colours and hit distances
+    // set, the state moved on); otherwise the state is untouched and the rays are cast one by
+    // one (kFar: they start past the level-0 distance).
     enum class RowsOutcome{kDone, kFar, kOther};
+    VIG_CASTER_AVX2 RowsOutcome linearRows(const ColumnContext& cc, ColumnState& st,
+                                           const double rowY[4], Rgb8 c[4], double tHit[4]) const {
+        return linearRowsAt(cc, st, V4{rowY[0], rowY[1], rowY[2], rowY[3]}, c, tHit);
+    }
+    // Image rows y, y - 1, y - 2, y - 3 (one ray per pixel).
     VIG_CASTER_AVX2 RowsOutcome linearRows(const ColumnContext& cc, ColumnState& st, int y,
                                            Rgb8 c[4], double tHit[4]) const {
         const V4 yy = V4{static_cast<double>(y), static_cast<double>(y - 1),
                          static_cast<double>(y - 2), static_cast<double>(y - 3)} +
                       0.5;
+        return linearRowsAt(cc, st, yy, c, tHit);
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 RowsOutcome linearRowsAt(const ColumnContext& cc,
+                                                                    ColumnState& st, V4 yy,
+                                                                    Rgb8 c[4],
+                                                                    double tHit[4]) const {
         const V4 dx = cc.base.x + yy * cc.down.x, dy = cc.base.y + yy * cc.down.y,
                  dz = cc.base.z + yy * cc.down.z;
         const V4 gx = dx * cc.invSx, gy = dy * cc.invSy;
