@@ -1705,6 +1705,24 @@ class FastCaster final : public Caster {
         return h0 + f * (h1 - h0);
     }
 
+    // The active lanes under the surface at line B (below <= 0): their hits, between line A
+    // (the ray `above` the surface there) and B by linear interpolation, at step k. False when
+    // no lane is left active.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool takeHits(M4& active, V4 above, V4 below,
+                                                                double uA, double uB, long k,
+                                                                V4& uHit, int& hitMask,
+                                                                std::uint64_t& steps) {
+        const M4 hitNow = active & (below <= 0.0);
+        const int hits = vmask(hitNow);
+        if (hits == 0) return true;
+        uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
+        hitMask |= hits;
+        steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
+                 static_cast<std::uint64_t>(k + 1);
+        active = active & ~hitNow;
+        return vmask(active) != 0;
+    }
+
     template <bool kMajorX>
     [[gnu::always_inline]] VIG_CASTER_AVX2 RowsOutcome linearRowsAxis(const ColumnContext& cc,
                                                                       ColumnState& st, V4 dx, V4 dy,
@@ -1806,16 +1824,7 @@ class FastCaster final : public Caster {
             const V4 nB = en + rn * uB;
             const V4 zB = cc.eg.zRaw + dzr * uB;
             const V4 below = zB - sampleLine4<kMajorX>(mv, lineB, nB, lastN);
-            const M4 hitNow = active & (below <= 0.0);
-            const int hits = vmask(hitNow);
-            if (hits) {
-                uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
-                hitMask |= hits;
-                steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
-                         static_cast<std::uint64_t>(k + 1);
-                active = active & ~hitNow;
-                if (vmask(active) == 0) break;
-            }
+            if (!takeHits(active, above, below, uA, uB, k, uHit, hitMask, steps)) break;
             above = below;
             uA = uB;
             zA = zB;
@@ -1843,15 +1852,7 @@ class FastCaster final : public Caster {
             const V4 zB = cc.eg.zRaw + dzr * uB;
             const V4 below =
                 zB - sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
-            const M4 hitNow = active && below <= 0.0;
-            const int hits = vmask(hitNow);
-            if (hits) {
-                uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
-                hitMask |= hits;
-                steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
-                         static_cast<std::uint64_t>(k + 1);
-                active = active && !hitNow;
-            }
+            takeHits(active, above, below, uA, uB, k, uHit, hitMask, steps);
             above = below;
             uA = uB;
             zA = zB;
