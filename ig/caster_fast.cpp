@@ -1656,6 +1656,11 @@ class FastCaster final : public Caster {
                              : linearRowsAxis<false>(cc, st, dx, dy, dz, gx, gy, c, tHit);
     }
 
+    // Whether the four 32-bit lanes of v are equal.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool sameInAllLanes(__m128i v) {
+        return _mm_movemask_epi8(_mm_cmpeq_epi32(v, _mm_shuffle_epi32(v, 0))) == 0xFFFF;
+    }
+
     // The surface where each lane crosses level-0 major line `line` at minor coordinate n
     // (in [0, lastN] in every lane), linear along the line: lineSample on four lanes.
     template <bool kMajorX>
@@ -1672,8 +1677,15 @@ class FastCaster final : public Caster {
             const int w = mv.width;
             const __m128i off = _mm_add_epi32(_mm_mullo_epi32(ii, _mm_set1_epi32(w)),
                                               _mm_set1_epi32(static_cast<int>(line)));
-            const int o0 = _mm_cvtsi128_si32(off), o1 = _mm_extract_epi32(off, 1),
-                      o2 = _mm_extract_epi32(off, 2), o3 = _mm_extract_epi32(off, 3);
+            const int o0 = _mm_cvtsi128_si32(off), o3 = _mm_extract_epi32(off, 3);
+            if (sameInAllLanes(ii)) {
+                // All four tracks cross the line in one cell (common where cells span many
+                // pixels): two loads.
+                a = _mm_set1_epi32(h[o0]);
+                b = _mm_set1_epi32(h[o0 + w]);
+                return toV4(a) + f * (toV4(b) - toV4(a));
+            }
+            const int o1 = _mm_extract_epi32(off, 1), o2 = _mm_extract_epi32(off, 2);
             __m128i v = _mm_cvtsi32_si128(h[o0]);
             v = _mm_insert_epi16(v, h[o1], 1);
             v = _mm_insert_epi16(v, h[o2], 2);
@@ -1687,8 +1699,17 @@ class FastCaster final : public Caster {
         } else {
             // Minor along x: the two samples are adjacent, one 32-bit load.
             const auto* row = reinterpret_cast<const unsigned char*>(h + line * mv.width);
-            const int i0 = _mm_cvtsi128_si32(ii), i1 = _mm_extract_epi32(ii, 1),
-                      i2 = _mm_extract_epi32(ii, 2), i3 = _mm_extract_epi32(ii, 3);
+            const int i0 = _mm_cvtsi128_si32(ii), i3 = _mm_extract_epi32(ii, 3);
+            if (sameInAllLanes(ii)) {
+                // All four tracks cross the line in one cell: one load.
+                int v0;
+                std::memcpy(&v0, row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
+                const __m128i g = _mm_set1_epi32(v0);
+                const V4 h0 = toV4(_mm_and_si128(g, _mm_set1_epi32(0xFFFF)));
+                const V4 h1 = toV4(_mm_srli_epi32(g, 16));
+                return h0 + f * (h1 - h0);
+            }
+            const int i1 = _mm_extract_epi32(ii, 1), i2 = _mm_extract_epi32(ii, 2);
             int v[4];
             std::memcpy(&v[0], row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
             std::memcpy(&v[1], row + 2 * static_cast<std::ptrdiff_t>(i1), 4);
