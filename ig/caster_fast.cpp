@@ -1766,9 +1766,12 @@ class FastCaster final : public Caster {
             const V4 dRn = rn - st.prevRn;
             const V4 gap = dRn < 0.0 ? -dRn : dRn, climb = rz - st.prevRz;
             const int clear = vmask(climb >= cc.maxSlope * sMinor * gap);
-            for (int l = 0; l < 4; ++l) {
-                if (!((clear >> l) & 1) && !climbsClear(cc, st, kMajorX, rn[l], rz[l]))
-                    return RowsOutcome::kOther;
+            if (clear != 15) {
+                // The local bounds for the lanes the map's bound did not clear.
+                for (int l = 0; l < 4; ++l) {
+                    if (!((clear >> l) & 1) && !climbsClear(cc, st, kMajorX, rn[l], rz[l]))
+                        return RowsOutcome::kOther;
+                }
             }
         }
         if (st.prevAbove) {
