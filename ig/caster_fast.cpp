@@ -530,20 +530,26 @@ class FastCaster final : public Caster {
         const double dzr = rz * mv.invScale;
         const bool rising = dzr >= 0.0;
         double uA, above, zA;
+        // Node A on a major line: its minor coordinate and the samples either side.
+        bool onLine = false;
+        double nA = 0.0;
+        LineSample sA;
         if (u >= 0.0) {
             if (m < 0 || m > majorCount - 1) {
                 const bool ahead = sgn > 0 ? m < 0 : m > majorCount - 1;
                 out.kind = ahead || !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
                 return out;
             }
-            const double nA = en + rn * u;
+            nA = en + rn * u;
             if (!(nA >= 0.0) || nA > minorCount - 1.0) {
                 out.kind = !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
                 return out;
             }
             uA = u;
             zA = eg.zRaw + dzr * u;
-            above = zA - lineSample<kMajorX>(heights, w, minorCount, m, nA);
+            sA = lineSample<kMajorX>(heights, w, minorCount, m, nA);
+            above = zA - sA.h;
+            onLine = true;
         } else {
             // Line m is behind the eye: node A is the start itself, inside the map.
             const double gn0 = en + rn * uStart;
@@ -564,6 +570,7 @@ class FastCaster final : public Caster {
         const std::int64_t total = std::min(majorSteps, nearSteps);
         std::int64_t k = 0;
         double uHit = -1.0;
+        const double invRn = 1.0 / rn;
         if (above <= 0.0) {
             uHit = uA;
         } else {
@@ -584,14 +591,30 @@ class FastCaster final : public Caster {
                     return out;
                 }
                 const double zB = eg.zRaw + dzr * uB;
-                const double below = zB - lineSample<kMajorX>(heights, w, minorCount, lineB, nB);
-                if (below <= 0.0) {
+                const LineSample sB = lineSample<kMajorX>(heights, w, minorCount, lineB, nB);
+                const double below = zB - sB.h;
+                if (onLine && sB.i != sA.i) {
+                    // The track crosses a minor grid line between A and B: a node there.
+                    const MinorNode p = minorNode(sA, sB, nA, invRn, zA, zB);
+                    const double uP = uA + p.s * (uB - uA);
+                    if (p.diff <= 0.0) {
+                        uHit = uA + (uP - uA) * (above / (above - p.diff));
+                        break;
+                    }
+                    if (below <= 0.0) {
+                        uHit = uP + (uB - uP) * (p.diff / (p.diff - below));
+                        break;
+                    }
+                } else if (below <= 0.0) {
                     uHit = uA + (uB - uA) * (above / (above - below));
                     break;
                 }
                 above = below;
                 uA = uB;
                 zA = zB;
+                nA = nB;
+                sA = sB;
+                onLine = true;
             }
         }
         steps += static_cast<std::uint64_t>(k + 1);
@@ -613,17 +636,42 @@ class FastCaster final : public Caster {
         return out;
     }
 
-    // Height (raw) where the ray crosses level-0 major line `line` at minor coordinate n >= 0,
-    // linear along the line.
+    // The surface (raw) where the ray crosses a level-0 major line at minor coordinate n >= 0:
+    // linear along the line between the samples h0 (minor i) and h1 (minor i + 1).
+    struct LineSample {
+        double h = 0.0, h0 = 0.0, h1 = 0.0;
+        int i = 0;
+    };
     template <bool kMajorX>
-    [[gnu::always_inline]] static double lineSample(const std::uint16_t* heights, int w,
-                                                    int minorCount, long line, double n) {
-        const int i = std::min(static_cast<int>(n), minorCount - 2);
-        const double f = n - i;
-        const std::uint16_t* p = heights + (kMajorX ? line + static_cast<std::ptrdiff_t>(i) * w
-                                                    : line * static_cast<std::ptrdiff_t>(w) + i);
-        const double h0 = p[0];
-        return h0 + f * (static_cast<double>(p[kMajorX ? w : 1]) - h0);
+    [[gnu::always_inline]] static LineSample lineSample(const std::uint16_t* heights, int w,
+                                                        int minorCount, long line, double n) {
+        LineSample r;
+        r.i = std::min(static_cast<int>(n), minorCount - 2);
+        const double f = n - r.i;
+        const std::uint16_t* p = heights + (kMajorX ? line + static_cast<std::ptrdiff_t>(r.i) * w
+                                                    : line * static_cast<std::ptrdiff_t>(w) + r.i);
+        r.h0 = p[0];
+        r.h1 = p[kMajorX ? w : 1];
+        r.h = r.h0 + f * (r.h1 - r.h0);
+        return r;
+    }
+
+    // Where the track crosses the minor grid line between major lines A and B (their samples
+    // sA and sB in adjacent minor cells): the fraction s of the way from A to B, and the ray's
+    // height over the surface there (linear along that minor line between A's and B's samples
+    // on it). With these nodes the hit does not depend on which axis the ray marches along.
+    // (invRn: 1 / rn, the major units per minor cell.)
+    struct MinorNode {
+        double s, diff;
+    };
+    [[gnu::always_inline]] static MinorNode minorNode(const LineSample& sA, const LineSample& sB,
+                                                      double nA, double invRn, double zA,
+                                                      double zB) {
+        const bool up = sB.i > sA.i;
+        const double c = up ? sB.i : sA.i;
+        const double hA = up ? sA.h1 : sA.h0, hB = up ? sB.h0 : sB.h1;
+        const double s = (c - nA) * invRn;
+        return {s, zA + s * (zB - zA) - (hA + s * (hB - hA))};
     }
 
     static PyramidLevel levelZero(const MapView& mv) {
@@ -1663,9 +1711,12 @@ class FastCaster final : public Caster {
 
     // The surface where each lane crosses level-0 major line `line` at minor coordinate n
     // (in [0, lastN] in every lane), linear along the line: lineSample on four lanes.
+    struct Line4 {
+        V4 h, h0, h1, i;  // lineSample's, lane by lane (i as an integer-valued double)
+    };
     template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 sampleLine4(const MapView& mv, long line, V4 n,
-                                                                 double lastN) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static Line4 sampleLine4(const MapView& mv, long line,
+                                                                    V4 n, double lastN) {
         const V4 i = vmin(vfloor(n), V4{} + (lastN - 1.0));
         const V4 f = n - i;
         const __m128i ii = _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(i));
@@ -1681,9 +1732,9 @@ class FastCaster final : public Caster {
             if (sameInAllLanes(ii)) {
                 // All four tracks cross the line in one cell (common where cells span many
                 // pixels): two loads.
-                a = _mm_set1_epi32(h[o0]);
-                b = _mm_set1_epi32(h[o0 + w]);
-                return toV4(a) + f * (toV4(b) - toV4(a));
+                const V4 h0 = V4{} + static_cast<double>(h[o0]);
+                const V4 h1 = V4{} + static_cast<double>(h[o0 + w]);
+                return {h0 + f * (h1 - h0), h0, h1, i};
             }
             const int o1 = _mm_extract_epi32(off, 1), o2 = _mm_extract_epi32(off, 2);
             __m128i v = _mm_cvtsi32_si128(h[o0]);
@@ -1707,7 +1758,7 @@ class FastCaster final : public Caster {
                 const __m128i g = _mm_set1_epi32(v0);
                 const V4 h0 = toV4(_mm_and_si128(g, _mm_set1_epi32(0xFFFF)));
                 const V4 h1 = toV4(_mm_srli_epi32(g, 16));
-                return h0 + f * (h1 - h0);
+                return {h0 + f * (h1 - h0), h0, h1, i};
             }
             const int i1 = _mm_extract_epi32(ii, 1), i2 = _mm_extract_epi32(ii, 2);
             int v[4];
@@ -1723,20 +1774,46 @@ class FastCaster final : public Caster {
             b = _mm_srli_epi32(g, 16);
         }
         const V4 h0 = toV4(a), h1 = toV4(b);
-        return h0 + f * (h1 - h0);
+        return {h0 + f * (h1 - h0), h0, h1, i};
     }
 
-    // The active lanes under the surface at line B (below <= 0): their hits, between line A
-    // (the ray `above` the surface there) and B by linear interpolation, at step k. False when
-    // no lane is left active.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool takeHits(M4& active, V4 above, V4 below,
-                                                                double uA, double uB, long k,
-                                                                V4& uHit, int& hitMask,
+    // One step of the four lanes from major line A to B (A's cell iA and its sample on the
+    // side the track moves to, edgeA; B's sample sB; the minor coordinate nA at A; ray heights
+    // zA, zB; the ray's height over the surface above, below; up: rn > 0; invRn = 1 / rn): the
+    // active lanes whose ray goes under the surface in it, through the node where the track
+    // crosses a minor grid line if it does (marchLinear's minorNode), get their hits at step k.
+    // False when no lane is left active.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool stepHits(M4& active, V4 iA, V4 edgeA,
+                                                                const Line4& sB, M4 up, V4 nA,
+                                                                V4 invRn, V4 zA, V4 zB, V4 above,
+                                                                V4 below, double uA, double uB,
+                                                                long k, V4& uHit, int& hitMask,
                                                                 std::uint64_t& steps) {
-        const M4 hitNow = active & (below <= 0.0);
+        const M4 cross = active & (sB.i != iA);
+        M4 hitNow;
+        V4 at;
+        if (vmask(cross) == 0) {
+            hitNow = active & (below <= 0.0);
+            if (vmask(hitNow) == 0) return true;
+            at = uA + (uB - uA) * (above / (above - below));
+        } else {
+            const V4 c = up ? sB.i : iA;
+            const V4 hB = up ? sB.h0 : sB.h1;
+            const V4 sP = (c - nA) * invRn;
+            const V4 diffP = zA + sP * (zB - zA) - (edgeA + sP * (hB - edgeA));
+            const M4 inFirst = cross & (diffP <= 0.0);
+            const M4 inSecond = cross & ~inFirst & (below <= 0.0);
+            const M4 plain = active & ~cross & (below <= 0.0);
+            hitNow = inFirst | inSecond | plain;
+            if (vmask(hitNow) == 0) return true;
+            const V4 uP = uA + sP * (uB - uA);
+            const V4 first = uA + (uP - uA) * (above / (above - diffP));
+            const V4 second = uP + (uB - uP) * (diffP / (diffP - below));
+            const V4 whole = uA + (uB - uA) * (above / (above - below));
+            at = inFirst ? first : (inSecond ? second : whole);
+        }
         const int hits = vmask(hitNow);
-        if (hits == 0) return true;
-        uHit = hitNow ? uA + (uB - uA) * (above / (above - below)) : uHit;
+        uHit = hitNow ? at : uHit;
         hitMask |= hits;
         steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
                  static_cast<std::uint64_t>(k + 1);
@@ -1799,7 +1876,12 @@ class FastCaster final : public Caster {
         const V4 dzr = rz * mv.invScale;
         const M4 rising = dzr >= 0.0;
         V4 zA = cc.eg.zRaw + dzr * u;
-        V4 above = zA - sampleLine4<kMajorX>(mv, m, nA, lastN);
+        const Line4 s0 = sampleLine4<kMajorX>(mv, m, nA, lastN);
+        V4 above = zA - s0.h;
+        // Line A's cell, its sample on the side the track moves to, its minor coordinate.
+        const M4 up = rn > 0.0;
+        V4 iA = s0.i, edgeA = up ? s0.h1 : s0.h0, nLine = nA;
+        const V4 invRn = 1.0 / rn;
         const double majorSteps = sgn > 0 ? majorCount - 1.0 - m : static_cast<double>(m);
         V4 nearSteps = zero + 1099511627776.0;  // 2^40
         if (cc.multires) {
@@ -1842,23 +1924,33 @@ class FastCaster final : public Caster {
         const V4 bound = vmin(total, vmin(sideSteps, topSteps));
         const double safe = std::min(std::min(bound[0], bound[1]), std::min(bound[2], bound[3]));
         const long kSafe = safe > 0.0 ? static_cast<long>(safe) : 0;
-        for (; k < kSafe; ++k) {
+        // Line B as a double (exact: an integer below 2^31), and u there.
+        const double sgnD = sgn;
+        double lineD = static_cast<double>(m) + sgnD;
+        for (; k < kSafe; ++k, lineD += sgnD) {
             const long lineB = m + sgn * (k + 1);
-            const double uB = (static_cast<double>(lineB) - em) * sgn;
+            const double uB = (lineD - em) * sgnD;
             const V4 nB = en + rn * uB;
             const V4 zB = cc.eg.zRaw + dzr * uB;
-            const V4 below = zB - sampleLine4<kMajorX>(mv, lineB, nB, lastN);
-            if (!takeHits(active, above, below, uA, uB, k, uHit, hitMask, steps)) break;
+            const Line4 sB = sampleLine4<kMajorX>(mv, lineB, nB, lastN);
+            const V4 below = zB - sB.h;
+            if (!stepHits(active, iA, edgeA, sB, up, nLine, invRn, zA, zB, above, below, uA, uB, k,
+                          uHit, hitMask, steps)) {
+                break;
+            }
             above = below;
             uA = uB;
             zA = zB;
+            nLine = nB;
+            iA = sB.i;
+            edgeA = up ? sB.h1 : sB.h0;
         }
-        for (; vmask(active) != 0; ++k) {
+        for (; vmask(active) != 0; ++k, lineD += sgnD) {
             const double kd = static_cast<double>(k);
             const M4 exhausted = active && kd >= total;
             const M4 far = exhausted && total == nearSteps && nearSteps < majorSteps + 1.0;
             const long lineB = m + sgn * (k + 1);
-            const double uB = (static_cast<double>(lineB) - em) * sgn;
+            const double uB = (lineD - em) * sgnD;
             const V4 nB = en + rn * uB;
             const M4 leave = active && !exhausted && !(nB >= 0.0 && nB <= lastN);
             const M4 over = active && !exhausted && !leave && rising && zA > mv.maxRaw;
@@ -1874,12 +1966,17 @@ class FastCaster final : public Caster {
                 if (vmask(active) == 0) break;
             }
             const V4 zB = cc.eg.zRaw + dzr * uB;
-            const V4 below =
-                zB - sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
-            takeHits(active, above, below, uA, uB, k, uHit, hitMask, steps);
+            const Line4 sB =
+                sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
+            const V4 below = zB - sB.h;
+            stepHits(active, iA, edgeA, sB, up, nLine, invRn, zA, zB, above, below, uA, uB, k, uHit,
+                     hitMask, steps);
             above = below;
             uA = uB;
             zA = zB;
+            nLine = nB;
+            iA = sB.i;
+            edgeA = up ? sB.h1 : sB.h0;
         }
         for (int l = 0; l < 4; ++l)
             if ((hitMask >> l) & 1) kind[l] = kLaneHit;
