@@ -671,7 +671,9 @@ class FastCaster final : public Caster {
         const double c = up ? sB.i : sA.i;
         const double hA = up ? sA.h1 : sA.h0, hB = up ? sB.h0 : sB.h1;
         const double s = (c - nA) * invRn;
-        return {s, zA + s * (zB - zA) - (hA + s * (hB - hA))};
+        // The ray's height over the minor line's samples at A and B, interpolated.
+        const double dA = zA - hA, dB = zB - hB;
+        return {s, dA + s * (dB - dA)};
     }
 
     static PyramidLevel levelZero(const MapView& mv) {
@@ -1777,30 +1779,32 @@ class FastCaster final : public Caster {
         return {h0 + f * (h1 - h0), h0, h1, i};
     }
 
-    // One step of the four lanes from major line A to B (A's cell iA and its sample on the
-    // side the track moves to, edgeA; B's sample sB; the minor coordinate nA at A; ray heights
-    // zA, zB; the ray's height over the surface above, below; up: rn > 0; invRn = 1 / rn): the
-    // active lanes whose ray goes under the surface in it, through the node where the track
-    // crosses a minor grid line if it does (marchLinear's minorNode), get their hits at step k.
-    // False when no lane is left active.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool stepHits(M4& active, V4 iA, V4 edgeA,
-                                                                const Line4& sB, M4 up, V4 nA,
-                                                                V4 invRn, V4 zA, V4 zB, V4 above,
-                                                                V4 below, double uA, double uB,
-                                                                long k, V4& uHit, int& hitMask,
-                                                                std::uint64_t& steps) {
+    // One step of the four lanes from major line A to B (A's cell iA and the ray's height over
+    // A's sample on the side the track moves to, dEdgeA; B's sample sB; the minor coordinate nA
+    // at A; B's ray height zB; the ray's height over the surface above, below; up: rn > 0;
+    // invRn = 1 / rn): the active lanes whose ray goes under the surface in it, through the node
+    // where the track crosses a minor grid line if it does (marchLinear's minorNode), get their
+    // hits at step k. False when no lane is left active.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool stepHits(
+        M4& active, V4 iA, V4 dEdgeA, const Line4& sB, M4 up, V4 nA, V4 invRn, V4 zB, V4 above,
+        V4 below, double uA, double uB, long k, V4& uHit, int& hitMask, std::uint64_t& steps) {
         const M4 cross = active & (sB.i != iA);
+        const M4 underB = active & (below <= 0.0);
         M4 hitNow;
         V4 at;
         if (vmask(cross) == 0) {
-            hitNow = active & (below <= 0.0);
+            hitNow = underB;
             if (vmask(hitNow) == 0) return true;
             at = uA + (uB - uA) * (above / (above - below));
         } else {
+            // The node's height over the surface lies between dEdgeA and dB: no hit through it
+            // where both are positive.
+            const V4 dB = zB - (up ? sB.h0 : sB.h1);
+            const M4 mayNode = cross & (vmin(dEdgeA, dB) <= 0.0);
+            if (vmask(mayNode | underB) == 0) return true;
             const V4 c = up ? sB.i : iA;
-            const V4 hB = up ? sB.h0 : sB.h1;
             const V4 sP = (c - nA) * invRn;
-            const V4 diffP = zA + sP * (zB - zA) - (edgeA + sP * (hB - edgeA));
+            const V4 diffP = dEdgeA + sP * (dB - dEdgeA);
             const M4 inFirst = cross & (diffP <= 0.0);
             const M4 inSecond = cross & ~inFirst & (below <= 0.0);
             const M4 plain = active & ~cross & (below <= 0.0);
@@ -1880,7 +1884,7 @@ class FastCaster final : public Caster {
         V4 above = zA - s0.h;
         // Line A's cell, its sample on the side the track moves to, its minor coordinate.
         const M4 up = rn > 0.0;
-        V4 iA = s0.i, edgeA = up ? s0.h1 : s0.h0, nLine = nA;
+        V4 iA = s0.i, dEdgeA = zA - (up ? s0.h1 : s0.h0), nLine = nA;
         const V4 invRn = 1.0 / rn;
         const double majorSteps = sgn > 0 ? majorCount - 1.0 - m : static_cast<double>(m);
         V4 nearSteps = zero + 1099511627776.0;  // 2^40
@@ -1934,7 +1938,7 @@ class FastCaster final : public Caster {
             const V4 zB = cc.eg.zRaw + dzr * uB;
             const Line4 sB = sampleLine4<kMajorX>(mv, lineB, nB, lastN);
             const V4 below = zB - sB.h;
-            if (!stepHits(active, iA, edgeA, sB, up, nLine, invRn, zA, zB, above, below, uA, uB, k,
+            if (!stepHits(active, iA, dEdgeA, sB, up, nLine, invRn, zB, above, below, uA, uB, k,
                           uHit, hitMask, steps)) {
                 break;
             }
@@ -1943,7 +1947,7 @@ class FastCaster final : public Caster {
             zA = zB;
             nLine = nB;
             iA = sB.i;
-            edgeA = up ? sB.h1 : sB.h0;
+            dEdgeA = zB - (up ? sB.h1 : sB.h0);
         }
         for (; vmask(active) != 0; ++k, lineD += sgnD) {
             const double kd = static_cast<double>(k);
@@ -1969,14 +1973,14 @@ class FastCaster final : public Caster {
             const Line4 sB =
                 sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
             const V4 below = zB - sB.h;
-            stepHits(active, iA, edgeA, sB, up, nLine, invRn, zA, zB, above, below, uA, uB, k, uHit,
+            stepHits(active, iA, dEdgeA, sB, up, nLine, invRn, zB, above, below, uA, uB, k, uHit,
                      hitMask, steps);
             above = below;
             uA = uB;
             zA = zB;
             nLine = nB;
             iA = sB.i;
-            edgeA = up ? sB.h1 : sB.h0;
+            dEdgeA = zB - (up ? sB.h1 : sB.h0);
         }
         for (int l = 0; l < 4; ++l)
             if ((hitMask >> l) & 1) kind[l] = kLaneHit;
