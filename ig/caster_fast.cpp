@@ -593,20 +593,17 @@ class FastCaster final : public Caster {
                 const double zB = eg.zRaw + dzr * uB;
                 const LineSample sB = lineSample<kMajorX>(heights, w, minorCount, lineB, nB);
                 const double below = zB - sB.h;
-                if (onLine && sB.i != sA.i) {
-                    // The track crosses a minor grid line between A and B: a node there.
-                    const MinorNode p = minorNode(sA, sB, nA, invRn, zA, zB);
-                    const double uP = uA + p.s * (uB - uA);
-                    if (p.diff <= 0.0) {
-                        uHit = uA + (uP - uA) * (above / (above - p.diff));
-                        break;
+                if (below <= 0.0) {
+                    if (onLine && sB.i != sA.i) {
+                        // The track crosses a minor grid line between A and B: the hit is
+                        // between A, the node there and B.
+                        const MinorNode p = minorNode(sA, sB, nA, invRn, zA, zB);
+                        const double uP = uA + p.s * (uB - uA);
+                        uHit = p.diff <= 0.0 ? uA + (uP - uA) * (above / (above - p.diff))
+                                             : uP + (uB - uP) * (p.diff / (p.diff - below));
+                    } else {
+                        uHit = uA + (uB - uA) * (above / (above - below));
                     }
-                    if (below <= 0.0) {
-                        uHit = uP + (uB - uP) * (p.diff / (p.diff - below));
-                        break;
-                    }
-                } else if (below <= 0.0) {
-                    uHit = uA + (uB - uA) * (above / (above - below));
                     break;
                 }
                 above = below;
@@ -1782,41 +1779,27 @@ class FastCaster final : public Caster {
     // One step of the four lanes from major line A to B (A's cell iA and the ray's height over
     // A's sample on the side the track moves to, dEdgeA; B's sample sB; the minor coordinate nA
     // at A; B's ray height zB; the ray's height over the surface above, below; up: rn > 0;
-    // invRn = 1 / rn): the active lanes whose ray goes under the surface in it, through the node
-    // where the track crosses a minor grid line if it does (marchLinear's minorNode), get their
-    // hits at step k. False when no lane is left active.
+    // invRn = 1 / rn): the active lanes under the surface at B get their hits at step k, between
+    // A, the node where the track crosses a minor grid line if it does (marchLinear's
+    // minorNode) and B. False when no lane is left active.
     [[gnu::always_inline]] VIG_CASTER_AVX2 static bool stepHits(
         M4& active, V4 iA, V4 dEdgeA, const Line4& sB, M4 up, V4 nA, V4 invRn, V4 zB, V4 above,
         V4 below, double uA, double uB, long k, V4& uHit, int& hitMask, std::uint64_t& steps) {
-        const M4 cross = active & (sB.i != iA);
-        const M4 underB = active & (below <= 0.0);
-        M4 hitNow;
-        V4 at;
-        if (vmask(cross) == 0) {
-            hitNow = underB;
-            if (vmask(hitNow) == 0) return true;
-            at = uA + (uB - uA) * (above / (above - below));
-        } else {
-            // The node's height over the surface lies between dEdgeA and dB: no hit through it
-            // where both are positive.
+        const M4 hitNow = active & (below <= 0.0);
+        const int hits = vmask(hitNow);
+        if (hits == 0) return true;
+        V4 at = uA + (uB - uA) * (above / (above - below));
+        const M4 cross = hitNow & (sB.i != iA);
+        if (vmask(cross) != 0) {
             const V4 dB = zB - (up ? sB.h0 : sB.h1);
-            const M4 mayNode = cross & (vmin(dEdgeA, dB) <= 0.0);
-            if (vmask(mayNode | underB) == 0) return true;
             const V4 c = up ? sB.i : iA;
             const V4 sP = (c - nA) * invRn;
             const V4 diffP = dEdgeA + sP * (dB - dEdgeA);
-            const M4 inFirst = cross & (diffP <= 0.0);
-            const M4 inSecond = cross & ~inFirst & (below <= 0.0);
-            const M4 plain = active & ~cross & (below <= 0.0);
-            hitNow = inFirst | inSecond | plain;
-            if (vmask(hitNow) == 0) return true;
             const V4 uP = uA + sP * (uB - uA);
             const V4 first = uA + (uP - uA) * (above / (above - diffP));
             const V4 second = uP + (uB - uP) * (diffP / (diffP - below));
-            const V4 whole = uA + (uB - uA) * (above / (above - below));
-            at = inFirst ? first : (inSecond ? second : whole);
+            at = cross ? (diffP <= 0.0 ? first : second) : at;
         }
-        const int hits = vmask(hitNow);
         uHit = hitNow ? at : uHit;
         hitMask |= hits;
         steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *

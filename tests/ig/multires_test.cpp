@@ -391,10 +391,10 @@ TEST(MultiresCaster, NearTerrainAgreesWithLevelZeroInEveryCase) {
 }
 
 // Where the view's heading crosses 45 degrees, the columns on either side march along different
-// axes. The multiresolution caster's surface between grid lines must not depend on the axis
-// (its hits interpolate between every grid line the track crosses, major and minor), or a seam
-// shows down the image where cells span many pixels: no column may change more across it than
-// the single level's worst column does.
+// axes. The multiresolution caster's hit between two grid lines must not depend on the axis (in
+// the step where the ray goes under, it interpolates through the node where the track crosses a
+// minor grid line too), or a seam shows down the image where cells span many pixels: no column
+// may change more across it than the single level's worst column does.
 TEST(MultiresCaster, NoSeamWhereTheMarchAxisChanges) {
     const TerrainMap& map = puget();
     const Intrinsics in = Intrinsics::fromFov(360, 240, ig::degToRad(60));
