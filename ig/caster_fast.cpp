@@ -1914,8 +1914,8 @@ class FastCaster final : public Caster {
         // Line B as a double (exact: an integer below 2^31), and u there.
         const double sgnD = sgn;
         double lineD = static_cast<double>(m) + sgnD;
-        for (; k < kSafe; ++k, lineD += sgnD) {
-            const long lineB = m + sgn * (k + 1);
+        long lineB = m + sgn;
+        for (; k < kSafe; ++k, lineD += sgnD, lineB += sgn) {
             const double uB = (lineD - em) * sgnD;
             const V4 nB = en + rn * uB;
             const V4 zB = cc.eg.zRaw + dzr * uB;
@@ -1932,11 +1932,10 @@ class FastCaster final : public Caster {
             iA = sB.i;
             dEdgeA = zB - (up ? sB.h1 : sB.h0);
         }
-        for (; vmask(active) != 0; ++k, lineD += sgnD) {
+        for (; vmask(active) != 0; ++k, lineD += sgnD, lineB += sgn) {
             const double kd = static_cast<double>(k);
             const M4 exhausted = active && kd >= total;
             const M4 far = exhausted && total == nearSteps && nearSteps < majorSteps + 1.0;
-            const long lineB = m + sgn * (k + 1);
             const double uB = (lineD - em) * sgnD;
             const V4 nB = en + rn * uB;
             const M4 leave = active && !exhausted && !(nB >= 0.0 && nB <= lastN);
