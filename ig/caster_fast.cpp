@@ -228,7 +228,7 @@ class FastCaster final : public Caster {
             return;
         }
 #if VIG_CASTER_PACKETS
-        if (usePackets() && !linear()) {
+        if (usePackets()) {
             const int x0 = 4 * unit;
             if (x0 + 4 <= w) {
                 renderPacket(mv, camera, d0, x0, frame, counters);
@@ -1232,8 +1232,8 @@ class FastCaster final : public Caster {
         counters.restarts += st.restarts;
     }
 
-    // One column, bottom to top, the supersample rays of a pixel stacked inside it and averaged
-    // (depth: the nearest).
+    // One column of the single-level caster, bottom to top, the supersample rays of a pixel
+    // stacked inside it and averaged (depth: the nearest).
     void renderColumn(const MapView& mv, const Camera& camera, double d0, int x,
                       RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
@@ -1251,7 +1251,7 @@ class FastCaster final : public Caster {
                 const glm::dvec3 d = cc.base + (y + (s + 0.5) * subStep) * cc.down;
                 Rgb8 c;
                 double tHit = -1.0;
-                if (!linear() || !linearRay(cc, d, st, c, tHit)) castRay(cc, d, st, c, tHit);
+                castRay(cc, d, st, c, tHit);
                 if (tHit >= 0.0) nearest = std::min(nearest, static_cast<float>(tHit));
                 sum[0] += c.r;
                 sum[1] += c.g;
