@@ -40,6 +40,9 @@ struct RenderOptions {
     // Fast caster: cast four adjacent columns together with AVX2 where the processor has it
     // (one ray per pixel). The image is bit for bit the same either way.
     bool packets = true;
+    // Fast caster, multiresolution: vector lanes of its row batches. 0: the widest the
+    // processor has (eight with AVX-512, else four); 4: four (AVX2) at most. Same image.
+    int lanes = 0;
 };
 
 // Parses --levels: "auto" or a count >= 0; throws InputError otherwise.

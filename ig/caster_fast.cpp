@@ -23,9 +23,12 @@
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define VIG_CASTER_PACKETS 1
 #define VIG_CASTER_AVX2 __attribute__((target("avx2")))
+#define VIG_CASTER_WIDE 1
+#define VIG_CASTER_AVX512 __attribute__((target("avx2,avx512f,avx512dq,avx512vl,avx512bw")))
 #include <immintrin.h>
 #else
 #define VIG_CASTER_PACKETS 0
+#define VIG_CASTER_WIDE 0
 #endif
 
 #include <tbb/combinable.h>
@@ -166,6 +169,10 @@ class FastCaster final : public Caster {
             throw InputError("supersample " + std::to_string(options_.supersample) +
                              ": expected 1..8 rays per pixel");
         }
+        if (options_.lanes != 0 && options_.lanes != 4) {
+            throw InputError("lanes " + std::to_string(options_.lanes) +
+                             ": expected 0 (the widest the processor has) or 4");
+        }
         if (options_.levels < kLevelsAuto) {
             throw InputError("levels " + std::to_string(options_.levels) +
                              ": expected auto or a count >= 0");
@@ -270,6 +277,19 @@ class FastCaster final : public Caster {
         // Vector gathers index colour bytes with 32-bit offsets.
         const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
         return options_.packets && hasAvx2 && fits;
+#else
+        return false;
+#endif
+    }
+
+    // Eight lanes with AVX-512 for the multiresolution caster's row batches, where the
+    // processor has it and RenderOptions::lanes allows.
+    bool useWide() const {
+#if VIG_CASTER_WIDE
+        static const bool hasAvx512 =
+            __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+            __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw");
+        return options_.lanes != 4 && hasAvx512;
 #else
         return false;
 #endif
@@ -1190,22 +1210,41 @@ class FastCaster final : public Caster {
         };
 #if VIG_CASTER_PACKETS
         const bool rows = useVectors();
+        const bool wide = rows && useWide();
 #endif
         const int rays = h * sub;
-        int single = 0;  // rays to cast one by one before trying four again
+        int single = 0;  // rays to cast one by one before trying a batch again
         for (int v = rays - 1; v >= 0;) {
 #if VIG_CASTER_PACKETS
-            // Sky above the map's highest point goes four rays at a time again.
+            // Sky above the map's highest point goes in batches again.
             if (single > 0 && st.prevAbove) single = 0;
             if (rows && single == 0 && v >= 3 && st.havePrev) {
-                Rgb8 c[4];
-                double tHit[4];
-                RowsOutcome r;
-                if constexpr (kSuper) {
-                    const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
-                    r = linearRows(cc, st, yy, c, tHit);
-                } else {
-                    r = linearRows(cc, st, v, c, tHit);
+                Rgb8 c[8];
+                double tHit[8];
+                int n = 4;
+                RowsOutcome r = RowsOutcome::kOther;
+#if VIG_CASTER_WIDE
+                if (wide && v >= 7) {
+                    n = 8;
+                    if constexpr (kSuper) {
+                        double yy[8];
+                        for (int l = 0; l < 8; ++l)
+                            yy[l] = rowOf(v - l);
+                        r = linearRows(LaneCount<8>{}, cc, st, yy, c, tHit);
+                    } else {
+                        r = linearRows(LaneCount<8>{}, cc, st, v, c, tHit);
+                    }
+                    // Where eight do not go together, four may.
+                    if (r == RowsOutcome::kOther) n = 4;
+                }
+#endif
+                if (n == 4) {
+                    if constexpr (kSuper) {
+                        const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
+                        r = linearRows(LaneCount<4>{}, cc, st, yy, c, tHit);
+                    } else {
+                        r = linearRows(LaneCount<4>{}, cc, st, v, c, tHit);
+                    }
                 }
                 if (r == RowsOutcome::kFar) {
                     // Every ray above starts past the level-0 distance too.
@@ -1213,9 +1252,9 @@ class FastCaster final : public Caster {
                 } else if (r == RowsOutcome::kOther) {
                     single = 4;
                 } else {
-                    for (int l = 0; l < 4; ++l)
+                    for (int l = 0; l < n; ++l)
                         put(v - l, c[l], tHit[l]);
-                    v -= 4;
+                    v -= n;
                     continue;
                 }
             }
@@ -1461,7 +1500,7 @@ class FastCaster final : public Caster {
     }
 
     // cellColor on four lanes (the unused lanes must carry a valid cell).
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static void cellColor4(const MapView& mv, V4 cx, V4 cy,
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void cellColors(const MapView& mv, V4 cx, V4 cy,
                                                                   V4 fx, V4 fy, V4 rgb[3]) {
         fx = vclamp01(fx);
         fy = vclamp01(fy);
@@ -1637,7 +1676,7 @@ class FastCaster final : public Caster {
         const int failMask = vmask(failed), farMask = vmask(farEnd);
         V4 rgb[3];
         if (hitMask) {
-            cellColor4(mv, hit ? hitCx : zero, hit ? hitCy : zero, hitFx, hitFy, rgb);
+            cellColors(mv, hit ? hitCx : zero, hit ? hitCy : zero, hitFx, hitFy, rgb);
         }
         const V4 lenPerU = len * inv;
         for (int l = 0; l < 4; ++l) {
@@ -1667,41 +1706,23 @@ class FastCaster final : public Caster {
         }
     }
 
-    // Columns x0 .. x0 + 3, one row at a time: packetRow where the four rays allow, castRay
-    // for the rest.
-    // Four consecutive rays of one column (bottom to top, through image rows rowY) cast together
-    // by the multiresolution caster: when each of the four climbs clear of the ray below them
-    // (the column state; the same proof as linearRay's, against that one ray), all four march
-    // from where it stopped, over the same major grid lines in step, each lane sampling the
-    // surface on its own track; linearRay's march and hit, lane by lane. A lane that reaches the
-    // level-0 distance goes on alone into linearFar. kDone when cast (colours and hit distances
-    // set, the state moved on); otherwise the state is untouched and the rays are cast one by
-    // one (kFar: they start past the level-0 distance).
+    // N consecutive rays of one column (bottom to top) cast together by the multiresolution
+    // caster (linearRows, caster_rows.inc; four lanes with AVX2, eight with AVX-512): when each
+    // climbs clear of the ray below them (the column state; the same proof as linearRay's,
+    // against that one ray), all march from where it stopped, over the same major grid lines
+    // in step, each lane sampling the surface on its own track; linearRay's march and hit, lane
+    // by lane. A lane that reaches the level-0 distance goes on alone into linearFar. kDone when
+    // cast (colours and hit distances set, the state moved on); otherwise the state is untouched
+    // and the rays are cast one by one (kFar: they start past the level-0 distance).
     enum class RowsOutcome{kDone, kFar, kOther};
-    VIG_CASTER_AVX2 RowsOutcome linearRows(const ColumnContext& cc, ColumnState& st,
-                                           const double rowY[4], Rgb8 c[4], double tHit[4]) const {
-        return linearRowsAt(cc, st, V4{rowY[0], rowY[1], rowY[2], rowY[3]}, c, tHit);
-    }
-    // Image rows y, y - 1, y - 2, y - 3 (one ray per pixel).
-    VIG_CASTER_AVX2 RowsOutcome linearRows(const ColumnContext& cc, ColumnState& st, int y,
-                                           Rgb8 c[4], double tHit[4]) const {
-        const V4 yy = V4{static_cast<double>(y), static_cast<double>(y - 1),
-                         static_cast<double>(y - 2), static_cast<double>(y - 3)} +
-                      0.5;
-        return linearRowsAt(cc, st, yy, c, tHit);
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 RowsOutcome linearRowsAt(const ColumnContext& cc,
-                                                                    ColumnState& st, V4 yy,
-                                                                    Rgb8 c[4],
-                                                                    double tHit[4]) const {
-        const V4 dx = cc.base.x + yy * cc.down.x, dy = cc.base.y + yy * cc.down.y,
-                 dz = cc.base.z + yy * cc.down.z;
-        const V4 gx = dx * cc.invSx, gy = dy * cc.invSy;
-        const int mx = vmask((gx < 0.0 ? -gx : gx) >= (gy < 0.0 ? -gy : gy));
-        if (mx != (st.prevMajorX ? 15 : 0)) return RowsOutcome::kOther;
-        return st.prevMajorX ? linearRowsAxis<true>(cc, st, dx, dy, dz, gx, gy, c, tHit)
-                             : linearRowsAxis<false>(cc, st, dx, dy, dz, gx, gy, c, tHit);
-    }
+    template <int N>
+    struct LaneCount {};
+    // The surface where each lane crosses a level-0 major line, linear along the line:
+    // lineSample's h, h0, h1 and i (an integer-valued double), lane by lane.
+    template <class V>
+    struct LineN {
+        V h, h0, h1, i;
+    };
 
     // Whether the four 32-bit lanes of v are equal.
     [[gnu::always_inline]] VIG_CASTER_AVX2 static bool sameInAllLanes(__m128i v) {
@@ -1709,13 +1730,10 @@ class FastCaster final : public Caster {
     }
 
     // The surface where each lane crosses level-0 major line `line` at minor coordinate n
-    // (in [0, lastN] in every lane), linear along the line: lineSample on four lanes.
-    struct Line4 {
-        V4 h, h0, h1, i;  // lineSample's, lane by lane (i as an integer-valued double)
-    };
+    // (in [0, lastN] in every lane): lineSample on four lanes.
     template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static Line4 sampleLine4(const MapView& mv, long line,
-                                                                    V4 n, double lastN) {
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static LineN<V4> sampleLine(const MapView& mv, long line,
+                                                                       V4 n, double lastN) {
         const V4 i = vmin(vfloor(n), V4{} + (lastN - 1.0));
         const V4 f = n - i;
         const __m128i ii = _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(i));
@@ -1775,260 +1793,173 @@ class FastCaster final : public Caster {
         const V4 h0 = toV4(a), h1 = toV4(b);
         return {h0 + f * (h1 - h0), h0, h1, i};
     }
-
-    // One step of the four lanes from major line A to B (A's cell iA and the ray's height over
-    // A's sample on the side the track moves to, dEdgeA; B's sample sB; the minor coordinate nA
-    // at A; B's ray height zB; the ray's height over the surface above, below; up: rn > 0;
-    // invRn = 1 / rn): the active lanes under the surface at B get their hits at step k, between
-    // A, the node where the track crosses a minor grid line if it does (marchLinear's
-    // minorNode) and B. False when no lane is left active.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool stepHits(
-        M4& active, V4 iA, V4 dEdgeA, const Line4& sB, M4 up, V4 nA, V4 invRn, V4 zB, V4 above,
-        V4 below, double uA, double uB, long k, V4& uHit, int& hitMask, std::uint64_t& steps) {
-        const M4 hitNow = active & (below <= 0.0);
-        const int hits = vmask(hitNow);
-        if (hits == 0) return true;
-        V4 at = uA + (uB - uA) * (above / (above - below));
-        const M4 cross = hitNow & (sB.i != iA);
-        if (vmask(cross) != 0) {
-            const V4 dB = zB - (up ? sB.h0 : sB.h1);
-            const V4 c = up ? sB.i : iA;
-            const V4 sP = (c - nA) * invRn;
-            const V4 diffP = dEdgeA + sP * (dB - dEdgeA);
-            const V4 uP = uA + sP * (uB - uA);
-            const V4 first = uA + (uP - uA) * (above / (above - diffP));
-            const V4 second = uP + (uB - uP) * (diffP / (diffP - below));
-            at = cross ? (diffP <= 0.0 ? first : second) : at;
-        }
-        uHit = hitNow ? at : uHit;
-        hitMask |= hits;
-        steps += static_cast<std::uint64_t>(__builtin_popcount(hits)) *
-                 static_cast<std::uint64_t>(k + 1);
-        active = active & ~hitNow;
-        return vmask(active) != 0;
-    }
-
-    template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 RowsOutcome linearRowsAxis(const ColumnContext& cc,
-                                                                      ColumnState& st, V4 dx, V4 dy,
-                                                                      V4 dz, V4 gx, V4 gy,
-                                                                      Rgb8 c[4],
-                                                                      double tHit[4]) const {
-        const MapView& mv = *cc.mv;
-        const V4 zero = V4{} + 0.0;
-        const V4 gm = kMajorX ? gx : gy, gn = kMajorX ? gy : gx;
-        const int sgn = st.prevSgn;
-        const V4 len = vsqrt(dx * dx + dy * dy + dz * dz);
-        const V4 absGm = gm < 0.0 ? -gm : gm;
-        if (vmask(sgn > 0 ? gm > 0.0 : gm <= 0.0) != 15) return RowsOutcome::kOther;
-        if (vmask(absGm > 1e-9 * len) != 15) return RowsOutcome::kOther;
-        const V4 inv = 1.0 / absGm;
-        const V4 rn = gn * inv, rz = dz * inv;
-        // Each lane against the ray below the four.
-        {
-            const double sMinor = kMajorX ? cc.spacingY : cc.spacingX;
-            const V4 dRn = rn - st.prevRn;
-            const V4 gap = dRn < 0.0 ? -dRn : dRn, climb = rz - st.prevRz;
-            const int clear = vmask(climb >= cc.maxSlope * sMinor * gap);
-            if (clear != 15) {
-                // The local bounds for the lanes the map's bound did not clear.
-                for (int l = 0; l < 4; ++l) {
-                    if (!((clear >> l) & 1) && !climbsClear(cc, st, kMajorX, rn[l], rz[l]))
-                        return RowsOutcome::kOther;
-                }
-            }
-        }
-        if (st.prevAbove) {
-            // The ray below climbed over the map's highest point; these climb faster: sky.
-            for (int l = 0; l < 4; ++l) {
-                tHit[l] = -1.0;
-                c[l] = skyColor(options_.sky, dz[l] / len[l]);
-            }
-            st.prevRn = rn[3];
-            st.prevRz = rz[3];
-            return RowsOutcome::kDone;
-        }
-        const double em = kMajorX ? cc.eg.gx : cc.eg.gy, en = kMajorX ? cc.eg.gy : cc.eg.gx;
-        const int w = mv.width;
-        const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
-        const double uStart = st.prevU;
-        const double gm0 = em + sgn * uStart;
-        const long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
-        const double u = (m - em) * sgn;
-        if (!(u >= 0.0) || m < 0 || m > majorCount - 1) return RowsOutcome::kOther;
-        const double lastN = minorCount - 1.0;
-        const V4 nA = en + rn * u;
-        if (vmask(nA >= 0.0 && nA <= lastN) != 15) return RowsOutcome::kOther;
-        const V4 lastCell = zero + (minorCount - 2.0);
-        const V4 dzr = rz * mv.invScale;
-        const M4 rising = dzr >= 0.0;
-        V4 zA = cc.eg.zRaw + dzr * u;
-        const Line4 s0 = sampleLine4<kMajorX>(mv, m, nA, lastN);
-        V4 above = zA - s0.h;
-        // Line A's cell, its sample on the side the track moves to, its minor coordinate.
-        const M4 up = rn > 0.0;
-        V4 iA = s0.i, dEdgeA = zA - (up ? s0.h1 : s0.h0), nLine = nA;
-        const V4 invRn = 1.0 / rn;
-        const double majorSteps = sgn > 0 ? majorCount - 1.0 - m : static_cast<double>(m);
-        V4 nearSteps = zero + 1099511627776.0;  // 2^40
-        if (cc.multires) {
-            const V4 uNear = cc.d0 / (vsqrt(dx * dx + dy * dy) * inv);
-            nearSteps = vmax(zero, -vfloor(u - uNear));
-        }
-        // Past the level-0 distance already: the rows go one by one (coherently, linearFar).
-        if (vmask(nearSteps <= 0.0) != 0) return RowsOutcome::kFar;
-        const V4 total = vmin(nearSteps, zero + majorSteps);
-        // Per lane: the hit (uHit >= 0) or where it stopped (uEnd) and how.
-        enum : int{kLaneHit, kLaneStop, kLaneAbove, kLaneFar};
-        int kind[4] = {kLaneStop, kLaneStop, kLaneStop, kLaneStop};
-        double uEnd[4] = {uStart, uStart, uStart, uStart};
-        std::uint64_t steps = 0;
-        V4 uHit = zero - 1.0;
-        M4 active = above > 0.0;
-        if (const int first = 15 & ~vmask(active)) {
-            for (int l = 0; l < 4; ++l) {
-                if ((first >> l) & 1) {
-                    kind[l] = kLaneHit;
-                    uHit[l] = u;
-                    ++steps;
-                }
-            }
-        }
-        int hitMask = 0;  // lanes that hit in the loops below
-        double uA = u;
-        long k = 0;
-        // Steps no lane can end on but by a hit (with a margin for rounding): neither past its
-        // step count, nor off a minor side, nor over the map's highest point while climbing.
-        const V4 absRn = rn < 0.0 ? -rn : rn;
-        const V4 toSide = rn > 0.0 ? lastN - nA : nA;
-        const V4 huge = zero + 1e300;
-        // (1e-6 of a cell kept from the side, beyond rounding, where the track is nearly along
-        // the major axis: the loop's samples must not go below the first row or column.)
-        const V4 sideSteps = absRn > 0.0 ? (toSide - 1e-6) / absRn - 2.0 : huge;
-        const V4 topSteps = dzr > 0.0        ? (mv.maxRaw - cc.eg.zRaw) / dzr - u - 2.0
-                            : zA > mv.maxRaw ? zero
-                                             : huge;
-        const V4 bound = vmin(total, vmin(sideSteps, topSteps));
-        const double safe = std::min(std::min(bound[0], bound[1]), std::min(bound[2], bound[3]));
-        const long kSafe = safe > 0.0 ? static_cast<long>(safe) : 0;
-        // Line B as a double (exact: an integer below 2^31), and u there.
-        const double sgnD = sgn;
-        double lineD = static_cast<double>(m) + sgnD;
-        long lineB = m + sgn;
-        for (; k < kSafe; ++k, lineD += sgnD, lineB += sgn) {
-            const double uB = (lineD - em) * sgnD;
-            const V4 nB = en + rn * uB;
-            const V4 zB = cc.eg.zRaw + dzr * uB;
-            const Line4 sB = sampleLine4<kMajorX>(mv, lineB, nB, lastN);
-            const V4 below = zB - sB.h;
-            if (!stepHits(active, iA, dEdgeA, sB, up, nLine, invRn, zB, above, below, uA, uB, k,
-                          uHit, hitMask, steps)) {
-                break;
-            }
-            above = below;
-            uA = uB;
-            zA = zB;
-            nLine = nB;
-            iA = sB.i;
-            dEdgeA = zB - (up ? sB.h1 : sB.h0);
-        }
-        for (; vmask(active) != 0; ++k, lineD += sgnD, lineB += sgn) {
-            const double kd = static_cast<double>(k);
-            const M4 exhausted = active && kd >= total;
-            const M4 far = exhausted && total == nearSteps && nearSteps < majorSteps + 1.0;
-            const double uB = (lineD - em) * sgnD;
-            const V4 nB = en + rn * uB;
-            const M4 leave = active && !exhausted && !(nB >= 0.0 && nB <= lastN);
-            const M4 over = active && !exhausted && !leave && rising && zA > mv.maxRaw;
-            const int ended = vmask(exhausted || leave || over);
-            if (ended) {
-                for (int l = 0; l < 4; ++l) {
-                    if (!((ended >> l) & 1)) continue;
-                    kind[l] = far[l] ? kLaneFar : over[l] ? kLaneAbove : kLaneStop;
-                    uEnd[l] = std::max(uA, uStart);
-                    steps += static_cast<std::uint64_t>(exhausted[l] ? k : k + 1);
-                }
-                active = active && !(exhausted || leave || over);
-                if (vmask(active) == 0) break;
-            }
-            const V4 zB = cc.eg.zRaw + dzr * uB;
-            const Line4 sB =
-                sampleLine4<kMajorX>(mv, lineB, vmax(zero, vmin(nB, zero + lastN)), lastN);
-            const V4 below = zB - sB.h;
-            stepHits(active, iA, dEdgeA, sB, up, nLine, invRn, zB, above, below, uA, uB, k, uHit,
-                     hitMask, steps);
-            above = below;
-            uA = uB;
-            zA = zB;
-            nLine = nB;
-            iA = sB.i;
-            dEdgeA = zB - (up ? sB.h1 : sB.h0);
-        }
-        for (int l = 0; l < 4; ++l)
-            if ((hitMask >> l) & 1) kind[l] = kLaneHit;
-        // Colours of the hits.
-        const V4 pm = em + sgn * uHit, pn = en + rn * uHit;
-        const M4 hitLane = uHit >= 0.0;
-        const V4 cm = hitLane ? vmax(zero, vmin(vfloor(pm), zero + (majorCount - 2.0))) : zero;
-        const V4 cn = hitLane ? vmax(zero, vmin(vfloor(pn), lastCell)) : zero;
-        const V4 fm = hitLane ? pm - cm : zero, fn = hitLane ? pn - cn : zero;
-        V4 rgb[3];
-        cellColor4(mv, kMajorX ? cm : cn, kMajorX ? cn : cm, kMajorX ? fm : fn, kMajorX ? fn : fm,
-                   rgb);
-        const V4 t = uHit * len * inv;
-        if (vmask(hitLane) == 15 && !(options_.sky.hazeDistance > 0.0)) {
-            // All four hit, no haze (the common case): quantize on four lanes, as quantize().
-            alignas(16) int q[3][4];
-            for (int ch = 0; ch < 3; ++ch) {
-                __m128 v = _mm256_cvtpd_ps(reinterpret_cast<__m256d>(rgb[ch]));
-                v = _mm_add_ps(v, _mm_set1_ps(0.5f));
-                v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.0f));
-                _mm_store_si128(reinterpret_cast<__m128i*>(q[ch]), _mm_cvttps_epi32(v));
-            }
-            for (int l = 0; l < 4; ++l) {
-                c[l] = Rgb8{static_cast<std::uint8_t>(q[0][l]), static_cast<std::uint8_t>(q[1][l]),
-                            static_cast<std::uint8_t>(q[2][l])};
-                tHit[l] = t[l];
-            }
-            st.prevU = uHit[3];
-            st.prevAbove = false;
-            st.prevRn = rn[3];
-            st.prevRz = rz[3];
-            st.steps += steps;
-            return RowsOutcome::kDone;
+    // quantize() on four lanes (no haze).
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static void quantizeLanes(const V4 rgb[3], Rgb8* c) {
+        alignas(16) int q[3][4];
+        for (int ch = 0; ch < 3; ++ch) {
+            __m128 v = _mm256_cvtpd_ps(reinterpret_cast<__m256d>(rgb[ch]));
+            v = _mm_add_ps(v, _mm_set1_ps(0.5f));
+            v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.0f));
+            _mm_store_si128(reinterpret_cast<__m128i*>(q[ch]), _mm_cvttps_epi32(v));
         }
         for (int l = 0; l < 4; ++l) {
-            tHit[l] = -1.0;
-            if (kind[l] == kLaneHit) {
-                tHit[l] = t[l];
-                float f[3] = {static_cast<float>(rgb[0][l]), static_cast<float>(rgb[1][l]),
-                              static_cast<float>(rgb[2][l])};
-                c[l] = haze(f, tHit[l]);
-                uEnd[l] = uHit[l];
-            } else if (kind[l] == kLaneFar) {
-                // From where the lane below stopped when it climbs clear of that one too (with
-                // the map's slope bound): the far march stays coherent.
-                double from = uEnd[l];
-                if (l > 0 && kind[l - 1] != kLaneStop && uEnd[l - 1] > from) {
-                    const double sMinor = kMajorX ? cc.spacingY : cc.spacingX;
-                    if (rz[l] - rz[l - 1] >= cc.maxSlope * sMinor * std::abs(rn[l] - rn[l - 1]))
-                        from = uEnd[l - 1];
-                }
-                bool overTop = false;
-                linearFar(cc, glm::dvec3(dx[l], dy[l], dz[l]), len[l], inv[l], kMajorX, sgn, rn[l],
-                          rz[l], from, uEnd[l], overTop, steps, c[l], tHit[l]);
-                if (overTop) kind[l] = kLaneAbove;
-            } else {
-                c[l] = skyColor(options_.sky, dz[l] / len[l]);
-            }
+            c[l] = Rgb8{static_cast<std::uint8_t>(q[0][l]), static_cast<std::uint8_t>(q[1][l]),
+                        static_cast<std::uint8_t>(q[2][l])};
         }
-        st.prevU = uEnd[3];
-        st.prevAbove = kind[3] == kLaneAbove;
-        st.prevRn = rn[3];
-        st.prevRz = rz[3];
-        st.steps += steps;
-        return RowsOutcome::kDone;
     }
+
+#define VIG_ROWS_N 4
+#define VIG_ROWS_V V4
+#define VIG_ROWS_M M4
+#define VIG_ROWS_TARGET VIG_CASTER_AVX2
+#include "ig/caster_rows.inc"
+#undef VIG_ROWS_N
+#undef VIG_ROWS_V
+#undef VIG_ROWS_M
+#undef VIG_ROWS_TARGET
+
+#if VIG_CASTER_WIDE
+    // The same primitives on eight lanes (AVX-512), for the row batches. (The masked forms with
+    // every lane set: GCC 12 warns of the unmasked ones' undefined source.)
+    using V8 = double __attribute__((vector_size(64)));
+    using M8 = decltype(V8{} < V8{});
+
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vmax(V8 a, V8 b) {
+        return a < b ? b : a;
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vmin(V8 a, V8 b) {
+        return b < a ? b : a;
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vclamp01(V8 v) {
+        const V8 zero = V8{} + 0.0, one = V8{} + 1.0;
+        return v < zero ? zero : (one < v ? one : v);
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vsqrt(V8 v) {
+        return reinterpret_cast<V8>(_mm512_maskz_sqrt_pd(0xFF, reinterpret_cast<__m512d>(v)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vfloor(V8 v) {
+        return reinterpret_cast<V8>(_mm512_maskz_roundscale_pd(
+            0xFF, reinterpret_cast<__m512d>(v), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static int vmask(M8 m) {
+        return static_cast<int>(_mm512_movepi64_mask(reinterpret_cast<__m512i>(m)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 toV8(__m256i v) {
+        return reinterpret_cast<V8>(_mm512_maskz_cvtepi32_pd(0xFF, v));
+    }
+    // Whether the eight 32-bit lanes of v are equal.
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static bool sameInAllLanes(__m256i v) {
+        const __m256i first = _mm256_broadcastd_epi32(_mm256_castsi256_si128(v));
+        return _mm256_movemask_epi8(_mm256_cmpeq_epi32(v, first)) == -1;
+    }
+    // The 32 bits at byte offset scale * idx from base, eight lanes (as gather32).
+    template <int kScale>
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static __m256i gather32(const void* base, V8 idx) {
+        alignas(32) int i[8], v[8];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(i),
+                           _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(idx)));
+        const auto* b = static_cast<const unsigned char*>(base);
+        for (int l = 0; l < 8; ++l)
+            std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
+        return _mm256_load_si256(reinterpret_cast<const __m256i*>(v));
+    }
+
+    // sampleLine on eight lanes.
+    template <bool kMajorX>
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static LineN<V8> sampleLine(const MapView& mv,
+                                                                         long line, V8 n,
+                                                                         double lastN) {
+        const V8 i = vmin(vfloor(n), V8{} + (lastN - 1.0));
+        const V8 f = n - i;
+        const __m256i ii = _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(i));
+        const std::uint16_t* h = mv.heights;
+        const int w = mv.width;
+        __m256i a, b;
+        if (kMajorX) {
+            // Minor along y: the two samples are a row apart (32-bit offsets, as sampleLine).
+            const __m256i off = _mm256_add_epi32(_mm256_mullo_epi32(ii, _mm256_set1_epi32(w)),
+                                                 _mm256_set1_epi32(static_cast<int>(line)));
+            if (sameInAllLanes(ii)) {
+                const int o0 = _mm256_cvtsi256_si32(off);
+                const V8 h0 = V8{} + static_cast<double>(h[o0]);
+                const V8 h1 = V8{} + static_cast<double>(h[o0 + w]);
+                return {h0 + f * (h1 - h0), h0, h1, i};
+            }
+            alignas(32) int o[8], lo[8], hi[8];
+            _mm256_store_si256(reinterpret_cast<__m256i*>(o), off);
+            for (int l = 0; l < 8; ++l) {
+                lo[l] = h[o[l]];
+                hi[l] = h[o[l] + w];
+            }
+            a = _mm256_load_si256(reinterpret_cast<const __m256i*>(lo));
+            b = _mm256_load_si256(reinterpret_cast<const __m256i*>(hi));
+        } else {
+            // Minor along x: the two samples are adjacent, one 32-bit load.
+            const auto* row = reinterpret_cast<const unsigned char*>(h + line * w);
+            if (sameInAllLanes(ii)) {
+                std::uint32_t v0;
+                std::memcpy(&v0, row + 2 * static_cast<std::ptrdiff_t>(_mm256_cvtsi256_si32(ii)),
+                            4);
+                const V8 h0 = V8{} + static_cast<double>(v0 & 0xFFFFu);
+                const V8 h1 = V8{} + static_cast<double>(v0 >> 16);
+                return {h0 + f * (h1 - h0), h0, h1, i};
+            }
+            const __m256i g = gather32<2>(row, i);
+            a = _mm256_and_si256(g, _mm256_set1_epi32(0xFFFF));
+            b = _mm256_srli_epi32(g, 16);
+        }
+        const V8 h0 = toV8(a), h1 = toV8(b);
+        return {h0 + f * (h1 - h0), h0, h1, i};
+    }
+
+    // cellColors on eight lanes.
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static void cellColors(const MapView& mv, V8 cx, V8 cy,
+                                                                    V8 fx, V8 fy, V8 rgb[3]) {
+        fx = vclamp01(fx);
+        fy = vclamp01(fy);
+        const V8 i00 = cy * static_cast<double>(mv.width) + cx;
+        const V8 i01 = i00 + static_cast<double>(mv.width);
+        const __m256i c00 = gather32<1>(mv.colors, i00 * 3.0);
+        const __m256i c10 = gather32<1>(mv.colors, i00 * 3.0 + 3.0);
+        const __m256i c01 = gather32<1>(mv.colors, i01 * 3.0);
+        const __m256i c11 = _mm256_srli_epi32(gather32<1>(mv.colors, i01 * 3.0 + 2.0), 8);
+        const V8 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
+        const __m256i mask = _mm256_set1_epi32(0xFF);
+        for (int k = 0; k < 3; ++k) {
+            const __m128i sh = _mm_cvtsi32_si128(8 * k);
+            const V8 a = toV8(_mm256_and_si256(_mm256_srl_epi32(c00, sh), mask));
+            const V8 b = toV8(_mm256_and_si256(_mm256_srl_epi32(c10, sh), mask));
+            const V8 c = toV8(_mm256_and_si256(_mm256_srl_epi32(c01, sh), mask));
+            const V8 d = toV8(_mm256_and_si256(_mm256_srl_epi32(c11, sh), mask));
+            rgb[k] = w00 * a + w10 * b + w01 * c + w11 * d;
+        }
+    }
+
+    // quantizeLanes on eight lanes.
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static void quantizeLanes(const V8 rgb[3], Rgb8* c) {
+        alignas(32) int q[3][8];
+        for (int ch = 0; ch < 3; ++ch) {
+            __m256 v = _mm512_maskz_cvtpd_ps(0xFF, reinterpret_cast<__m512d>(rgb[ch]));
+            v = _mm256_add_ps(v, _mm256_set1_ps(0.5f));
+            v = _mm256_min_ps(_mm256_max_ps(v, _mm256_setzero_ps()), _mm256_set1_ps(255.0f));
+            _mm256_store_si256(reinterpret_cast<__m256i*>(q[ch]), _mm256_cvttps_epi32(v));
+        }
+        for (int l = 0; l < 8; ++l) {
+            c[l] = Rgb8{static_cast<std::uint8_t>(q[0][l]), static_cast<std::uint8_t>(q[1][l]),
+                        static_cast<std::uint8_t>(q[2][l])};
+        }
+    }
+
+#define VIG_ROWS_N 8
+#define VIG_ROWS_V V8
+#define VIG_ROWS_M M8
+#define VIG_ROWS_TARGET VIG_CASTER_AVX512
+#include "ig/caster_rows.inc"
+#undef VIG_ROWS_N
+#undef VIG_ROWS_V
+#undef VIG_ROWS_M
+#undef VIG_ROWS_TARGET
+#endif  // VIG_CASTER_WIDE
 
     VIG_CASTER_AVX2 void renderPacket(const MapView& mv, const Camera& camera, double d0, int x0,
                                       RenderedFrame& frame, UnitCounters& counters) const {

@@ -34,6 +34,7 @@ struct Config {
     int width = 1920, height = 1080;
     int repeat = 3;
     bool packets = true;
+    int lanes = 0;
     std::vector<std::string> sections;
 };
 
@@ -43,6 +44,7 @@ double secondsSince(Clock::time_point start) {
 
 std::string gCache;
 bool gPackets = true;
+int gLanes = 0;             // RenderOptions::lanes; --lanes 4 keeps the row batches to four lanes
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 
 // Loads a raw copy of the map from the cache folder, if there is one.
@@ -118,12 +120,13 @@ Timed timeFrames(const ig::Caster& caster, const ig::TerrainMap& map, const ig::
 }
 
 std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& map, int levels,
-                                   int threads, int supersample = 1) {
+                                   int threads, int supersample = 1, int lanes = gLanes) {
     ig::RenderOptions o;
     o.levels = levels;
     o.threads = threads;
     o.supersample = supersample;
     o.packets = gPackets;
+    o.lanes = lanes;
     const auto start = Clock::now();
     auto c = ig::makeCaster(kind, map, o);
     if (kind == ig::CasterKind::Fast && levels != 0) {
@@ -157,18 +160,23 @@ void speed(const Config& c) {
     const auto naive = caster(ig::CasterKind::Naive, map, 0, 1);
     const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
     const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    const auto multi4 = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1, 1, 4);
     const Timed n = timeFrames(*naive, map, pose, in, 1);
     const Timed s = timeFrames(*single, map, pose, in, c.repeat);
     const Timed m = timeFrames(*multi, map, pose, in, c.repeat);
+    const Timed m4 = timeFrames(*multi4, map, pose, in, c.repeat);
     header(true);
     printRow("naive", n, pixels, n.ms);
     printRow("fast, --levels 0", s, pixels, n.ms);
     printRow("fast, --levels auto", m, pixels, n.ms);
+    printRow("fast, --levels auto, 4 lanes", m4, pixels, n.ms);
     std::printf(
-        "multires vs single-level: %.2fx; MAE single vs naive %.3f %%, multires vs single "
-        "%.3f %%\n",
-        s.ms / m.ms, ig::meanAbsErrorPct(s.frame.color, n.frame.color),
-        ig::meanAbsErrorPct(m.frame.color, s.frame.color));
+        "multires vs single-level: %.2fx (four lanes %.2fx); MAE single vs naive %.3f %%, "
+        "multires vs single %.3f %%; images of the widest and four lanes %s\n",
+        s.ms / m.ms, s.ms / m4.ms, ig::meanAbsErrorPct(s.frame.color, n.frame.color),
+        ig::meanAbsErrorPct(m.frame.color, s.frame.color),
+        m.frame.color == m4.frame.color && m.frame.depth == m4.frame.depth ? "identical"
+                                                                           : "DIFFER");
 }
 
 void sensitivity(const Config& c) {
@@ -287,6 +295,7 @@ void stream(const Config& c) {
     ig::RenderOptions o;
     o.threads = 2;
     o.packets = gPackets;
+    o.lanes = gLanes;
     const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, o);
     // Frames are compared by a hash of their colours (keeping them all would add page faults).
     auto hash = [](const ig::RenderedFrame& f) {
@@ -387,6 +396,12 @@ int main(int argc, char** argv) {
             }
         } else if (a == "--heading") {
             gHeadingDeg = std::atof(next().c_str());
+        } else if (a == "--lanes") {
+            c.lanes = std::atoi(next().c_str());
+            if (c.lanes != 0 && c.lanes != 4) {
+                std::fprintf(stderr, "bench-render: --lanes: expected 0 or 4\n");
+                return 2;
+            }
         } else if (a == "--no-packets") {
             c.packets = false;
         } else if (a == "--no-hugepages") {
@@ -399,7 +414,8 @@ int main(int argc, char** argv) {
                          "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
                          "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
                          "[stream] [--size N] "
-                         "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--heading "
+                         "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
+                         "[--heading "
                          "DEG] [--cache DIR] "
                          "[--caster fast|naive|reference] [--levels auto|N]\n",
                          a.c_str());
@@ -409,6 +425,7 @@ int main(int argc, char** argv) {
     if (c.sections.empty()) c.sections.push_back("speed");
     gCache = c.cache;
     gPackets = c.packets;
+    gLanes = c.lanes;
     try {
         for (const std::string& s : c.sections) {
             if (s == "speed") speed(c);

@@ -259,46 +259,60 @@ TEST(FastCaster, FourColumnPacketsGiveTheOneColumnImage) {
     EXPECT_GT(pixels, 0u);
 }
 
-// The multiresolution caster's four-ray AVX2 batches against its rays one by one: each lane of a
-// batch marches from where the ray below the four stopped (one by one, from the row below's
-// hit) and proves its coherence against that ray, so the two may differ only where the proofs
-// differ (a restarted row is then cast exactly); the hits are otherwise the same.
-TEST(MultiresCaster, FourRowBatchesAgreeWithRowByRow) {
+// The multiresolution caster's row batches (four lanes with AVX2, eight with AVX-512) against its
+// rays one by one: each lane of a batch marches from where the ray below the batch stopped (one
+// by one, from the row below's hit) and proves its coherence against that ray, so the two may
+// differ only where the proofs differ (a restarted row is then cast exactly); the hits are
+// otherwise the same. Both widths where the processor has them.
+TEST(MultiresCaster, RowBatchesAgreeWithRowByRow) {
     const TerrainMap puget = ig::loadPugetSound();
     const TerrainMap goleta = ig::loadGoleta();
     const Intrinsics in = Intrinsics::fromFov(203, 117, ig::degToRad(60), 4);
-    std::uint64_t pixels = 0, same = 0, depthClose = 0;
-    int poses = 0;
-    double worst = 0.0;
-    for (const TerrainMap* map : {&puget, &goleta, &synthetic512()}) {
-        for (const Pose& pose : ig::sweepPoses(*map, 12)) {
-            ig::RenderOptions options;
-            options.levels = ig::kLevelsAuto;
-            options.threads = 1;
-            // Two rays per pixel on every third pose: four sub-rays at a time.
-            options.supersample = ++poses % 3 == 0 ? 2 : 1;
-            const auto batches = ig::makeCaster(CasterKind::Fast, *map, options);
-            options.packets = false;
-            const auto rows = ig::makeCaster(CasterKind::Fast, *map, options);
-            const auto a = ig::renderFrame(*batches, *map, pose, in);
-            const auto b = ig::renderFrame(*rows, *map, pose, in);
-            worst = std::max(worst, ig::meanAbsErrorPct(a.color, b.color));
-            for (std::size_t i = 0; i < a.color.size(); ++i) {
-                same += a.color[i] == b.color[i];
-                const float da = a.depth[i], db = b.depth[i];
-                depthClose += (std::isinf(da) && std::isinf(db)) ||
-                              std::abs(da - db) <= 1e-3f * std::max(da, db);
+    for (const int lanes : {4, 0}) {
+        std::uint64_t pixels = 0, same = 0, depthClose = 0;
+        int poses = 0;
+        double worst = 0.0;
+        for (const TerrainMap* map : {&puget, &goleta, &synthetic512()}) {
+            for (const Pose& pose : ig::sweepPoses(*map, 12)) {
+                ig::RenderOptions options;
+                options.levels = ig::kLevelsAuto;
+                options.threads = 1;
+                options.lanes = lanes;
+                // Two rays per pixel on every third pose: the sub-rays in batches too.
+                options.supersample = ++poses % 3 == 0 ? 2 : 1;
+                const auto batches = ig::makeCaster(CasterKind::Fast, *map, options);
+                options.packets = false;
+                const auto rows = ig::makeCaster(CasterKind::Fast, *map, options);
+                const auto a = ig::renderFrame(*batches, *map, pose, in);
+                const auto b = ig::renderFrame(*rows, *map, pose, in);
+                worst = std::max(worst, ig::meanAbsErrorPct(a.color, b.color));
+                for (std::size_t i = 0; i < a.color.size(); ++i) {
+                    same += a.color[i] == b.color[i];
+                    const float da = a.depth[i], db = b.depth[i];
+                    depthClose += (std::isinf(da) && std::isinf(db)) ||
+                                  std::abs(da - db) <= 1e-3f * std::max(da, db);
+                }
+                pixels += a.color.size();
             }
-            pixels += a.color.size();
         }
+        std::printf(
+            "lanes %s: batches vs rows: %.4f %% identical colours, %.4f %% depths within 0.1 %%, "
+            "worst frame MAE %.4f %%\n",
+            lanes == 4 ? "4" : "widest", 100.0 * same / pixels, 100.0 * depthClose / pixels, worst);
+        EXPECT_GE(same, pixels * 999 / 1000) << "lanes " << lanes;
+        EXPECT_GE(depthClose, pixels * 999 / 1000) << "lanes " << lanes;
+        EXPECT_LT(worst, 0.05) << "lanes " << lanes;
     }
-    std::printf(
-        "batches vs rows: %.4f %% identical colours, %.4f %% depths within 0.1 %%, worst "
-        "frame MAE %.4f %%\n",
-        100.0 * same / pixels, 100.0 * depthClose / pixels, worst);
-    EXPECT_GE(same, pixels * 999 / 1000);
-    EXPECT_GE(depthClose, pixels * 999 / 1000);
-    EXPECT_LT(worst, 0.05);
+}
+
+TEST(MultiresCaster, LanesOptionIsChecked) {
+    ig::RenderOptions options;
+    options.levels = ig::kLevelsAuto;
+    for (const int lanes : {-1, 2, 8, 16}) {
+        options.lanes = lanes;
+        EXPECT_THROW(ig::makeCaster(CasterKind::Fast, synthetic512(), options), ig::InputError)
+            << lanes;
+    }
 }
 
 TEST(MultiresCaster, NearTerrainIsLevelZeroSampledOnGridLines) {
