@@ -1865,13 +1865,23 @@ class FastCaster final : public Caster {
     // The 32 bits at byte offset scale * idx from base, eight lanes (as gather32).
     template <int kScale>
     [[gnu::always_inline]] VIG_CASTER_AVX512 static __m256i gather32(const void* base, V8 idx) {
-        alignas(32) int i[8], v[8];
-        _mm256_store_si256(reinterpret_cast<__m256i*>(i),
-                           _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(idx)));
+        const __m256i i = _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(idx));
         const auto* b = static_cast<const unsigned char*>(base);
-        for (int l = 0; l < 8; ++l)
-            std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
-        return _mm256_load_si256(reinterpret_cast<const __m256i*>(v));
+        auto at = [&](int l) {
+            int v;
+            std::memcpy(&v, b + static_cast<std::ptrdiff_t>(l) * kScale, 4);
+            return v;
+        };
+        const __m128i lo = _mm256_castsi256_si128(i), hi = _mm256_extracti128_si256(i, 1);
+        __m128i a = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(lo)));
+        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 1)), 1);
+        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 2)), 2);
+        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 3)), 3);
+        __m128i c = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(hi)));
+        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 1)), 1);
+        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 2)), 2);
+        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 3)), 3);
+        return _mm256_inserti128_si256(_mm256_castsi128_si256(a), c, 1);
     }
 
     // sampleLine on eight lanes.
@@ -1895,14 +1905,29 @@ class FastCaster final : public Caster {
                 const V8 h1 = V8{} + static_cast<double>(h[o0 + w]);
                 return {h0 + f * (h1 - h0), h0, h1, i};
             }
-            alignas(32) int o[8], lo[8], hi[8];
-            _mm256_store_si256(reinterpret_cast<__m256i*>(o), off);
-            for (int l = 0; l < 8; ++l) {
-                lo[l] = h[o[l]];
-                hi[l] = h[o[l] + w];
-            }
-            a = _mm256_load_si256(reinterpret_cast<const __m256i*>(lo));
-            b = _mm256_load_si256(reinterpret_cast<const __m256i*>(hi));
+            const __m128i offLo = _mm256_castsi256_si128(off);
+            const __m128i offHi = _mm256_extracti128_si256(off, 1);
+            const int o[8] = {_mm_cvtsi128_si32(offLo),    _mm_extract_epi32(offLo, 1),
+                              _mm_extract_epi32(offLo, 2), _mm_extract_epi32(offLo, 3),
+                              _mm_cvtsi128_si32(offHi),    _mm_extract_epi32(offHi, 1),
+                              _mm_extract_epi32(offHi, 2), _mm_extract_epi32(offHi, 3)};
+            __m128i lo = _mm_cvtsi32_si128(h[o[0]]), hi = _mm_cvtsi32_si128(h[o[0] + w]);
+            lo = _mm_insert_epi16(lo, h[o[1]], 1);
+            hi = _mm_insert_epi16(hi, h[o[1] + w], 1);
+            lo = _mm_insert_epi16(lo, h[o[2]], 2);
+            hi = _mm_insert_epi16(hi, h[o[2] + w], 2);
+            lo = _mm_insert_epi16(lo, h[o[3]], 3);
+            hi = _mm_insert_epi16(hi, h[o[3] + w], 3);
+            lo = _mm_insert_epi16(lo, h[o[4]], 4);
+            hi = _mm_insert_epi16(hi, h[o[4] + w], 4);
+            lo = _mm_insert_epi16(lo, h[o[5]], 5);
+            hi = _mm_insert_epi16(hi, h[o[5] + w], 5);
+            lo = _mm_insert_epi16(lo, h[o[6]], 6);
+            hi = _mm_insert_epi16(hi, h[o[6] + w], 6);
+            lo = _mm_insert_epi16(lo, h[o[7]], 7);
+            hi = _mm_insert_epi16(hi, h[o[7] + w], 7);
+            a = _mm256_cvtepu16_epi32(lo);
+            b = _mm256_cvtepu16_epi32(hi);
         } else {
             // Minor along x: the two samples are adjacent, one 32-bit load.
             const auto* row = reinterpret_cast<const unsigned char*>(h + line * w);
