@@ -22,7 +22,7 @@
 namespace {
 
 constexpr const char* kNotes = R"(For base frames spread along each trajectory, a frame with margins
-is rendered by the fast caster at time t (roll 0), warped by each model to t + k * 1001/60000 s,
+is rendered by the fast caster (--levels) at time t (roll 0), warped by each model to t + k * 1001/60000 s,
 and compared with a true render at that pose (the reference caster where the pose is rolled):
 PSNR and mean absolute error (% of full scale) over the field's lines, averaged over base frames.
 Without --trajectory every CSV in the shipped data/trajectories folder is evaluated; over a map
@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> trajectories;
     std::string sizeText = "320x240", horizonsText = "1..8",
                 modelsText = "poly,affine,homography,depth,hold";
-    std::string jsonPath, csvPath, plotPath;
+    std::string jsonPath, csvPath, plotPath, levelsText = "auto";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
     bool noSky = false;
@@ -142,6 +142,9 @@ int main(int argc, char** argv) {
     app.add_option("--models", modelsText, "Comma-separated warp models")->capture_default_str();
     app.add_option("--frames", frames, "Base frames per trajectory")->capture_default_str();
     app.add_option("--repeats", repeats, "Timing repeats per warp (fastest counts)")
+        ->capture_default_str();
+    app.add_option("--levels", levelsText,
+                   "Fast caster: auto (the multiresolution caster) | 0 (single level, exact)")
         ->capture_default_str();
     app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
     app.add_option("--json", jsonPath, "Results as JSON");
@@ -156,6 +159,8 @@ int main(int argc, char** argv) {
         if (margin < 0 || margin > 4096) throw ig::InputError("--margin: must be 0..4096 pixels");
         if (frames < 1 || frames > 10000) throw ig::InputError("--frames: must be 1..10000");
         if (repeats < 1 || repeats > 1000) throw ig::InputError("--repeats: must be 1..1000");
+        ig::RenderOptions renderOptions;
+        renderOptions.levels = ig::parseLevels(levelsText);
         prp::EvalConfig config;
         std::tie(config.width, config.height) = ig::parseSize(sizeText);
         if (config.width % 2 != 0) throw ig::InputError("--size: width must be even");
@@ -196,7 +201,7 @@ int main(int argc, char** argv) {
         }
         for (std::size_t i = 0; i < loaded.size(); ++i)
             sim::checkTrajectoryClearance(loaded[i], map, trajectories[i]);
-        const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
+        const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, renderOptions);
         const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
 
         std::vector<prp::EvalResult> parts;
@@ -219,6 +224,7 @@ int main(int argc, char** argv) {
         if (!jsonPath.empty()) {
             nlohmann::json j;
             j["size"] = {config.width, config.height};
+            j["levels"] = levelsText;
             j["margin"] = config.margin;
             j["fov_deg"] = fovDeg;
             j["field_period_s"] = prp::kFieldPeriod;
