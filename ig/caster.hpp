@@ -43,6 +43,9 @@ struct RenderOptions {
     // Fast caster, multiresolution: vector lanes of its row batches. 0: the widest the
     // processor has (eight with AVX-512, else four); 4: four (AVX2) at most. Same image.
     int lanes = 0;
+    // Fast caster, multiresolution: a long march passes max-height nodes the rays stay above
+    // instead of sampling every grid line in them. Same image; off for tests and measurement.
+    bool skipNodes = true;
 };
 
 // Parses --levels: "auto" or a count >= 0; throws InputError otherwise.

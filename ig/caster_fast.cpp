@@ -513,9 +513,10 @@ class FastCaster final : public Caster {
         } else {
             double uNear = std::numeric_limits<double>::infinity();
             if (cc.multires) uNear = cc.d0 / (std::sqrt(d.x * d.x + d.y * d.y) * inv);
-            const ColumnMarch r =
-                majorX ? marchLinear<true>(*cc.mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps)
-                       : marchLinear<false>(*cc.mv, cc.eg, sgn, rn, rz, st.prevU, uNear, st.steps);
+            const ColumnMarch r = majorX ? marchLinear<true>(*cc.mv, cc.eg, skipPyramid(), sgn, rn,
+                                                             rz, st.prevU, uNear, st.steps)
+                                         : marchLinear<false>(*cc.mv, cc.eg, skipPyramid(), sgn, rn,
+                                                              rz, st.prevU, uNear, st.steps);
             if (r.kind == ColumnMarch::kFresh) return false;
             if (r.kind == ColumnMarch::kFar) {
                 linearFar(cc, d, len, inv, majorX, sgn, rn, rz, r.u, st.prevU, st.prevAbove,
@@ -529,15 +530,73 @@ class FastCaster final : public Caster {
         return true;
     }
 
+    // A march on major lines tries to pass max-height nodes (skipNodes) once it has sampled
+    // kSkipAfter lines without ending, starting with nodes of 2^kSkipFirstLevel cells, and again
+    // kSkipRetry lines after a try that passed none (rays grazing far over the terrain would
+    // otherwise sample every line up to the level-0 distance).
+    static constexpr long kSkipAfter = 16, kSkipRetry = 8;
+    static constexpr int kSkipFirstLevel = 4;
+
+    // Lines a fan of rays from the eye may pass after major line lineA without a sample (at most
+    // maxLines): lines up to the far side of the max-height node (of level j, the level tried
+    // first, then finer ones down to 2) that the line after A lies in along the major axis, where
+    // over the nodes the fan's tracks cross every ray stays above the node maxima, and so above
+    // every line sample. The fan: rays with height eyeRaw + dzr * u (raw units) and minor
+    // coordinate en + rn * u at major distance u >= 0 from the eye, dzr >= dzrLow and
+    // rn in [rnLo, rnHi]; the expressions are the march's, so their rounding is too. 0 when no
+    // level gives any; j is left at the next level to try.
+    template <bool kMajorX>
+    [[gnu::always_inline]] static long skipNodes(const TerrainPyramid& pyr, int& j, long lineA,
+                                                 int sgn, long maxLines, double em, double en,
+                                                 double eyeRaw, double dzrLow, double rnLo,
+                                                 double rnHi) {
+        const int top = pyr.nodeLevelCount() - 1;
+        const double sgnD = sgn;
+        const double uA = (static_cast<double>(lineA) - em) * sgnD;
+        for (j = std::min(j, top); j >= 2; --j) {
+            const long node = (lineA + sgn) >> j;
+            const long end = sgn > 0 ? (node + 1) << j : node << j;
+            const long lines = std::min((end - lineA) * sgn, maxLines);
+            if (lines < 1) return 0;
+            const double uE = (static_cast<double>(lineA + sgn * lines) - em) * sgnD;
+            const double low = std::min(eyeRaw + dzrLow * uA, eyeRaw + dzrLow * uE);
+            const double lo = std::min(en + rnLo * uA, en + rnLo * uE);
+            const double hi = std::max(en + rnHi * uA, en + rnHi * uE);
+            const int majorNodes = kMajorX ? pyr.nodesX(j) : pyr.nodesY(j);
+            const int minorNodes = kMajorX ? pyr.nodesY(j) : pyr.nodesX(j);
+            const int mn = static_cast<int>(std::clamp<long>(node, 0, majorNodes - 1));
+            // (The tracks lie inside the map here: lo >= 0, so truncation is the floor.)
+            const int n0 = std::clamp(static_cast<int>(lo) >> j, 0, minorNodes - 1);
+            const int n1 = std::clamp(static_cast<int>(hi) >> j, 0, minorNodes - 1);
+            if (n1 - n0 > 3) continue;  // a wide fan: finer nodes
+            int bound = 0;
+            for (int n = n0; n <= n1; ++n)
+                bound = std::max<int>(
+                    bound, kMajorX ? pyr.nodeMaxRaw(j, mn, n) : pyr.nodeMaxRaw(j, n, mn));
+            if (low > bound) {
+                j = std::min(j + 1, top);
+                return lines;
+            }
+        }
+        j = 2;
+        return 0;
+    }
+
+    // The pyramid whose nodes long marches pass, or none (RenderOptions::skipNodes).
+    const TerrainPyramid* skipPyramid() const {
+        return options_.skipNodes ? pyramid_.get() : nullptr;
+    }
+
     // marchCoherent's march on the surface sampled at major grid lines, linear between them.
     // The march goes from node A (the grid line at or before uStart; uStart itself when that
     // line is behind the eye) to the following lines; the hit lies between the last node the
-    // ray passed above and the first it is under.
+    // ray passed above and the first it is under. Long marches pass max-height nodes where they
+    // can (skipNodes; not without pyr).
     template <bool kMajorX>
     [[gnu::always_inline]] static ColumnMarch marchLinear(const MapView& mv, const EyeGrid& eg,
-                                                          int sgn, double rn, double rz,
-                                                          double uStart, double uNear,
-                                                          std::uint64_t& steps) {
+                                                          const TerrainPyramid* pyr, int sgn,
+                                                          double rn, double rz, double uStart,
+                                                          double uNear, std::uint64_t& steps) {
         const std::uint16_t* __restrict__ heights = mv.heights;
         const int w = mv.width;
         const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
@@ -591,10 +650,39 @@ class FastCaster final : public Caster {
         std::int64_t k = 0;
         double uHit = -1.0;
         const double invRn = 1.0 / rn;
+        // Lines the ray cannot end on but by a hit (as linearRows' kSafe): where nodes may be
+        // passed.
+        const double toSide = rn > 0.0 ? minorCount - 1.0 - nA : nA;
+        double safe = static_cast<double>(total);
+        if (rn != 0.0) safe = std::min(safe, (toSide - 1e-6) / std::abs(rn) - 2.0);
+        if (dzr > 0.0) safe = std::min(safe, (mv.maxRaw - eg.zRaw) / dzr - u - 2.0);
+        if (!onLine || (dzr <= 0.0 && zA > mv.maxRaw)) safe = 0.0;
+        const std::int64_t kSafe = safe > 0.0 ? static_cast<std::int64_t>(safe) : 0;
+        std::int64_t tryAt = kSkipAfter, skipped = 0;
+        int skipLevel = kSkipFirstLevel;
         if (above <= 0.0) {
             uHit = uA;
         } else {
             for (; k < total; ++k) {
+                if (pyr && k >= tryAt && k < kSafe) {
+                    const long lineA = m + sgn * k;
+                    const long lines = skipNodes<kMajorX>(*pyr, skipLevel, lineA, sgn, kSafe - k,
+                                                          em, en, eg.zRaw, dzr, rn, rn);
+                    if (lines > 0) {
+                        // Line A moves on by `lines`: the loop's values there.
+                        k += lines;
+                        skipped += lines - 1;
+                        const long lineNew = m + sgn * k;
+                        uA = (static_cast<double>(lineNew) - em) * sgn;
+                        nA = en + rn * uA;
+                        zA = eg.zRaw + dzr * uA;
+                        sA = lineSample<kMajorX>(heights, w, minorCount, lineNew, nA);
+                        above = zA - sA.h;
+                        if (k >= total) break;
+                    } else {
+                        tryAt = k + kSkipRetry;
+                    }
+                }
                 const long lineB = m + sgn * (k + 1);
                 const double uB = (static_cast<double>(lineB) - em) * sgn;
                 const double nB = en + rn * uB;
@@ -634,7 +722,7 @@ class FastCaster final : public Caster {
                 onLine = true;
             }
         }
-        steps += static_cast<std::uint64_t>(k + 1);
+        steps += static_cast<std::uint64_t>(k + 1 - skipped);
         if (uHit < 0.0) {
             out.u = std::max(uA, uStart);
             out.kind = total == nearSteps && nearSteps < majorSteps + 1 ? ColumnMarch::kFar

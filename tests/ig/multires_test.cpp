@@ -305,6 +305,71 @@ TEST(MultiresCaster, RowBatchesAgreeWithRowByRow) {
     }
 }
 
+// A long march passes the max-height nodes its rays stay above (RenderOptions::skipNodes): the
+// image must be bit for bit the one sampling every grid line, in batches (four and eight lanes)
+// and one by one; over the sweep poses and over grazing views, where rays pass far over low
+// ground before they meet a hill (and where the passes must actually happen: fewer steps).
+TEST(MultiresCaster, PassingNodesChangesNoPixel) {
+    const TerrainMap goleta = ig::loadGoleta();
+    const Intrinsics in = Intrinsics::fromFov(203, 117, ig::degToRad(60), 4);
+    // A gently rolling plain (heights in centimetres: long waves of a few metres, 2 m of noise),
+    // where grazing rays pass a few metres over the ground for hundreds of cells.
+    TerrainMap plain(512, 512, 10.0, 10.0, 0.01, 0.0);
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> noise(0, 200);
+    for (int y = 0; y < 512; ++y) {
+        for (int x = 0; x < 512; ++x) {
+            const double wave = 300.0 * std::sin(x * 0.031) * std::cos(y * 0.023);
+            plain.setRaw(x, y, static_cast<std::uint16_t>(1000.0 + wave + noise(rng)));
+        }
+    }
+    plain.updateRange();
+    plain.shadeFromHeights();
+    std::vector<std::pair<const TerrainMap*, Pose>> views;
+    const TerrainMap& flat = plain;
+    for (const TerrainMap* map : {&puget(), &goleta, &synthetic512(), &flat}) {
+        for (const Pose& pose : ig::sweepPoses(*map, 8))
+            views.emplace_back(map, pose);
+        // Grazing: 20 m over the lowest ground of a corner, looking level across the map.
+        for (const double yawDeg : {20.0, 45.0, 70.0}) {
+            Pose pose;
+            const double x = 0.1 * map->extentX(), y = 0.1 * map->extentY();
+            pose.position = {x, y, map->surfaceHeight(x, y) + 20.0};
+            pose.yaw = ig::degToRad(yawDeg);
+            pose.pitch = ig::degToRad(-0.5);
+            views.emplace_back(map, pose);
+        }
+    }
+    std::uint64_t stepsWith = 0, stepsWithout = 0, pixels = 0;
+    for (const auto& [map, pose] : views) {
+        for (const int lanes : {4, 0}) {
+            for (const bool packets : {true, false}) {
+                if (!packets && lanes == 0) continue;
+                ig::RenderOptions options;
+                options.levels = ig::kLevelsAuto;
+                options.threads = 1;
+                options.lanes = lanes;
+                options.packets = packets;
+                const auto with = ig::makeCaster(CasterKind::Fast, *map, options);
+                options.skipNodes = false;
+                const auto without = ig::makeCaster(CasterKind::Fast, *map, options);
+                const auto a = ig::renderFrame(*with, *map, pose, in);
+                const auto b = ig::renderFrame(*without, *map, pose, in);
+                ASSERT_TRUE(a.color == b.color) << "lanes " << lanes << " packets " << packets;
+                ASSERT_EQ(
+                    0, std::memcmp(a.depth.data(), b.depth.data(), a.depth.size() * sizeof(float)));
+                stepsWith += a.stats.steps;
+                stepsWithout += b.stats.steps;
+                pixels += a.color.size();
+            }
+        }
+    }
+    std::printf("passing nodes: %.2f steps/px against %.2f sampling every line\n",
+                static_cast<double>(stepsWith) / pixels,
+                static_cast<double>(stepsWithout) / pixels);
+    EXPECT_LT(stepsWith, stepsWithout);
+}
+
 TEST(MultiresCaster, LanesOptionIsChecked) {
     ig::RenderOptions options;
     options.levels = ig::kLevelsAuto;
