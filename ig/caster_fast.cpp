@@ -532,8 +532,9 @@ class FastCaster final : public Caster {
 
     // A march on major lines tries to pass max-height nodes (skipNodes) once it has sampled
     // kSkipAfter lines without ending, starting with nodes of 2^kSkipFirstLevel cells, and again
-    // kSkipRetry lines after a try that passed none (rays grazing far over the terrain would
-    // otherwise sample every line up to the level-0 distance).
+    // kSkipRetry lines after a try that passed none, twice as many after each further one (rays
+    // grazing far over the terrain would otherwise sample every line up to the level-0
+    // distance; rays close over it would try in vain).
     static constexpr long kSkipAfter = 16, kSkipRetry = 8;
     static constexpr int kSkipFirstLevel = 4;
 
@@ -650,21 +651,24 @@ class FastCaster final : public Caster {
         std::int64_t k = 0;
         double uHit = -1.0;
         const double invRn = 1.0 / rn;
-        // Lines the ray cannot end on but by a hit (as linearRows' kSafe): where nodes may be
-        // passed.
-        const double toSide = rn > 0.0 ? minorCount - 1.0 - nA : nA;
-        double safe = static_cast<double>(total);
-        if (rn != 0.0) safe = std::min(safe, (toSide - 1e-6) / std::abs(rn) - 2.0);
-        if (dzr > 0.0) safe = std::min(safe, (mv.maxRaw - eg.zRaw) / dzr - u - 2.0);
-        if (!onLine || (dzr <= 0.0 && zA > mv.maxRaw)) safe = 0.0;
-        const std::int64_t kSafe = safe > 0.0 ? static_cast<std::int64_t>(safe) : 0;
-        std::int64_t tryAt = kSkipAfter, skipped = 0;
+        // Steps the ray cannot end on but by a hit (as linearRows' kSafe), where nodes may be
+        // passed: found when the march first gets long.
+        std::int64_t kSafe = -1, tryAt = pyr && onLine ? kSkipAfter : total, skipped = 0;
+        std::int64_t retry = kSkipRetry;
+        const double nStart = nA;
         int skipLevel = kSkipFirstLevel;
         if (above <= 0.0) {
             uHit = uA;
         } else {
             for (; k < total; ++k) {
-                if (pyr && k >= tryAt && k < kSafe) {
+                if (k >= tryAt && kSafe < 0) {
+                    const double toSide = rn > 0.0 ? minorCount - 1.0 - nStart : nStart;
+                    double safe = static_cast<double>(total);
+                    if (rn != 0.0) safe = std::min(safe, (toSide - 1e-6) / std::abs(rn) - 2.0);
+                    if (dzr > 0.0) safe = std::min(safe, (mv.maxRaw - eg.zRaw) / dzr - u - 2.0);
+                    kSafe = safe > 0.0 ? static_cast<std::int64_t>(safe) : 0;
+                }
+                if (k >= tryAt && k < kSafe) {
                     const long lineA = m + sgn * k;
                     const long lines = skipNodes<kMajorX>(*pyr, skipLevel, lineA, sgn, kSafe - k,
                                                           em, en, eg.zRaw, dzr, rn, rn);
@@ -679,8 +683,10 @@ class FastCaster final : public Caster {
                         sA = lineSample<kMajorX>(heights, w, minorCount, lineNew, nA);
                         above = zA - sA.h;
                         if (k >= total) break;
+                        retry = kSkipRetry;
                     } else {
-                        tryAt = k + kSkipRetry;
+                        tryAt = k + retry;
+                        retry *= 2;
                     }
                 }
                 const long lineB = m + sgn * (k + 1);
