@@ -42,6 +42,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace ig {
 
@@ -1473,17 +1474,7 @@ class FastCaster final : public Caster {
         return end;
     }
 
-    // std::max, std::min and std::clamp to [0, 1] on four lanes, with their exact semantics.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmax(V4 a, V4 b) {
-        return a < b ? b : a;
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vmin(V4 a, V4 b) {
-        return b < a ? b : a;
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vclamp01(V4 v) {
-        const V4 zero = V4{} + 0.0, one = V4{} + 1.0;
-        return v < zero ? zero : (one < v ? one : v);
-    }
+    // (vmax, vmin and vclamp01 on four lanes: caster_rows.inc.)
     [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vsqrt(V4 v) {
         return reinterpret_cast<V4>(_mm256_sqrt_pd(reinterpret_cast<__m256d>(v)));
     }
@@ -1593,30 +1584,14 @@ class FastCaster final : public Caster {
         got = got || hit;
     }
 
-    // cellColor on four lanes (the unused lanes must carry a valid cell).
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static void cellColors(const MapView& mv, V4 cx, V4 cy,
-                                                                  V4 fx, V4 fy, V4 rgb[3]) {
-        fx = vclamp01(fx);
-        fy = vclamp01(fy);
-        const V4 i00 = cy * static_cast<double>(mv.width) + cx;
-        const V4 i01 = i00 + static_cast<double>(mv.width);
-        // Four bytes from each texel's first: r, g, b and the next texel's r, all inside the
-        // array but at the last texel of the upper row, read from one byte earlier.
-        const __m128i c00 = gather32<1>(mv.colors, i00 * 3.0);
-        const __m128i c10 = gather32<1>(mv.colors, i00 * 3.0 + 3.0);
-        const __m128i c01 = gather32<1>(mv.colors, i01 * 3.0);
-        const __m128i c11 = _mm_srli_epi32(gather32<1>(mv.colors, i01 * 3.0 + 2.0), 8);
-        const V4 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
-        const __m128i mask = _mm_set1_epi32(0xFF);
-        for (int k = 0; k < 3; ++k) {
-            const int shift = 8 * k;
-            const __m128i sh = _mm_cvtsi32_si128(shift);
-            const V4 a = toV4(_mm_and_si128(_mm_srl_epi32(c00, sh), mask));
-            const V4 b = toV4(_mm_and_si128(_mm_srl_epi32(c10, sh), mask));
-            const V4 c = toV4(_mm_and_si128(_mm_srl_epi32(c01, sh), mask));
-            const V4 d = toV4(_mm_and_si128(_mm_srl_epi32(c11, sh), mask));
-            rgb[k] = w00 * a + w10 * b + w01 * c + w11 * d;
-        }
+    // Channel k (0..2: r, g, b) of four texels gathered as 32-bit lanes (gather32), and the
+    // texels read from one byte earlier (the last one of the map) moved down to their own r.
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 texelChannel(__m128i texels, int k) {
+        return toV4(
+            _mm_and_si128(_mm_srl_epi32(texels, _mm_cvtsi32_si128(8 * k)), _mm_set1_epi32(0xFF)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX2 static __m128i texelsFromEarlier(__m128i texels) {
+        return _mm_srli_epi32(texels, 8);
     }
 
     // Casts row y of the four columns where it can (see above); `done[l]` tells which lanes it
@@ -1928,16 +1903,6 @@ class FastCaster final : public Caster {
     using V8 = double __attribute__((vector_size(64)));
     using M8 = decltype(V8{} < V8{});
 
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vmax(V8 a, V8 b) {
-        return a < b ? b : a;
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vmin(V8 a, V8 b) {
-        return b < a ? b : a;
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vclamp01(V8 v) {
-        const V8 zero = V8{} + 0.0, one = V8{} + 1.0;
-        return v < zero ? zero : (one < v ? one : v);
-    }
     [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vsqrt(V8 v) {
         return reinterpret_cast<V8>(_mm512_maskz_sqrt_pd(0xFF, reinterpret_cast<__m512d>(v)));
     }
@@ -1978,6 +1943,15 @@ class FastCaster final : public Caster {
         return _mm256_inserti128_si256(_mm256_castsi128_si256(a), c, 1);
     }
 
+    // The eight 16-bit heights h[o[l] + add] in one register.
+    template <int... kLane>
+    [[gnu::always_inline]] static __m128i heights16(const std::uint16_t* h, const int* o, int add,
+                                                    std::integer_sequence<int, kLane...>) {
+        __m128i v = _mm_setzero_si128();
+        ((v = _mm_insert_epi16(v, h[o[kLane] + add], kLane)), ...);
+        return v;
+    }
+
     // sampleLine on eight lanes.
     template <bool kMajorX>
     [[gnu::always_inline]] VIG_CASTER_AVX512 static LineN<V8> sampleLine(const MapView& mv,
@@ -2005,23 +1979,9 @@ class FastCaster final : public Caster {
                               _mm_extract_epi32(offLo, 2), _mm_extract_epi32(offLo, 3),
                               _mm_cvtsi128_si32(offHi),    _mm_extract_epi32(offHi, 1),
                               _mm_extract_epi32(offHi, 2), _mm_extract_epi32(offHi, 3)};
-            __m128i lo = _mm_cvtsi32_si128(h[o[0]]), hi = _mm_cvtsi32_si128(h[o[0] + w]);
-            lo = _mm_insert_epi16(lo, h[o[1]], 1);
-            hi = _mm_insert_epi16(hi, h[o[1] + w], 1);
-            lo = _mm_insert_epi16(lo, h[o[2]], 2);
-            hi = _mm_insert_epi16(hi, h[o[2] + w], 2);
-            lo = _mm_insert_epi16(lo, h[o[3]], 3);
-            hi = _mm_insert_epi16(hi, h[o[3] + w], 3);
-            lo = _mm_insert_epi16(lo, h[o[4]], 4);
-            hi = _mm_insert_epi16(hi, h[o[4] + w], 4);
-            lo = _mm_insert_epi16(lo, h[o[5]], 5);
-            hi = _mm_insert_epi16(hi, h[o[5] + w], 5);
-            lo = _mm_insert_epi16(lo, h[o[6]], 6);
-            hi = _mm_insert_epi16(hi, h[o[6] + w], 6);
-            lo = _mm_insert_epi16(lo, h[o[7]], 7);
-            hi = _mm_insert_epi16(hi, h[o[7] + w], 7);
-            a = _mm256_cvtepu16_epi32(lo);
-            b = _mm256_cvtepu16_epi32(hi);
+            const auto lanes = std::make_integer_sequence<int, 8>{};
+            a = _mm256_cvtepu16_epi32(heights16(h, o, 0, lanes));
+            b = _mm256_cvtepu16_epi32(heights16(h, o, w, lanes));
         } else {
             // Minor along x: the two samples are adjacent, one 32-bit load.
             const auto* row = reinterpret_cast<const unsigned char*>(h + line * w);
@@ -2041,27 +2001,12 @@ class FastCaster final : public Caster {
         return {h0 + f * (h1 - h0), h0, h1, i};
     }
 
-    // cellColors on eight lanes.
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static void cellColors(const MapView& mv, V8 cx, V8 cy,
-                                                                    V8 fx, V8 fy, V8 rgb[3]) {
-        fx = vclamp01(fx);
-        fy = vclamp01(fy);
-        const V8 i00 = cy * static_cast<double>(mv.width) + cx;
-        const V8 i01 = i00 + static_cast<double>(mv.width);
-        const __m256i c00 = gather32<1>(mv.colors, i00 * 3.0);
-        const __m256i c10 = gather32<1>(mv.colors, i00 * 3.0 + 3.0);
-        const __m256i c01 = gather32<1>(mv.colors, i01 * 3.0);
-        const __m256i c11 = _mm256_srli_epi32(gather32<1>(mv.colors, i01 * 3.0 + 2.0), 8);
-        const V8 w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
-        const __m256i mask = _mm256_set1_epi32(0xFF);
-        for (int k = 0; k < 3; ++k) {
-            const __m128i sh = _mm_cvtsi32_si128(8 * k);
-            const V8 a = toV8(_mm256_and_si256(_mm256_srl_epi32(c00, sh), mask));
-            const V8 b = toV8(_mm256_and_si256(_mm256_srl_epi32(c10, sh), mask));
-            const V8 c = toV8(_mm256_and_si256(_mm256_srl_epi32(c01, sh), mask));
-            const V8 d = toV8(_mm256_and_si256(_mm256_srl_epi32(c11, sh), mask));
-            rgb[k] = w00 * a + w10 * b + w01 * c + w11 * d;
-        }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 texelChannel(__m256i texels, int k) {
+        return toV8(_mm256_and_si256(_mm256_srl_epi32(texels, _mm_cvtsi32_si128(8 * k)),
+                                     _mm256_set1_epi32(0xFF)));
+    }
+    [[gnu::always_inline]] VIG_CASTER_AVX512 static __m256i texelsFromEarlier(__m256i texels) {
+        return _mm256_srli_epi32(texels, 8);
     }
 
     // quantizeLanes on eight lanes.
