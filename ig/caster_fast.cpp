@@ -694,13 +694,13 @@ class FastCaster final : public Caster {
                 const double uB = (static_cast<double>(lineB) - em) * sgn;
                 const double nB = en + rn * uB;
                 if (!(nB >= 0.0) || nB > minorCount - 1.0) {
-                    steps += static_cast<std::uint64_t>(k + 1);
+                    steps += static_cast<std::uint64_t>(k + 1 - skipped);
                     out.kind = ColumnMarch::kStop;
                     out.u = std::max(uA, uStart);
                     return out;
                 }
                 if (rising && zA > mv.maxRaw) {
-                    steps += static_cast<std::uint64_t>(k + 1);
+                    steps += static_cast<std::uint64_t>(k + 1 - skipped);
                     out.kind = ColumnMarch::kAbove;
                     out.u = std::max(uA, uStart);
                     return out;
