@@ -203,6 +203,27 @@ void sensitivity(const Config& c) {
                 ms[{c.size, ig::kLevelsAuto}] / ms[{4096, ig::kLevelsAuto}]);
 }
 
+// The processors this process may run on (none when they cannot be read).
+std::vector<int> allowedCpus() {
+    cpu_set_t allowed;
+    CPU_ZERO(&allowed);
+    std::vector<int> cpus;
+    if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) return cpus;
+    for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu)
+        if (CPU_ISSET(cpu, &allowed)) cpus.push_back(cpu);
+    return cpus;
+}
+
+// Keeps the process's calling thread on the given processors (none: left as it is).
+void runOn(const std::vector<int>& cpus) {
+    if (cpus.empty()) return;
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    for (const int cpu : cpus)
+        CPU_SET(cpu, &set);
+    sched_setaffinity(0, sizeof set, &set);
+}
+
 void threads(const Config& c) {
     const ig::TerrainMap& map = syntheticMap(c.size);
     const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
@@ -215,23 +236,20 @@ void threads(const Config& c) {
     // One thread on each of the first two processors the process may use, then two threads: on
     // a virtual machine the two cores need not be equally fast (a neighbour may share one), so
     // the two-thread frame is also compared with what the two cores can do together.
-    cpu_set_t allowed;
-    CPU_ZERO(&allowed);
-    if (sched_getaffinity(0, sizeof allowed, &allowed) != 0) CPU_SET(0, &allowed);
-    std::vector<int> cpus;
-    for (int cpu = 0; cpu < CPU_SETSIZE && cpus.size() < 2; ++cpu)
-        if (CPU_ISSET(cpu, &allowed)) cpus.push_back(cpu);
+    const std::vector<int> all = allowedCpus();
     std::vector<double> oneMs;
-    for (const int cpu : cpus) {
-        cpu_set_t only;
-        CPU_ZERO(&only);
-        CPU_SET(cpu, &only);
-        sched_setaffinity(0, sizeof only, &only);
+    for (std::size_t i = 0; i < std::min<std::size_t>(all.size(), 2); ++i) {
+        runOn({all[i]});
         const Timed t = timeFrames(*single, map, issuePose(map), in, c.repeat + 2);
         oneMs.push_back(t.ms);
-        printRow(("1 thread, cpu " + std::to_string(cpu)).c_str(), t, pixels, t.ms);
+        printRow(("1 thread, cpu " + std::to_string(all[i])).c_str(), t, pixels, t.ms);
     }
-    sched_setaffinity(0, sizeof allowed, &allowed);
+    runOn(all);
+    if (oneMs.empty()) {
+        const Timed t = timeFrames(*single, map, issuePose(map), in, c.repeat + 2);
+        oneMs.push_back(t.ms);
+        printRow("1 thread", t, pixels, t.ms);
+    }
     const Timed t = timeFrames(*pair, map, issuePose(map), in, c.repeat + 2);
     const double fastest = *std::min_element(oneMs.begin(), oneMs.end());
     printRow("2 threads", t, pixels, fastest);
@@ -456,24 +474,10 @@ int main(int argc, char** argv) {
     try {
         // One-thread sections run on one core, so the casters they compare share it (a VM's
         // cores need not be equally fast); threads and stream use every core allowed.
-        cpu_set_t allowed;
-        CPU_ZERO(&allowed);
-        const bool pinnable = sched_getaffinity(0, sizeof allowed, &allowed) == 0;
+        const std::vector<int> all = allowedCpus();
         for (const std::string& s : c.sections) {
             const bool parallel = s == "threads" || s == "stream";
-            if (pinnable && !parallel) {
-                cpu_set_t one;
-                CPU_ZERO(&one);
-                for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu) {
-                    if (CPU_ISSET(cpu, &allowed)) {
-                        CPU_SET(cpu, &one);
-                        break;
-                    }
-                }
-                sched_setaffinity(0, sizeof one, &one);
-            } else if (pinnable) {
-                sched_setaffinity(0, sizeof allowed, &allowed);
-            }
+            if (!all.empty()) runOn(parallel ? all : std::vector<int>{all.front()});
             if (s == "speed") speed(c);
             if (s == "sensitivity") sensitivity(c);
             if (s == "threads") threads(c);
