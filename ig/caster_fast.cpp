@@ -1313,7 +1313,31 @@ class FastCaster final : public Caster {
 #if VIG_CASTER_PACKETS
             // Sky above the map's highest point goes in batches again.
             if (single > 0 && st.prevAbove) single = 0;
-            if (rows && single == 0 && v >= 3 && st.havePrev) {
+            if (!kSuper && rows && single == 0 && v >= 3 && st.havePrev) {
+                // Batches run inside the vector code, as many at a time as go.
+                RowsOutcome r = RowsOutcome::kOther;
+                bool tried = false;
+#if VIG_CASTER_WIDE
+                if (wide && v >= 7) {
+                    v = runRows(LaneCount<8>{}, cc, st, v, rays, colorOut, depthOut,
+                                static_cast<std::size_t>(w), r);
+                    tried = r != RowsOutcome::kOther;
+                }
+#endif
+                // Where eight do not go together (or fewer are left), four may: one batch.
+                if (!tried && v >= 3) {
+                    v = runRows(LaneCount<4>{}, cc, st, v, wide ? 1 : rays, colorOut, depthOut,
+                                static_cast<std::size_t>(w), r);
+                }
+                if (r == RowsOutcome::kDone) continue;
+                if (r == RowsOutcome::kFar) {
+                    // Every ray above starts past the level-0 distance too.
+                    single = rays;
+                } else {
+                    single = 4;
+                }
+            }
+            if (kSuper && rows && single == 0 && v >= 3 && st.havePrev) {
                 Rgb8 c[8];
                 double tHit[8];
                 int n = 4;
