@@ -1338,6 +1338,7 @@ class FastCaster final : public Caster {
                 }
             }
             if (kSuper && rows && single == 0 && v >= 3 && st.havePrev) {
+                // The supersample rays of the pixels, stacked in the column, a batch at a time.
                 Rgb8 c[8];
                 double tHit[8];
                 int n = 4;
@@ -1345,25 +1346,17 @@ class FastCaster final : public Caster {
 #if VIG_CASTER_WIDE
                 if (wide && v >= 7) {
                     n = 8;
-                    if constexpr (kSuper) {
-                        double yy[8];
-                        for (int l = 0; l < 8; ++l)
-                            yy[l] = rowOf(v - l);
-                        r = linearRows(LaneCount<8>{}, cc, st, yy, c, tHit);
-                    } else {
-                        r = linearRows(LaneCount<8>{}, cc, st, v, c, tHit);
-                    }
+                    double yy[8];
+                    for (int l = 0; l < 8; ++l)
+                        yy[l] = rowOf(v - l);
+                    r = linearRows(LaneCount<8>{}, cc, st, yy, c, tHit);
                     // Where eight do not go together, four may.
                     if (r == RowsOutcome::kOther) n = 4;
                 }
 #endif
                 if (n == 4) {
-                    if constexpr (kSuper) {
-                        const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
-                        r = linearRows(LaneCount<4>{}, cc, st, yy, c, tHit);
-                    } else {
-                        r = linearRows(LaneCount<4>{}, cc, st, v, c, tHit);
-                    }
+                    const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
+                    r = linearRows(LaneCount<4>{}, cc, st, yy, c, tHit);
                 }
                 if (r == RowsOutcome::kFar) {
                     // Every ray above starts past the level-0 distance too.
