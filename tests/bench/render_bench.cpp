@@ -108,20 +108,6 @@ struct Timed {
     ig::RenderedFrame frame;
 };
 
-Timed timeFrames(const ig::Caster& caster, const ig::TerrainMap& map, const ig::Pose& pose,
-                 const ig::Intrinsics& in, int repeat) {
-    Timed best;
-    best.ms = 1e300;
-    for (int i = 0; i < repeat; ++i) {
-        ig::RenderedFrame f = ig::renderFrame(caster, map, pose, in);
-        if (f.stats.renderMs < best.ms) {
-            best.ms = f.stats.renderMs;
-            best.frame = std::move(f);
-        }
-    }
-    return best;
-}
-
 // The best of `repeat` frames of each caster, taken in turn (one frame of each per round), so
 // that a change in the core's speed during the run weighs on all of them alike.
 std::vector<Timed> timeInTurn(const std::vector<const ig::Caster*>& casters,
@@ -140,6 +126,12 @@ std::vector<Timed> timeInTurn(const std::vector<const ig::Caster*>& casters,
         }
     }
     return best;
+}
+
+// The best of `repeat` frames of one caster.
+Timed timeFrames(const ig::Caster& caster, const ig::TerrainMap& map, const ig::Pose& pose,
+                 const ig::Intrinsics& in, int repeat) {
+    return timeInTurn({&caster}, map, pose, in, repeat)[0];
 }
 
 std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& map, int levels,
