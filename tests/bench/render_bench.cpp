@@ -4,7 +4,8 @@
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
 //                [--cache DIR] [--caster K] [--levels auto|N]
-//   sections: speed sensitivity threads supersample flight quality frame stream (default: speed)
+//   sections: speed sensitivity headings threads supersample flight quality frame stream
+//             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
 // frames in turn); the machine's load affects them (state it).
@@ -193,6 +194,41 @@ void speed(const Config& c) {
         ig::meanAbsErrorPct(m.frame.color, s.frame.color),
         m.frame.color == m4.frame.color && m.frame.depth == m4.frame.depth ? "identical"
                                                                            : "DIFFER");
+}
+
+// The issue camera turned to the eight compass headings: how much the multiresolution caster
+// gains depends on what the view holds (a heading up a long valley sees far more terrain, grazed
+// by the rays near the horizon, than one toward a ridge).
+void headings(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## headings: %dx%d, synthetic %d^2, issue camera turned, one thread, best of %d in "
+        "turn\n",
+        c.width, c.height, c.size, c.repeat);
+    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
+    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    std::printf(
+        "| heading | levels 0 ms | steps/px | levels auto ms | ns/px | steps/px | speed-up | "
+        "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    const double saved = gHeadingDeg;
+    double worst = 1e300, best = 0.0;
+    for (int deg = 0; deg < 360; deg += 45) {
+        gHeadingDeg = deg;
+        const ig::Pose pose = issuePose(map);
+        const std::vector<Timed> t =
+            timeInTurn({single.get(), multi.get()}, map, pose, in, c.repeat);
+        const double ratio = t[0].ms / t[1].ms;
+        worst = std::min(worst, ratio);
+        best = std::max(best, ratio);
+        std::printf("| %d | %.1f | %.2f | %.1f | %.2f | %.2f | %.2fx | %.3f %% |\n", deg, t[0].ms,
+                    static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
+                    t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
+                    ratio, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
+    }
+    gHeadingDeg = saved;
+    std::printf("multires vs single-level over the headings: %.2fx to %.2fx\n", worst, best);
 }
 
 void sensitivity(const Config& c) {
@@ -466,13 +502,14 @@ int main(int argc, char** argv) {
         } else if (a == "--no-hugepages") {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
-                   a == "flight" || a == "quality" || a == "frame" || a == "stream") {
+                   a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
+                   a == "headings") {
             c.sections.push_back(a);
         } else {
             std::fprintf(stderr,
                          "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
                          "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                         "[stream] [--size N] "
+                         "[stream] [headings] [--size N] "
                          "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
                          "[--heading "
                          "DEG] [--cache DIR] "
@@ -494,6 +531,7 @@ int main(int argc, char** argv) {
             if (!all.empty()) runOn(parallel ? all : std::vector<int>{all.front()});
             if (s == "speed") speed(c);
             if (s == "sensitivity") sensitivity(c);
+            if (s == "headings") headings(c);
             if (s == "threads") threads(c);
             if (s == "quality") quality(c, -10.0, "quality");
             if (s == "supersample") quality(c, -1.0, "supersampling at shallow pitch");
