@@ -4,7 +4,8 @@
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
 //                [--cache DIR] [--caster K] [--levels auto|N]
-//   sections: speed sensitivity headings threads supersample flight quality frame stream
+//   sections: speed sensitivity headings pitches threads supersample flight quality frame
+//             stream
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -50,6 +51,7 @@ std::string gCache;
 bool gPackets = true;
 int gLanes = 0;             // RenderOptions::lanes; --lanes 4 keeps the row batches to four lanes
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
+double gPitchDeg = -10.0;   // its pitch; --pitch changes it (frame section)
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -231,6 +233,33 @@ void headings(const Config& c) {
     std::printf("multires vs single-level over the headings: %.2fx to %.2fx\n", worst, best);
 }
 
+// The issue camera tilted down further: the steeper the view, the fewer grid lines a ray
+// crosses before its hit, until every batch of rows ends within a line or two and the frame
+// costs what a pixel's set-up, hit, colour and store cost (the per-pixel floor).
+void pitches(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## pitches: %dx%d, synthetic %d^2, issue camera tilted, one thread, best of %d in "
+        "turn\n",
+        c.width, c.height, c.size, c.repeat);
+    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
+    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    std::printf(
+        "| pitch | levels 0 ms | steps/px | levels auto ms | ns/px | steps/px | speed-up | "
+        "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (const double deg : {-5.0, -10.0, -20.0, -30.0, -45.0, -60.0}) {
+        const ig::Pose pose = issuePose(map, deg);
+        const std::vector<Timed> t =
+            timeInTurn({single.get(), multi.get()}, map, pose, in, c.repeat);
+        std::printf("| %.0f | %.1f | %.2f | %.1f | %.2f | %.2f | %.2fx | %.3f %% |\n", deg, t[0].ms,
+                    static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
+                    t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
+                    t[0].ms / t[1].ms, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
+    }
+}
+
 void sensitivity(const Config& c) {
     const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
     const double pixels = static_cast<double>(c.width) * c.height;
@@ -358,9 +387,10 @@ void frame(const Config& c) {
     const ig::TerrainMap& map = syntheticMap(c.size);
     const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
     const auto r = caster(ig::parseCasterKind(c.caster), map, c.levels, 1);
-    ig::RenderedFrame f = ig::renderFrame(*r, map, issuePose(map), in);
+    const ig::Pose pose = issuePose(map, gPitchDeg);
+    ig::RenderedFrame f = ig::renderFrame(*r, map, pose, in);
     for (int i = 1; i < c.repeat; ++i) {
-        ig::RenderedFrame g = ig::renderFrame(*r, map, issuePose(map), in);
+        ig::RenderedFrame g = ig::renderFrame(*r, map, pose, in);
         if (g.stats.renderMs < f.stats.renderMs) f = std::move(g);
     }
     const double pixels = static_cast<double>(c.width) * c.height;
@@ -491,6 +521,12 @@ int main(int argc, char** argv) {
             }
         } else if (a == "--heading") {
             gHeadingDeg = std::atof(next().c_str());
+        } else if (a == "--pitch") {
+            gPitchDeg = std::atof(next().c_str());
+            if (!(gPitchDeg >= -90.0 && gPitchDeg <= 90.0)) {
+                std::fprintf(stderr, "bench-render: --pitch: expected degrees in [-90, 90]\n");
+                return 2;
+            }
         } else if (a == "--lanes") {
             c.lanes = std::atoi(next().c_str());
             if (c.lanes != 0 && c.lanes != 4) {
@@ -503,16 +539,16 @@ int main(int argc, char** argv) {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
-                   a == "headings") {
+                   a == "headings" || a == "pitches") {
             c.sections.push_back(a);
         } else {
             std::fprintf(stderr,
                          "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
                          "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                         "[stream] [headings] [--size N] "
+                         "[stream] [headings] [pitches] [--size N] "
                          "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
                          "[--heading "
-                         "DEG] [--cache DIR] "
+                         "DEG] [--pitch DEG] [--cache DIR] "
                          "[--caster fast|naive|reference] [--levels auto|N]\n",
                          a.c_str());
             return 2;
@@ -532,6 +568,7 @@ int main(int argc, char** argv) {
             if (s == "speed") speed(c);
             if (s == "sensitivity") sensitivity(c);
             if (s == "headings") headings(c);
+            if (s == "pitches") pitches(c);
             if (s == "threads") threads(c);
             if (s == "quality") quality(c, -10.0, "quality");
             if (s == "supersample") quality(c, -1.0, "supersampling at shallow pitch");
