@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -198,66 +199,57 @@ void speed(const Config& c) {
                                                                            : "DIFFER");
 }
 
+// The issue camera moved through a set of views (`what` says how, `column` and `columns` name
+// the table's first column): both casters' frames taken in turn at each, a table row each; the
+// speed-ups' range.
+void viewTable(const Config& c, const char* what, const char* column, const char* columns,
+               const std::vector<double>& values,
+               const std::function<ig::Pose(const ig::TerrainMap&, double)>& poseAt) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf("\n## %s: %dx%d, synthetic %d^2, issue camera %s, one thread, best of %d in turn\n",
+                columns, c.width, c.height, c.size, what, c.repeat);
+    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
+    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    std::printf(
+        "| %s | levels 0 ms | steps/px | levels auto ms | ns/px | steps/px | speed-up | "
+        "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        column);
+    double worst = 1e300, best = 0.0;
+    for (const double value : values) {
+        const std::vector<Timed> t =
+            timeInTurn({single.get(), multi.get()}, map, poseAt(map, value), in, c.repeat);
+        const double ratio = t[0].ms / t[1].ms;
+        worst = std::min(worst, ratio);
+        best = std::max(best, ratio);
+        std::printf("| %.0f | %.1f | %.2f | %.1f | %.2f | %.2f | %.2fx | %.3f %% |\n", value,
+                    t[0].ms, static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
+                    t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
+                    ratio, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
+    }
+    std::printf("multires vs single-level over the %s: %.2fx to %.2fx\n", columns, worst, best);
+}
+
 // The issue camera turned to the eight compass headings: how much the multiresolution caster
 // gains depends on what the view holds (a heading up a long valley sees far more terrain, grazed
 // by the rays near the horizon, than one toward a ridge).
 void headings(const Config& c) {
-    const ig::TerrainMap& map = syntheticMap(c.size);
-    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
-    const double pixels = static_cast<double>(c.width) * c.height;
-    std::printf(
-        "\n## headings: %dx%d, synthetic %d^2, issue camera turned, one thread, best of %d in "
-        "turn\n",
-        c.width, c.height, c.size, c.repeat);
-    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
-    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
-    std::printf(
-        "| heading | levels 0 ms | steps/px | levels auto ms | ns/px | steps/px | speed-up | "
-        "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     const double saved = gHeadingDeg;
-    double worst = 1e300, best = 0.0;
-    for (int deg = 0; deg < 360; deg += 45) {
-        gHeadingDeg = deg;
-        const ig::Pose pose = issuePose(map);
-        const std::vector<Timed> t =
-            timeInTurn({single.get(), multi.get()}, map, pose, in, c.repeat);
-        const double ratio = t[0].ms / t[1].ms;
-        worst = std::min(worst, ratio);
-        best = std::max(best, ratio);
-        std::printf("| %d | %.1f | %.2f | %.1f | %.2f | %.2f | %.2fx | %.3f %% |\n", deg, t[0].ms,
-                    static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
-                    t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
-                    ratio, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
-    }
+    viewTable(c, "turned", "heading", "headings", {0, 45, 90, 135, 180, 225, 270, 315},
+              [](const ig::TerrainMap& map, double deg) {
+                  gHeadingDeg = deg;
+                  return issuePose(map);
+              });
     gHeadingDeg = saved;
-    std::printf("multires vs single-level over the headings: %.2fx to %.2fx\n", worst, best);
 }
 
 // The issue camera tilted down further: the steeper the view, the fewer grid lines a ray
 // crosses before its hit, until every batch of rows ends within a line or two and the frame
 // costs what a pixel's set-up, hit, colour and store cost (the per-pixel floor).
 void pitches(const Config& c) {
-    const ig::TerrainMap& map = syntheticMap(c.size);
-    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
-    const double pixels = static_cast<double>(c.width) * c.height;
-    std::printf(
-        "\n## pitches: %dx%d, synthetic %d^2, issue camera tilted, one thread, best of %d in "
-        "turn\n",
-        c.width, c.height, c.size, c.repeat);
-    const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
-    const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
-    std::printf(
-        "| pitch | levels 0 ms | steps/px | levels auto ms | ns/px | steps/px | speed-up | "
-        "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (const double deg : {-5.0, -10.0, -20.0, -30.0, -45.0, -60.0}) {
-        const ig::Pose pose = issuePose(map, deg);
-        const std::vector<Timed> t =
-            timeInTurn({single.get(), multi.get()}, map, pose, in, c.repeat);
-        std::printf("| %.0f | %.1f | %.2f | %.1f | %.2f | %.2f | %.2fx | %.3f %% |\n", deg, t[0].ms,
-                    static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
-                    t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
-                    t[0].ms / t[1].ms, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
-    }
+    viewTable(c, "tilted", "pitch", "pitches", {-5, -10, -20, -30, -45, -60},
+              [](const ig::TerrainMap& map, double deg) { return issuePose(map, deg); });
 }
 
 void sensitivity(const Config& c) {
