@@ -4,8 +4,14 @@
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <vector>
@@ -189,6 +195,30 @@ void writeTextOutput(const std::string& flag, const std::string& path, const std
         std::remove(tmp.c_str());
         throw InputError(flag + " " + path + ": cannot write the file");
     }
+}
+
+void checkOutputFile(const std::string& flag, const std::string& path) {
+    if (path == "-") return;
+    const std::string what = flag + " " + path + ": ";
+    if (path.empty()) throw InputError(flag + ": empty path");
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw InputError(what + "is a folder");
+    std::string dir = std::filesystem::path(path).parent_path().string();
+    if (dir.empty()) dir = ".";
+    if (!std::filesystem::is_directory(dir, ec)) {
+        throw InputError(what + "folder " + dir + " does not exist");
+    }
+    // A file of our own made and removed again in that folder (the write goes through one
+    // like it): permissions, read-only or special file systems all show here.
+    const std::string probe = path + ".part";
+    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) {
+        const int err = errno;
+        if (err == EEXIST) return;  // left by an earlier run; the write replaces it
+        throw InputError(what + "cannot create files in " + dir + ": " + std::strerror(err));
+    }
+    ::close(fd);
+    ::unlink(probe.c_str());
 }
 
 }  // namespace ig

@@ -47,5 +47,9 @@ int runProgram(const char* name, const std::function<int()>& body);
 // Writes `text` to `path` ('-': standard output), replacing the file only when all was written;
 // throws InputError naming `flag` and the path when it cannot.
 void writeTextOutput(const std::string& flag, const std::string& path, const std::string& text);
+// Checks before a long run that a file can be written at `path` later ('-': standard output,
+// always fine): not a folder, in a folder that exists and takes new files. Throws InputError
+// naming `flag` and the path otherwise. Leaves nothing behind (an existing file is untouched).
+void checkOutputFile(const std::string& flag, const std::string& path);
 
 }  // namespace ig

@@ -213,6 +213,18 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("ig-render", [&]() -> int {
+        // Every file it writes, checked before the terrain is loaded and the frame rendered.
+        // (--out is not written with --stereo.)
+        for (const auto& [flag, path] : {std::pair{"--out", stereo.enabled() ? nullptr : &outPath},
+                                         {"--depth", &depthPath},
+                                         {"--json", &jsonPath},
+                                         {"--out-left", &stereo.outLeft},
+                                         {"--out-right", &stereo.outRight},
+                                         {"--out-sbs", &stereo.outSbs},
+                                         {"--out-anaglyph", &stereo.outAnaglyph},
+                                         {"--out-raycast-mask", &stereo.outMask}}) {
+            if (path && !path->empty()) ig::checkOutputFile(flag, *path);
+        }
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }

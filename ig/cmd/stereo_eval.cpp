@@ -136,6 +136,7 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("stereo-eval", [&]() -> int {
+        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);  // written at the end
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }

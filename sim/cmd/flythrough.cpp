@@ -49,10 +49,6 @@ down|up" per line. Trajectory CSV: a header naming t,x,y,z,yaw_deg,pitch_deg,rol
 a stick flight begins (default: the scenario's start on Puget Sound, else over the south-west
 of the map heading north-east).)";
 
-std::string parentOf(const std::string& path) {
-    return std::filesystem::path(path).parent_path().string();
-}
-
 // "x,y,z,heading": z may be "+H" (above the terrain).
 sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
                             const sim::FlightLimits& limits) {
@@ -223,14 +219,10 @@ int main(int argc, char** argv) {
             std::filesystem::create_directories("out", ec);
             if (ec) throw ig::InputError("out: cannot create the folder: " + ec.message());
         }
+        // The files written at the end are checked now, so that a long run is not lost to them.
         const bool wantContact = contactPath != "none" && !contactPath.empty();
-        if (wantContact) {
-            const std::string dir = parentOf(contactPath);
-            if (!dir.empty() && !std::filesystem::is_directory(dir)) {
-                throw ig::InputError("--contact " + contactPath + ": folder " + dir +
-                                     " does not exist");
-            }
-        }
+        if (wantContact) ig::checkOutputFile("--contact", contactPath);
+        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);
         io::VideoFormat format;
         format.width = width;
         format.height = height;

@@ -153,6 +153,10 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("warp-eval", [&]() -> int {
+        // The files written at the end, checked before the run.
+        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);
+        if (!csvPath.empty()) ig::checkOutputFile("--csv", csvPath);
+        if (!plotPath.empty()) ig::checkOutputFile("--plot", plotPath);
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
