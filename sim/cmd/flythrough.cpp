@@ -66,6 +66,18 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     // Reuse the pose parser (it knows "+H").
     const ig::Pose p = ig::parsePose(
         part[0] + "," + part[1] + "," + part[2] + "," + part[3] + ",0,0", map, "--start");
+    // As for trajectories: a start more than the map's size off it is a mistake of coordinates
+    // (such as easting and northing given for metres from the map's corner), not a flight.
+    const double far = std::max(map.extentX(), map.extentY());
+    const glm::dvec3& q = p.position;
+    if (!(q.x > -far && q.y > -far && q.x < map.extentX() + far && q.y < map.extentY() + far)) {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "lies far off the map (which spans x 0..%.1f, y 0..%.1f m): X and Y are "
+                      "metres east and north of the map's south-west sample",
+                      map.extentX(), map.extentY());
+        throw ig::InputError("--start '" + text + "': " + buf);
+    }
     sim::FlightState s;
     s.position = p.position;
     s.heading = p.yaw;
