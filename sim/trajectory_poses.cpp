@@ -7,6 +7,11 @@
 
 namespace sim {
 
+bool nearMap(const ig::TerrainMap& map, double x, double y) {
+    const double far = std::max(map.extentX(), map.extentY());
+    return x > -far && y > -far && x < map.extentX() + far && y < map.extentY() + far;
+}
+
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
                               const std::string& name, double clearance, double step) {
     auto check = [&](double t) {
@@ -22,13 +27,9 @@ void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap
             throw ig::InputError(name + ": " + buf);
         }
     };
-    const double far = std::max(map.extentX(), map.extentY());
     bool near = false;
-    for (const TrajectorySample& s : trajectory.samples()) {
-        const glm::dvec3 p = s.pose.position;
-        near = near ||
-               (p.x > -far && p.y > -far && p.x < map.extentX() + far && p.y < map.extentY() + far);
-    }
+    for (const TrajectorySample& s : trajectory.samples())
+        near = near || nearMap(map, s.pose.position.x, s.pose.position.y);
     if (!near) {
         const glm::dvec3 p = trajectory.samples().front().pose.position;
         char buf[320];

@@ -24,6 +24,11 @@ class TrajectoryPoses final : public PoseSource {
     Trajectory trajectory_;
 };
 
+// Whether (x, y) lies within the map's own size of the map; positions further off are taken
+// for a mistake of coordinates (UTM or degrees instead of metres from the map's south-west
+// sample).
+bool nearMap(const ig::TerrainMap& map, double x, double y);
+
 // Throws ig::InputError naming `name` when the trajectory passes within
 // `clearance` metres of the terrain surface (checked every `step` seconds and
 // at every sample), or when every sample lies further from the map than the

@@ -66,11 +66,8 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     // Reuse the pose parser (it knows "+H").
     const ig::Pose p = ig::parsePose(
         part[0] + "," + part[1] + "," + part[2] + "," + part[3] + ",0,0", map, "--start");
-    // As for trajectories: a start more than the map's size off it is a mistake of coordinates
-    // (such as easting and northing given for metres from the map's corner), not a flight.
-    const double far = std::max(map.extentX(), map.extentY());
-    const glm::dvec3& q = p.position;
-    if (!(q.x > -far && q.y > -far && q.x < map.extentX() + far && q.y < map.extentY() + far)) {
+    // As for trajectories: a start far off the map is a mistake of coordinates, not a flight.
+    if (!sim::nearMap(map, p.position.x, p.position.y)) {
         char buf[256];
         std::snprintf(buf, sizeof buf,
                       "lies far off the map (which spans x 0..%.1f, y 0..%.1f m): X and Y are "

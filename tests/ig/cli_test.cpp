@@ -1,4 +1,4 @@
-// Shared program helpers: the default view of any map, the terrain line.
+// Shared program helpers: the default view of any map, the terrain line, output checks.
 #include "ig/cli.hpp"
 #include "ig/caster.hpp"
 #include "ig/error.hpp"
