@@ -1,15 +1,13 @@
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <vector>
 
 #include "io/gpio_stick.hpp"
 #include "io/stick.hpp"
+#include "io/text_file.hpp"
 
 namespace io {
 namespace {
@@ -152,18 +150,12 @@ std::unique_ptr<StickInput> makeStick(const std::string& spec, std::string* erro
     const std::string kind = spec.substr(0, colon);
     const std::string rest = colon == std::string::npos ? std::string() : spec.substr(colon + 1);
     if (kind == "script" && !rest.empty()) {
-        std::ifstream in(rest, std::ios::binary);
-        if (!in) {
-            if (error) *error = "stick script " + rest + ": cannot read: " + std::strerror(errno);
+        std::string text, why;
+        if (readTextFile(rest, text, &why) != 0) {
+            if (error) *error = "stick script " + rest + ": " + why;
             return nullptr;
         }
-        std::ostringstream text;
-        text << in.rdbuf();
-        if (in.bad()) {
-            if (error) *error = "stick script " + rest + ": read failed";
-            return nullptr;
-        }
-        return makeScriptedStick(text.str(), rest, error);
+        return makeScriptedStick(text, rest, error);
     }
     if (kind == "gpiod" && !rest.empty()) {
         std::optional<GpioStickConfig> config = parseGpioStickSpec(rest, error);

@@ -1,15 +1,14 @@
 #include "sim/trajectory.hpp"
 
 #include "ig/error.hpp"
+#include "io/text_file.hpp"
 
 #include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <utility>
 #include <vector>
 
@@ -55,12 +54,10 @@ double hermite(double p0, double p1, double m0, double m1, double t0, double t1,
 }  // namespace
 
 Trajectory Trajectory::loadCsv(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw ig::InputError("trajectory " + path + ": cannot open the file");
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (in.bad()) throw ig::InputError("trajectory " + path + ": read error");
-    return parseCsv(text.str(), path);
+    std::string text, why;
+    if (io::readTextFile(path, text, &why) != 0)
+        throw ig::InputError("trajectory " + path + ": " + why);
+    return parseCsv(text, path);
 }
 
 Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) {

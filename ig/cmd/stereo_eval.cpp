@@ -6,6 +6,7 @@
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/stereo.hpp"
+#include "io/text_file.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -14,7 +15,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <limits>
 #include <sstream>
@@ -57,8 +57,10 @@ double mseOf(const std::vector<ig::Rgb8>& a, const std::vector<ig::Rgb8>& b) {
 }
 
 std::vector<ig::Pose> readPoses(const std::string& path, const ig::TerrainMap& map) {
-    std::ifstream in(path);
-    if (!in) throw ig::InputError("--poses " + path + ": cannot open the file");
+    std::string text, why;
+    if (io::readTextFile(path, text, &why) != 0)
+        throw ig::InputError("--poses " + path + ": " + why);
+    std::istringstream in(text);
     std::vector<ig::Pose> poses;
     std::string line;
     int lineNo = 0;

@@ -1,11 +1,13 @@
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <filesystem>
 #include <fstream>
 
 #include "io/gpio_sim.hpp"
 #include "io/gpio_stick.hpp"
 #include "io/stick.hpp"
+#include "io/text_file.hpp"
 #include "io_test_util.hpp"
 
 namespace io {
@@ -126,6 +128,24 @@ TEST(MakeStick, ReadsScriptFilesAndRejectsBadSpecs) {
     std::ofstream(dir / "bad.stick") << "0 axis pitch 0\n1 axis pitch 2\n";
     EXPECT_EQ(makeStick("script:" + (dir / "bad.stick").string(), &error), nullptr);
     EXPECT_NE(error.find("bad.stick:2:"), std::string::npos) << error;
+    // A folder given for the script is refused (it used to read as an empty, neutral script).
+    EXPECT_EQ(makeStick("script:" + dir.string(), &error), nullptr);
+    EXPECT_NE(error.find("is a folder"), std::string::npos) << error;
+}
+
+TEST(ReadTextFile, ReadsAllOfItAndSaysWhyNot) {
+    const auto dir = test::scratchDir();
+    const auto path = dir / "t.txt";
+    std::string big(200000, 'x');
+    big += "\nend\n";
+    std::ofstream(path, std::ios::binary) << big;
+    std::string text, error;
+    EXPECT_EQ(readTextFile(path.string(), text, &error), 0) << error;
+    EXPECT_EQ(text, big);
+    EXPECT_EQ(readTextFile((dir / "none.txt").string(), text, &error), -ENOENT);
+    EXPECT_NE(error.find("cannot open"), std::string::npos) << error;
+    EXPECT_EQ(readTextFile(dir.string(), text, &error), -EISDIR);
+    EXPECT_EQ(error, "is a folder, not a file");
 }
 
 TEST(GpioStickSpec, ParsesOffsetsAndOptions) {
