@@ -23,11 +23,20 @@
 #if defined(__SSE__)
 #include <xmmintrin.h>
 #endif
+#if defined(__x86_64__)
+#include <immintrin.h>
+// Wan's rows on four lanes where the processor has AVX2 (chosen at run time).
+#define VIG_STEREO_VECTOR 1
+#define VIG_STEREO_AVX2 __attribute__((target("avx2")))
+#else
+#define VIG_STEREO_VECTOR 0
+#endif
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -128,9 +137,13 @@ class RowReprojector {
           total_(static_cast<long>(w_) * slots_),
           e_(options.eyeSeparation),
           gap_(options.gapThreshold),
+          sweep_(options.referenceSweep),
           pos_(static_cast<std::size_t>(w_)),
           depth_(static_cast<std::size_t>(w_)),
           acc_(static_cast<std::size_t>(w_) + 1),
+          lo_(static_cast<std::size_t>(w_)),
+          hi_(static_cast<std::size_t>(w_)),
+          packed_(static_cast<std::size_t>(w_)),
           castInColumn_(static_cast<std::size_t>(w_), 0) {}
 
     // Ray-cast pixels per column over the rows this worker reprojected.
@@ -153,7 +166,7 @@ class RowReprojector {
         }
         if (adelsonHodges) {
             overwriteRow();
-        } else {
+        } else if (sweep_ || !wanRowVector()) {
             wanRow();
         }
     }
@@ -184,6 +197,10 @@ class RowReprojector {
         bool terrain = false;
 #if defined(__SSE__)
         int finiteMask = 0;
+#if VIG_STEREO_VECTOR
+        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
+        if (hasAvx2) i = project8(depth, base, e, cx, w_, pos, dr, finiteMask);
+#endif
         const __m128 vInf = _mm_set1_ps(kInf);
         const __m128 vBase = _mm_set1_ps(base), vE = _mm_set1_ps(e), vOne = _mm_set1_ps(1.0f);
         const __m128 vZero = _mm_setzero_ps(), vStep = _mm_setr_ps(0.5f, 1.5f, 2.5f, 3.5f);
@@ -221,36 +238,74 @@ class RowReprojector {
         return terrain;
     }
 
-    // Writes the row's right pixels from what their slots accumulated. Local restrict
-    // pointers: the byte stores would otherwise force reloads of every member.
-    void writeRow() {
+#if VIG_STEREO_VECTOR
+    // project's loop on eight lanes, the same operations (no fused multiply-adds); returns
+    // where it stopped.
+    VIG_STEREO_AVX2 static int project8(const float* depth, float base, float e, float cx, int w,
+                                        float* __restrict__ pos, float* __restrict__ dr,
+                                        int& finiteMask) {
+        const __m256 vInf = _mm256_set1_ps(kInf), vBase = _mm256_set1_ps(base);
+        const __m256 vE = _mm256_set1_ps(e), vOne = _mm256_set1_ps(1.0f);
+        const __m256 vZero = _mm256_setzero_ps(), vFar = _mm256_set1_ps(kFarLeft);
+        const __m256 vStep = _mm256_setr_ps(0.5f, 1.5f, 2.5f, 3.5f, 4.5f, 5.5f, 6.5f, 7.5f);
+        int i = 0;
+        for (; i + 8 <= w; i += 8) {
+            const __m256 x = _mm256_add_ps(_mm256_set1_ps(static_cast<float>(i)), vStep);
+            const __m256 dx = _mm256_sub_ps(x, _mm256_set1_ps(cx));
+            const __m256 len = _mm256_sqrt_ps(_mm256_add_ps(vBase, _mm256_mul_ps(dx, dx)));
+            const __m256 d = _mm256_loadu_ps(depth + i);
+            finiteMask |= _mm256_movemask_ps(_mm256_cmp_ps(d, vInf, _CMP_LT_OQ));
+            const __m256 invD = _mm256_div_ps(vOne, d);
+            _mm256_storeu_ps(
+                pos + i,
+                _mm256_max_ps(_mm256_sub_ps(x, _mm256_mul_ps(vE, _mm256_mul_ps(len, invD))), vFar));
+            const __m256 u = _mm256_mul_ps(vE, invD);
+            const __m256 eps =
+                _mm256_mul_ps(u, _mm256_sub_ps(u, _mm256_div_ps(_mm256_add_ps(dx, dx), len)));
+            const __m256 root = _mm256_sqrt_ps(_mm256_max_ps(vZero, _mm256_add_ps(vOne, eps)));
+            _mm256_storeu_ps(dr + i,
+                             _mm256_min_ps(_mm256_mul_ps(d, root), _mm256_set1_ps(kSkySentinel)));
+        }
+        return i;
+    }
+#endif
+
+    // What finishes a right pixel from its slots' sums; `sampled` and `cast` count the pixels.
+    struct Finisher {
+        Rgb8* __restrict__ color;
+        float* __restrict__ depth;
+        RightPixelSource* __restrict__ source;
+        int* __restrict__ castInColumn;
+        int slots, shift;
+        std::uint64_t roundAll;
+        float inverseAll;
+        std::uint64_t sampled = 0, cast = 0;
+
         static constexpr float kInverse[9] = {0.0f,        1.0f,        0.5f,     1.0f / 3, 0.25f,
                                               1.0f / 5.0f, 1.0f / 6.0f, 1.0f / 7, 0.125f};
         // 2^16 / n rounded up: (sum * kScale[n] + 2^15) >> 16 is sum / n rounded, to within
         // 0.03 for sums up to 8 x 255.
         static constexpr std::uint32_t kScale[9] = {0,     65536, 32768, 21846, 16384,
                                                     13108, 10923, 9363,  8192};
-        PixelAcc* __restrict__ acc = acc_.data();
-        int* __restrict__ castInColumn = castInColumn_.data();
-        Rgb8* __restrict__ color = out_.color;
-        float* __restrict__ depth = out_.depth;
-        RightPixelSource* __restrict__ source = out_.source;
-        const int slots = slots_, w = w_, shift = shift_;
-        const std::uint64_t roundAll =
-            static_cast<std::uint64_t>((1 << shift) >> 1) * 0x100010001ULL;
-        const float inverseAll = kInverse[slots];
-        // Counted in registers (an indexed counter in memory would chain every pixel on a
-        // store-to-load round trip); interpolated = the rest.
-        std::uint64_t sampled = 0, cast = 0;
-        for (int p = 0; p < w; ++p) {
-            const PixelAcc a = acc[p];
+
+        Finisher(const Out& out, int* castCounts, int slotCount, int slotShift)
+            : color(out.color),
+              depth(out.depth),
+              source(out.source),
+              castInColumn(castCounts),
+              slots(slotCount),
+              shift(slotShift),
+              roundAll(static_cast<std::uint64_t>((1 << slotShift) >> 1) * 0x100010001ULL),
+              inverseAll(kInverse[slotCount]) {}
+
+        [[gnu::always_inline]] void pixel(int p, const PixelAcc& a) {
             if (2 * a.cast >= slots) {
                 source[p] = RightPixelSource::RayCast;
                 color[p] = Rgb8{255, 0, 255};  // overwritten by the second pass
                 depth[p] = kSkyDepth;
                 ++cast;
                 ++castInColumn[p];
-                continue;
+                return;
             }
             float mean;
             if (a.cast == 0) {
@@ -275,9 +330,24 @@ class RowReprojector {
             source[p] = a.sampled ? RightPixelSource::Reprojected : RightPixelSource::Interpolated;
             sampled += a.sampled;
         }
-        out_.counts[0] += sampled;
-        out_.counts[1] += static_cast<std::uint64_t>(w) - sampled - cast;
-        out_.counts[2] += cast;
+        // Adds the counts of w pixels to `counts`; interpolated = the rest.
+        void count(int w, std::uint64_t* counts) const {
+            counts[0] += sampled;
+            counts[1] += static_cast<std::uint64_t>(w) - sampled - cast;
+            counts[2] += cast;
+        }
+    };
+
+    // Writes the row's right pixels from what their slots accumulated. (The finisher's
+    // restrict pointers: the byte stores would otherwise force reloads of every member; its
+    // counts stay in registers, where an indexed counter in memory would chain every pixel
+    // on a store-to-load round trip.)
+    void writeRow() {
+        const PixelAcc* __restrict__ acc = acc_.data();
+        Finisher finish(out_, castInColumn_.data(), slots_, shift_);
+        for (int p = 0; p < w_; ++p)
+            finish.pixel(p, acc[p]);
+        finish.count(w_, out_.counts);
     }
 
     // Wan fig. 5-6: right to left, keeping the left-most accepted reprojection; a reprojection
@@ -402,6 +472,231 @@ class RowReprojector {
         writeRow();
     }
 
+    // wanRow's result by another route, for rows where no reprojection is hidden (false for
+    // the others, and where the processor lacks AVX2: wanRow then does the row). With every
+    // left pixel accepted, the regions wanRow sweeps are known pixel by pixel without the
+    // sweep: left pixel k's footprint ends at its midpoint with k + 1 (or half a pixel right
+    // of k where they are more than a pixel apart), and the gap between holds the slots whose
+    // centres lie more than half a pixel from both. Right pixels then go four at a time: where
+    // each of the four is covered by two abutting footprints (k - 1, k) with k advancing one
+    // per pixel (disparity changing slowly: nearly everywhere), its sums are those two
+    // footprints' parts added in wanRow's order, so even the float depth sums are wanRow's to
+    // the bit. Any other pixel (a gap, three footprints, the row's ends) is summed region by
+    // region as wanRow meets them.
+#if VIG_STEREO_VECTOR
+    // slotAt on four lanes: ceil(slots x - 0.5) clamped to [0, total].
+    [[gnu::always_inline]] VIG_STEREO_AVX2 static __m128i slotsAt4(__m256d x, __m256d slots,
+                                                                   __m256d zero, __m256d total) {
+        const __m256d c =
+            _mm256_round_pd(_mm256_sub_pd(_mm256_mul_pd(slots, x), _mm256_set1_pd(0.5)),
+                            _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC);
+        return _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(c, zero), total));
+    }
+    // A count in each of four 32-bit lanes, to every 16-bit lane of four 64-bit ones.
+    [[gnu::always_inline]] VIG_STEREO_AVX2 static __m256i spreadCounts(__m128i n) {
+        __m256i m = _mm256_cvtepu32_epi64(n);
+        m = _mm256_or_si256(m, _mm256_slli_epi64(m, 16));
+        return _mm256_or_si256(m, _mm256_slli_epi64(m, 32));
+    }
+
+    // Four pixels' colours, the low bytes of the 16-bit lanes 0..2 of four 64-bit ones, to
+    // out[0..4) (twelve bytes, nothing past them).
+    [[gnu::always_inline]] VIG_STEREO_AVX2 static void storeColors(__m256i v, Rgb8* out) {
+        const __m128i lo = _mm256_castsi256_si128(v), hi = _mm256_extracti128_si256(v, 1);
+        const __m128i a = _mm_shuffle_epi8(
+            lo, _mm_setr_epi8(0, 2, 4, 8, 10, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1));
+        const __m128i b = _mm_shuffle_epi8(
+            hi, _mm_setr_epi8(-1, -1, -1, -1, -1, -1, 0, 2, 4, 8, 10, 12, -1, -1, -1, -1));
+        const __m128i rgb = _mm_or_si128(a, b);
+        auto* bytes = reinterpret_cast<unsigned char*>(out);
+        _mm_storel_epi64(reinterpret_cast<__m128i*>(bytes), rgb);
+        const int last = _mm_extract_epi32(rgb, 2);
+        std::memcpy(bytes + 8, &last, 4);
+    }
+
+    VIG_STEREO_AVX2 bool wanRowVector() {
+        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
+        if (!hasAvx2) return false;
+        const float* __restrict__ posOf = pos_.data();
+        const float* __restrict__ depthOf = depth_.data();
+        const Rgb8* __restrict__ colorOf = in_;
+        std::int32_t* __restrict__ lo = lo_.data();
+        std::int32_t* __restrict__ hi = hi_.data();
+        std::uint64_t* __restrict__ packed = packed_.data();
+        const int w = w_, shift = shift_, S = slots_;
+        const long total = total_;
+        const double slots = slots_;
+        auto slotAt = [slots, total](double x) {
+            return static_cast<std::int32_t>(std::clamp(ceilLong(slots * x - 0.5), 0L, total));
+        };
+
+        // The footprints: lo[k + 1] where k + 1's begins (its midpoint with k, or half a pixel
+        // left of k + 1), hi[k] where k's ends (there, or half a pixel right of k where the
+        // gap between them holds slots). Four pairs at a time, in doubles, as slotAt.
+        lo[0] = slotAt(static_cast<double>(posOf[0]) - 0.5);
+        int k = 0;
+        {
+            const __m256d vSlots = _mm256_set1_pd(slots), half = _mm256_set1_pd(0.5);
+            const __m256d zero = _mm256_setzero_pd(),
+                          top = _mm256_set1_pd(static_cast<double>(total));
+            auto slotsAt = [&](__m256d x)
+                               VIG_STEREO_AVX2 { return slotsAt4(x, vSlots, zero, top); };
+            int hidden = 0;
+            for (; k + 4 < w; k += 4) {
+                const __m256d a = _mm256_cvtps_pd(_mm_loadu_ps(posOf + k));
+                const __m256d b = _mm256_cvtps_pd(_mm_loadu_ps(posOf + k + 1));
+                hidden |= _mm256_movemask_pd(_mm256_cmp_pd(a, b, _CMP_NLT_UQ));
+                // std::max(mid, b - 0.5): mid unless it is less.
+                const __m256d mid = _mm256_mul_pd(half, _mm256_add_pd(a, b));
+                const __m256d left = _mm256_sub_pd(b, half);
+                const __m128i e =
+                    slotsAt(_mm256_blendv_pd(mid, left, _mm256_cmp_pd(mid, left, _CMP_LT_OQ)));
+                const __m128i g = slotsAt(_mm256_add_pd(a, half));
+                _mm_storeu_si128(reinterpret_cast<__m128i*>(lo + k + 1), e);
+                _mm_storeu_si128(reinterpret_cast<__m128i*>(hi + k), _mm_min_epi32(g, e));
+            }
+            if (hidden) return false;  // some k hidden behind k + 1
+        }
+        for (; k + 1 < w; ++k) {
+            const double a = posOf[k], b = posOf[k + 1];
+            if (!(a < b)) return false;
+            const std::int32_t e = slotAt(std::max(0.5 * (a + b), b - 0.5));
+            lo[k + 1] = e;
+            hi[k] = std::min(slotAt(a + 0.5), e);
+        }
+        hi[w - 1] = slotAt(static_cast<double>(posOf[w - 1]) + 0.5);
+        for (int i = 0; i < w; ++i)
+            packed[i] = packRgb(colorOf[i]);
+
+        Finisher finish(out_, castInColumn_.data(), S, shift);
+        // Any pixel: the regions it holds, from the right, as wanRow meets them.
+        int kp = 0;  // the last footprint beginning left of the pixel's right end (monotone)
+        auto generic = [&](int p) {
+            const long p0 = static_cast<long>(p) << shift, p1 = p0 + S;
+            while (kp + 1 < w && lo[kp + 1] < p1)
+                ++kp;
+            PixelAcc a{};
+            bool reachedLeft = false;
+            for (int j = lo[kp] < p1 ? kp : -1; j >= 0; --j) {
+                // The region right of footprint j: the gap to j + 1, or the row's right end.
+                const long gLo = std::max<long>(hi[j], p0);
+                const long gHi = std::min<long>(j + 1 < w ? lo[j + 1] : total, p1);
+                if (gLo < gHi) {
+                    if (j + 1 < w && static_cast<double>(posOf[j + 1]) - posOf[j] <= gap_) {
+                        // As wanRow's interpolate (left pixel j to j + 1).
+                        const double x0 = posOf[j];
+                        const double inv = 1.0 / (posOf[j + 1] - x0);
+                        const Rgb8 ci = colorOf[j], cj = colorOf[j + 1];
+                        const float di = depthOf[j], dj = depthOf[j + 1];
+                        const bool finite = di < kSkySentinel && dj < kSkySentinel;
+                        const auto n = static_cast<float>(gHi - gLo);
+                        const auto t = static_cast<float>((0.5 * (gLo + gHi) / slots - x0) * inv);
+                        auto lerp = [n, t](int u, int v) {
+                            return static_cast<std::uint64_t>(n * (u + (v - u) * t) + 0.5f);
+                        };
+                        a.rgb +=
+                            lerp(ci.r, cj.r) + (lerp(ci.g, cj.g) << 16) + (lerp(ci.b, cj.b) << 32);
+                        a.depthSum += n * (finite ? di + (dj - di) * t : (t < 0.5f ? di : dj));
+                    } else {
+                        a.cast = static_cast<std::uint8_t>(a.cast + (gHi - gLo));
+                    }
+                }
+                const long n = std::min<long>(hi[j], p1) - std::max<long>(lo[j], p0);
+                if (n > 0) {
+                    a.rgb += static_cast<std::uint64_t>(n) * packed[j];
+                    a.depthSum += static_cast<float>(n) * depthOf[j];
+                    a.sampled = true;
+                }
+                if (lo[j] <= p0) {
+                    reachedLeft = true;
+                    break;
+                }
+            }
+            if (!reachedLeft) {  // the row's left end
+                const long n = std::min<long>(lo[0], p1) - p0;
+                if (n > 0) a.cast = static_cast<std::uint8_t>(a.cast + n);
+            }
+            finish.pixel(p, a);
+        };
+
+        const __m128i lane = _mm_setr_epi32(0, S, 2 * S, 3 * S), vS = _mm_set1_epi32(S);
+        const __m256i roundAll = _mm256_set1_epi64x(static_cast<long long>(finish.roundAll));
+        const __m128i shiftCount = _mm_cvtsi32_si128(shift);
+        const __m128 inverseAll = _mm_set1_ps(finish.inverseAll), skyMean = _mm_set1_ps(kSkyMean);
+        const __m128 skyDepth = _mm_set1_ps(kSkyDepth);
+        std::uint32_t reprojected4;
+        {
+            const RightPixelSource r[4] = {
+                RightPixelSource::Reprojected, RightPixelSource::Reprojected,
+                RightPixelSource::Reprojected, RightPixelSource::Reprojected};
+            std::memcpy(&reprojected4, r, 4);
+        }
+        int kB = 0;  // the footprint holding the last slot of the group's first pixel
+        int p = 0;
+        for (; p + 4 <= w; p += 4) {
+            const std::int32_t p0 = p << shift, last = p0 + S - 1;
+            kB = std::min(kB + 4, w - 1);
+            while (kB > 0 && lo[kB] > last)
+                --kB;
+            while (kB + 1 < w && lo[kB + 1] <= last)
+                ++kB;
+            if (kB >= 1 && kB + 4 <= w) {
+                const __m128i loB = _mm_loadu_si128(reinterpret_cast<const __m128i*>(lo + kB));
+                const __m128i hiB = _mm_loadu_si128(reinterpret_cast<const __m128i*>(hi + kB));
+                const __m128i loA = _mm_loadu_si128(reinterpret_cast<const __m128i*>(lo + kB - 1));
+                const __m128i hiA = _mm_loadu_si128(reinterpret_cast<const __m128i*>(hi + kB - 1));
+                const __m128i v0 = _mm_add_epi32(_mm_set1_epi32(p0), lane);
+                const __m128i v1 = _mm_add_epi32(v0, vS);
+                const __m128i vLast = _mm_sub_epi32(v1, _mm_set1_epi32(1));
+                // Each pixel's last slot in footprint kB + i, which abuts kB + i - 1, which
+                // holds the pixel's first slot.
+                const __m128i bad =
+                    _mm_or_si128(_mm_or_si128(_mm_cmpgt_epi32(loB, vLast),
+                                              _mm_cmpgt_epi32(hiB, vLast) ^ _mm_set1_epi32(-1)),
+                                 _mm_or_si128(_mm_cmpeq_epi32(hiA, loB) ^ _mm_set1_epi32(-1),
+                                              _mm_cmpgt_epi32(loA, v0)));
+                if (_mm_testz_si128(bad, bad)) {
+                    const __m128i nB = _mm_sub_epi32(v1, _mm_max_epi32(loB, v0));
+                    const __m128i nA = _mm_sub_epi32(vS, nB);
+                    // Colours: each count times a packed colour, lane by 16-bit lane (at most
+                    // 8 x 255: nothing carries), then the rounded mean as finish.pixel.
+                    const __m256i cB =
+                        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(packed + kB));
+                    const __m256i cA =
+                        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(packed + kB - 1));
+                    const __m256i mB = spreadCounts(nB), mA = spreadCounts(nA);
+                    const __m256i rgb =
+                        _mm256_add_epi64(_mm256_mullo_epi16(cB, mB), _mm256_mullo_epi16(cA, mA));
+                    storeColors(_mm256_srl_epi64(_mm256_add_epi64(rgb, roundAll), shiftCount),
+                                finish.color + p);
+                    // Depths: kB's part, then kB - 1's, as wanRow adds them.
+                    const __m128 sum =
+                        _mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(nB), _mm_loadu_ps(depthOf + kB)),
+                                   _mm_mul_ps(_mm_cvtepi32_ps(nA), _mm_loadu_ps(depthOf + kB - 1)));
+                    const __m128 mean = _mm_mul_ps(sum, inverseAll);
+                    _mm_storeu_ps(finish.depth + p,
+                                  _mm_blendv_ps(skyDepth, mean, _mm_cmplt_ps(mean, skyMean)));
+                    std::memcpy(finish.source + p, &reprojected4, 4);
+                    finish.sampled += 4;
+                    continue;
+                }
+            }
+            kp = std::max(kp, kB);  // (kB begins left of the group's first pixel's end)
+            for (int i = 0; i < 4; ++i)
+                generic(p + i);
+        }
+        kp = std::max(kp, kB);
+        for (; p < w; ++p)
+            generic(p);
+        finish.count(w, out_.counts);
+        return true;
+    }
+#else
+    bool wanRowVector() {
+        return false;
+    }
+#endif
+
     // Adelson-Hodges: left to right at integer positions, each reprojection overwriting what is
     // there (a later left pixel landing on the same right pixel is nearer); when neighbouring
     // left pixels land more than one pixel apart the pixels between are emptied. Whatever is
@@ -435,11 +730,16 @@ class RowReprojector {
     int slots_, shift_;
     long total_;
     double e_, gap_;
+    bool sweep_;
     const Rgb8* in_ = nullptr;  // the row's left colours
     Out out_{};
     std::vector<float> pos_;
     std::vector<float> depth_;
     std::vector<PixelAcc> acc_;
+    // wanRowVector's row: left pixel k's footprint is slots [lo_[k], hi_[k]) and packed_[k]
+    // its colour.
+    std::vector<std::int32_t> lo_, hi_;
+    std::vector<std::uint64_t> packed_;
     std::vector<int> castInColumn_;
 };
 
