@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <limits>
 #include <sstream>
@@ -28,12 +29,15 @@ constexpr const char* kNotes = R"(What it measures:
   fully cast (the reference) and reprojected from the left by each configuration:
     abuffer          Wan: right-to-left hidden-reprojection removal, 1x8 A-buffer, gaps up to
                      --gap-threshold pixels interpolated, wider ones ray cast
+    abuffer-sweep    the same by the sweep with one running pixel (the twin of the rows on
+                     vector lanes: the same image, the number of pixels that differ printed)
     integer          the same with integer placement (no A-buffer)
     abuffer-gapT     the A-buffer with gap threshold T (one per --extra-gaps value)
     adelson-hodges   left-to-right overwrite at integer positions, gaps cleared and ray cast
     raycast          the full cast of the right eye itself (time reference, zero error)
   right_over_left = sum of right-eye times / sum of left-eye times over the poses (each time the
-  least of --repeat runs). mae_pct = mean absolute colour error in % of full scale against the
+  least of --repeat runs); pass1_ms and pass2_ms: the reprojection's and the second pass's
+  time per frame (mean over the poses). mae_pct = mean absolute colour error in % of full scale against the
   full cast, averaged over poses; psnr_db from the mean squared error over all poses.
   Eye separation: --stereo M metres, or --stereo-agl K times the eye's height above the terrain
   under it (the default, K = 0.02, keeps the disparity a few pixels at any altitude).
@@ -48,7 +52,9 @@ struct Config {
 
 struct Totals {
     double rightMs = 0.0, maePct = 0.0, mse = 0.0;
+    double reprojectMs = 0.0, castMs = 0.0;  // the right eye's two passes (summed over poses)
     double reprojected = 0.0, interpolated = 0.0, rayCast = 0.0;
+    std::uint64_t differ = 0;  // abuffer-sweep: pixels whose colour or depth differ from abuffer's
 };
 
 double mseOf(const std::vector<ig::Rgb8>& a, const std::vector<ig::Rgb8>& b) {
@@ -171,6 +177,11 @@ int main(int argc, char** argv) {
         ig::StereoOptions base;
         base.gapThreshold = gapThreshold;
         configs.push_back({"abuffer", base});
+        // The A-buffer by the sweep with one running pixel: the twin of the rows on vector
+        // lanes (same image), for their time.
+        ig::StereoOptions twin = base;
+        twin.referenceSweep = true;
+        configs.push_back({"abuffer-sweep", twin});
         base.abuffer = false;
         configs.push_back({"integer", base});
         for (const double t : parseList(extraGaps, "--extra-gaps")) {
@@ -223,7 +234,7 @@ int main(int argc, char** argv) {
                 }
                 return best;
             };
-            ig::RenderedFrame left, full;
+            ig::RenderedFrame left, full, abufferRight;
             const double poseLeftMs = timeRender(pose, left);
             leftMs += poseLeftMs;
             const double fullMs = timeRender(rightPose, full);
@@ -256,8 +267,18 @@ int main(int argc, char** argv) {
                     if (useCpu) stats.rightMs = stats.rightCpuMs;
                     if (stats.rightMs < best.rightMs) best = stats;
                 }
+                if (c == 0) abufferRight = right;
+                if (configs[c].options.referenceSweep) {
+                    for (std::size_t i = 0; i < right.color.size(); ++i) {
+                        t.differ += !(right.color[i] == abufferRight.color[i]) ||
+                                    std::memcmp(&right.depth[i], &abufferRight.depth[i],
+                                                sizeof(float)) != 0;
+                    }
+                }
                 const double mae = ig::meanAbsErrorPct(right.color, full.color);
                 t.rightMs += best.rightMs;
+                t.reprojectMs += best.reprojectMs;
+                t.castMs += best.castMs;
                 t.maePct += mae;
                 t.mse += mseOf(right.color, full.color);
                 t.reprojected += best.reprojected / n;
@@ -297,17 +318,22 @@ int main(int argc, char** argv) {
         std::FILE* table = jsonPath == "-" ? stderr : stdout;
         std::fprintf(table, "%s\n%dx%d, %d poses (%d skipped), left eye %.2f ms mean\n",
                      ig::describeTerrain(map).c_str(), w, h, used, skipped, leftMs / used);
-        std::fprintf(table, "%-16s %10s %9s %9s %8s %8s %8s\n", "config", "right/left", "mae_pct",
-                     "psnr_db", "reproj", "interp", "cast");
+        std::fprintf(table, "%-16s %10s %9s %9s %8s %8s %8s %9s %8s\n", "config", "right/left",
+                     "mae_pct", "psnr_db", "reproj", "interp", "cast", "pass1_ms", "pass2_ms");
         for (std::size_t c = 0; c < configs.size(); ++c) {
             const Totals& t = totals[c];
             const double mse = t.mse / used;
             const double psnr = mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / mse)
                                           : std::numeric_limits<double>::infinity();
             const double ratio = t.rightMs / leftMs;
-            std::fprintf(table, "%-16s %10.4f %9.3f %9.2f %8.4f %8.4f %8.4f\n",
+            std::fprintf(table, "%-16s %10.4f %9.3f %9.2f %8.4f %8.4f %8.4f",
                          configs[c].name.c_str(), ratio, t.maePct / used, psnr,
                          t.reprojected / used, t.interpolated / used, t.rayCast / used);
+            if (configs[c].fullCast) {
+                std::fprintf(table, "\n");
+            } else {
+                std::fprintf(table, " %9.3f %8.3f\n", t.reprojectMs / used, t.castMs / used);
+            }
             nlohmann::json r = {
                 {"config", configs[c].name},
                 {"right_over_left", ratio},
@@ -317,8 +343,20 @@ int main(int argc, char** argv) {
                 {"reprojected_fraction", t.reprojected / used},
                 {"interpolated_fraction", t.interpolated / used},
                 {"ray_cast_fraction", t.rayCast / used}};
-            if (!configs[c].fullCast) r["gap_threshold_px"] = configs[c].options.gapThreshold;
+            if (!configs[c].fullCast) {
+                r["gap_threshold_px"] = configs[c].options.gapThreshold;
+                r["reproject_ms_mean"] = t.reprojectMs / used;
+                r["cast_ms_mean"] = t.castMs / used;
+            }
+            if (configs[c].options.referenceSweep) r["pixels_differing_from_abuffer"] = t.differ;
             j["results"].push_back(r);
+        }
+        for (std::size_t c = 0; c < configs.size(); ++c) {
+            if (configs[c].options.referenceSweep) {
+                std::fprintf(table, "%s: %llu pixels differ from abuffer's (colour or depth)\n",
+                             configs[c].name.c_str(),
+                             static_cast<unsigned long long>(totals[c].differ));
+            }
         }
         j["per_pose"] = perPose;
         if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
