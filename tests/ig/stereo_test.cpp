@@ -291,14 +291,16 @@ TEST(Stereo, RayCastPixelsMatchTheFullCast) {
 // The rows cast four pixels at a time on vector lanes (where the processor has AVX2) against
 // the sweep with one running pixel they replace: every colour, depth bit and source the same,
 // over real and synthetic terrain, both placements, narrow and wide gaps, the ends of rows
-// (odd widths) and rows with hidden reprojections (which the sweep does itself).
+// (widths that leave a partial group of four, or no group at all) and rows with hidden
+// reprojections (which the sweep does itself).
 TEST(Stereo, RowsOnLanesEqualTheSweep) {
     const ig::TerrainMap maps[] = {ig::loadPugetSound(), ig::loadGoleta(),
                                    ig::makeSyntheticTerrain(256, 9, 20.0)};
     std::uint64_t pixels = 0, interpolated = 0, cast = 0;
     for (const ig::TerrainMap& map : maps) {
         const auto caster = ig::makeCaster(ig::CasterKind::Fast, map);
-        for (const auto& [w, h] : {std::pair{203, 97}, std::pair{160, 120}}) {
+        for (const auto& [w, h] :
+             {std::pair{203, 97}, std::pair{160, 120}, std::pair{5, 9}, std::pair{1, 3}}) {
             const ig::Intrinsics in = ig::Intrinsics::fromFov(w, h, ig::degToRad(60));
             for (const ig::Pose& pose : ig::sweepPoses(map, 10)) {
                 const double agl =
