@@ -165,7 +165,11 @@ class RowReprojector {
             return;
         }
         if (adelsonHodges) {
-            overwriteRow();
+            if (sweep_) {
+                overwriteRow();
+            } else {
+                overwriteRowDirect();
+            }
         } else if (sweep_ || !wanRowVector()) {
             wanRow();
         }
@@ -723,6 +727,47 @@ class RowReprojector {
             if (!acc[p].sampled) acc[p].cast = 1;
         }
         writeRow();
+    }
+
+    // overwriteRow's result written straight to the right row: each pixel's last reprojection
+    // (one slot, so finishing it is a copy) or, marked by its source, empty.
+    void overwriteRowDirect() {
+        Rgb8* __restrict__ color = out_.color;
+        float* __restrict__ depth = out_.depth;
+        RightPixelSource* __restrict__ source = out_.source;
+        const float* __restrict__ posOf = pos_.data();
+        const float* __restrict__ depthOf = depth_.data();
+        const Rgb8* __restrict__ colorOf = in_;
+        const int w = w_;
+        std::fill_n(source, w, RightPixelSource::RayCast);
+        long prevP = 0;
+        for (int i = 0; i < w; ++i) {
+            const long p = floorLong(posOf[i]);
+            if (i > 0 && p - prevP > 1) [[unlikely]] {
+                for (long q = std::max(0L, prevP + 1); q < std::min<long>(p, w); ++q)
+                    source[q] = RightPixelSource::RayCast;
+            }
+            if (p >= 0 && p < w) {
+                color[p] = colorOf[i];
+                depth[p] = depthOf[i];
+                source[p] = RightPixelSource::Reprojected;
+            }
+            prevP = p;
+        }
+        int* __restrict__ castInColumn = castInColumn_.data();
+        std::uint64_t cast = 0;
+        for (int p = 0; p < w; ++p) {
+            if (source[p] == RightPixelSource::RayCast) {
+                color[p] = Rgb8{255, 0, 255};  // overwritten by the second pass
+                depth[p] = kSkyDepth;
+                ++cast;
+                ++castInColumn[p];
+            } else if (!(depth[p] < kSkyMean)) {
+                depth[p] = kSkyDepth;
+            }
+        }
+        out_.counts[0] += static_cast<std::uint64_t>(w) - cast;
+        out_.counts[2] += cast;
     }
 
     const RenderedFrame& left_;

@@ -28,9 +28,10 @@ struct StereoOptions {
     ReprojectVariant variant = ReprojectVariant::Wan;
     bool abuffer = true;        // 1x8 sub-pixel coverage; false: integer placement
     double gapThreshold = 2.0;  // pixels; wider gaps between reprojections are ray cast (Wan only)
-    // Wan's rows by one sweep over each row's regions with a running pixel (the first
-    // implementation) instead of four pixels at a time: the same image to the bit, slower; the
-    // twin the tests compare against.
+    // Rows by the first implementation: Wan's by one sweep over each row's regions with a
+    // running pixel instead of four pixels at a time, Adelson-Hodges' through per-pixel sums
+    // instead of straight to the row. The same image to the bit, slower; the twin the tests
+    // compare against.
     bool referenceSweep = false;
 };
 
