@@ -274,6 +274,38 @@ class RowReprojector {
     }
 #endif
 
+    // The colour and depth interpolated between two neighbouring reprojections (left pixels
+    // i and j, at x0 and x0 + 1 / inv) over a run of slots: linear, so its sum over the slots is
+    // their count times its value at their mean centre.
+    struct Interpolation {
+        double x0, inv, slots;
+        Rgb8 ci, cj;
+        float di, dj;
+        bool finite;
+
+        Interpolation(const float* pos, const float* depth, const Rgb8* color, int i, int j,
+                      double slotCount)
+            : x0(pos[i]),
+              inv(1.0 / (pos[j] - x0)),
+              slots(slotCount),
+              ci(color[i]),
+              cj(color[j]),
+              di(depth[i]),
+              dj(depth[j]),
+              finite(di < kSkySentinel && dj < kSkySentinel) {}
+
+        // Adds slots [s0, s1) (s0 < s1) to the packed colour and depth sums.
+        void add(long s0, long s1, std::uint64_t& rgb, float& depth) const {
+            const auto n = static_cast<float>(s1 - s0);
+            const auto t = static_cast<float>((0.5 * (s0 + s1) / slots - x0) * inv);
+            auto lerp = [n, t](int u, int v) {
+                return static_cast<std::uint64_t>(n * (u + (v - u) * t) + 0.5f);
+            };
+            rgb += lerp(ci.r, cj.r) + (lerp(ci.g, cj.g) << 16) + (lerp(ci.b, cj.b) << 32);
+            depth += n * (finite ? di + (dj - di) * t : (t < 0.5f ? di : dj));
+        }
+    };
+
     // What finishes a right pixel from its slots' sums; `sampled` and `cast` count the pixels.
     struct Finisher {
         Rgb8* __restrict__ color;
@@ -429,21 +461,9 @@ class RowReprojector {
             emit(lo, [&](long s0, long s1) { aCast += static_cast<int>(s1 - s0); });
         };
         auto interpolate = [&](long lo, int i, int j) {  // from left pixel i to j
-            const double x0 = posOf[i];
-            const double inv = 1.0 / (posOf[j] - x0);
-            const Rgb8 ci = colorOf[i], cj = colorOf[j];
-            const float di = depthOf[i], dj = depthOf[j];
-            const bool finite = di < kSkySentinel && dj < kSkySentinel;
+            const Interpolation between(posOf, depthOf, colorOf, i, j, slots);
             emit(lo, [&](long s0, long s1) {
-                if (s0 >= s1) return;
-                const auto n = static_cast<float>(s1 - s0);
-                // Linear, so its sum over the slots is n times its value at their mean centre.
-                const auto t = static_cast<float>((0.5 * (s0 + s1) / S - x0) * inv);
-                auto lerp = [n, t](int u, int v) {
-                    return static_cast<std::uint64_t>(n * (u + (v - u) * t) + 0.5f);
-                };
-                aRgb += lerp(ci.r, cj.r) + (lerp(ci.g, cj.g) << 16) + (lerp(ci.b, cj.b) << 32);
-                aDepth += n * (finite ? di + (dj - di) * t : (t < 0.5f ? di : dj));
+                if (s0 < s1) between.add(s0, s1, aRgb, aDepth);
             });
         };
 
@@ -587,20 +607,8 @@ class RowReprojector {
                 const long gHi = std::min<long>(j + 1 < w ? lo[j + 1] : total, p1);
                 if (gLo < gHi) {
                     if (j + 1 < w && static_cast<double>(posOf[j + 1]) - posOf[j] <= gap_) {
-                        // As wanRow's interpolate (left pixel j to j + 1).
-                        const double x0 = posOf[j];
-                        const double inv = 1.0 / (posOf[j + 1] - x0);
-                        const Rgb8 ci = colorOf[j], cj = colorOf[j + 1];
-                        const float di = depthOf[j], dj = depthOf[j + 1];
-                        const bool finite = di < kSkySentinel && dj < kSkySentinel;
-                        const auto n = static_cast<float>(gHi - gLo);
-                        const auto t = static_cast<float>((0.5 * (gLo + gHi) / slots - x0) * inv);
-                        auto lerp = [n, t](int u, int v) {
-                            return static_cast<std::uint64_t>(n * (u + (v - u) * t) + 0.5f);
-                        };
-                        a.rgb +=
-                            lerp(ci.r, cj.r) + (lerp(ci.g, cj.g) << 16) + (lerp(ci.b, cj.b) << 32);
-                        a.depthSum += n * (finite ? di + (dj - di) * t : (t < 0.5f ? di : dj));
+                        Interpolation(posOf, depthOf, colorOf, j, j + 1, slots)
+                            .add(gLo, gHi, a.rgb, a.depthSum);
                     } else {
                         a.cast = static_cast<std::uint8_t>(a.cast + (gHi - gLo));
                     }
