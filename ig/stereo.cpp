@@ -144,6 +144,7 @@ class RowReprojector {
           lo_(static_cast<std::size_t>(w_)),
           hi_(static_cast<std::size_t>(w_)),
           packed_(static_cast<std::size_t>(w_)),
+          next_(static_cast<std::size_t>(w_)),
           castInColumn_(static_cast<std::size_t>(w_), 0) {}
 
     // Ray-cast pixels per column over the rows this worker reprojected.
@@ -496,17 +497,17 @@ class RowReprojector {
         writeRow();
     }
 
-    // wanRow's result by another route, for rows where no reprojection is hidden (false for
-    // the others, and where the processor lacks AVX2: wanRow then does the row). With every
-    // left pixel accepted, the regions wanRow sweeps are known pixel by pixel without the
-    // sweep: left pixel k's footprint ends at its midpoint with k + 1 (or half a pixel right
-    // of k where they are more than a pixel apart), and the gap between holds the slots whose
-    // centres lie more than half a pixel from both. Right pixels then go four at a time: where
-    // each of the four is covered by two abutting footprints (k - 1, k) with k advancing one
-    // per pixel (disparity changing slowly: nearly everywhere), its sums are those two
-    // footprints' parts added in wanRow's order, so even the float depth sums are wanRow's to
-    // the bit. Any other pixel (a gap, three footprints, the row's ends) is summed region by
-    // region as wanRow meets them.
+    // wanRow's result by another route (false where the processor lacks AVX2: wanRow then does
+    // the row). The regions wanRow sweeps are known pixel by pixel without the sweep: where no
+    // reprojection is hidden, left pixel k's footprint ends at its midpoint with k + 1 (or half
+    // a pixel right of k where they are more than a pixel apart), and the gap between holds the
+    // slots whose centres lie more than half a pixel from both; four pairs at a time. (A row
+    // with a hidden reprojection finds them in wanRow's order instead, without its sums.) Right
+    // pixels then go four at a time: where each of the four is covered by two abutting
+    // footprints (k - 1, k) with k advancing one per pixel (disparity changing slowly: nearly
+    // everywhere), its sums are those two footprints' parts added in wanRow's order, so even
+    // the float depth sums are wanRow's to the bit. Any other pixel (a gap, three footprints,
+    // the row's ends) is summed region by region as wanRow meets them.
 #if VIG_STEREO_VECTOR
     // slotAt on four lanes: ceil(slots x - 0.5) clamped to [0, total].
     [[gnu::always_inline]] VIG_STEREO_AVX2 static __m128i slotsAt4(__m256d x, __m256d slots,
@@ -554,6 +555,7 @@ class RowReprojector {
             return static_cast<std::int32_t>(std::clamp(ceilLong(slots * x - 0.5), 0L, total));
         };
 
+        bool hiddenRow = false;
         // The footprints: lo[k + 1] where k + 1's begins (its midpoint with k, or half a pixel
         // left of k + 1), hi[k] where k's ends (there, or half a pixel right of k where the
         // gap between them holds slots). Four pairs at a time, in doubles, as slotAt.
@@ -579,16 +581,41 @@ class RowReprojector {
                 _mm_storeu_si128(reinterpret_cast<__m128i*>(lo + k + 1), e);
                 _mm_storeu_si128(reinterpret_cast<__m128i*>(hi + k), _mm_min_epi32(g, e));
             }
-            if (hidden) return false;  // some k hidden behind k + 1
+            hiddenRow = hidden != 0;
         }
-        for (; k + 1 < w; ++k) {
+        for (; k + 1 < w && !hiddenRow; ++k) {
             const double a = posOf[k], b = posOf[k + 1];
-            if (!(a < b)) return false;
+            hiddenRow = !(a < b);
             const std::int32_t e = slotAt(std::max(0.5 * (a + b), b - 0.5));
             lo[k + 1] = e;
             hi[k] = std::min(slotAt(a + 0.5), e);
         }
         hi[w - 1] = slotAt(static_cast<double>(posOf[w - 1]) + 0.5);
+        if (hiddenRow) {
+            // Some reprojection is hidden (on or right of the one right of it): the sweep's
+            // order, right to left. A hidden pixel gets an empty footprint where its accepted
+            // right neighbour's begins, so that no region lies between them; next_ names each
+            // pixel's accepted right neighbour (its partner in a gap).
+            int* __restrict__ next = next_.data();
+            int accepted = w - 1;  // the left-most accepted so far
+            double pp = posOf[accepted];
+            next[w - 1] = w;
+            for (int i = w - 2; i >= 0; --i) {
+                const double a = posOf[i];
+                next[i] = accepted;
+                if (!(a < pp)) continue;
+                const std::int32_t e = slotAt(std::max(0.5 * (a + pp), pp - 0.5));
+                lo[accepted] = e;
+                hi[i] = std::min(slotAt(a + 0.5), e);
+                for (int j = i + 1; j < accepted; ++j)
+                    lo[j] = hi[j] = e;
+                accepted = i;
+                pp = a;
+            }
+            lo[accepted] = slotAt(pp - 0.5);
+            for (int j = 0; j < accepted; ++j)
+                lo[j] = hi[j] = lo[accepted];
+        }
         for (int i = 0; i < w; ++i)
             packed[i] = packRgb(colorOf[i]);
 
@@ -606,8 +633,9 @@ class RowReprojector {
                 const long gLo = std::max<long>(hi[j], p0);
                 const long gHi = std::min<long>(j + 1 < w ? lo[j + 1] : total, p1);
                 if (gLo < gHi) {
-                    if (j + 1 < w && static_cast<double>(posOf[j + 1]) - posOf[j] <= gap_) {
-                        Interpolation(posOf, depthOf, colorOf, j, j + 1, slots)
+                    const int partner = hiddenRow ? next_[static_cast<std::size_t>(j)] : j + 1;
+                    if (partner < w && static_cast<double>(posOf[partner]) - posOf[j] <= gap_) {
+                        Interpolation(posOf, depthOf, colorOf, j, partner, slots)
                             .add(gLo, gHi, a.rgb, a.depthSum);
                     } else {
                         a.cast = static_cast<std::uint8_t>(a.cast + (gHi - gLo));
@@ -793,6 +821,7 @@ class RowReprojector {
     // its colour.
     std::vector<std::int32_t> lo_, hi_;
     std::vector<std::uint64_t> packed_;
+    std::vector<int> next_;
     std::vector<int> castInColumn_;
 };
 
