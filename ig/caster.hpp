@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace ig {
 
@@ -76,6 +77,13 @@ class Caster {
     virtual int workUnits(const Camera& camera) const = 0;
     virtual void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
                             UnitCounters& counters) const = 0;
+    // For a caster whose units are groups of adjacent columns: the columns [first, second)
+    // unit `unit` writes, every row of them. {0, 0} for the others (units of rows).
+    virtual std::pair<int, int> unitColumns(const Camera& camera, int unit) const {
+        (void)camera;
+        (void)unit;
+        return {0, 0};
+    }
 };
 
 std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,

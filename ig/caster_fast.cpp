@@ -209,6 +209,12 @@ class FastCaster final : public Caster {
         return usePackets() && !linear() ? (w + 3) / 4 : w;
     }
 
+    std::pair<int, int> unitColumns(const Camera& camera, int unit) const override {
+        const int w = camera.intrinsics().width;
+        if (usePackets() && !linear()) return {4 * unit, std::min(4 * unit + 4, w)};
+        return {unit, unit + 1};
+    }
+
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
                     UnitCounters& counters) const override {
         checkRoll(camera);

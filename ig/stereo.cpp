@@ -967,7 +967,8 @@ void fillControlPoints(const TerrainMap& map, RenderedFrame& frame) {
 
 RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
                                 const StereoOptions& options, const RenderOptions& renderOptions,
-                                std::vector<RightPixelSource>& source, StereoStats& stats) {
+                                std::vector<RightPixelSource>& source, StereoStats& stats,
+                                const Caster* caster) {
     validateStereoOptions(options);
     if (left.pose.roll != 0.0) {
         throw InputError("pose: stereo reprojection renders roll = 0 (the PRP applies roll)");
@@ -998,7 +999,7 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
         return std::array<std::uint64_t, 3>{0, 0, 0};
     });
     tbb::combinable<CastCounters> castCounters;
-    const ColumnCaster caster(map, camera, renderOptions.sky, source);
+    const ColumnCaster columns(map, camera, renderOptions.sky, source);
     Clock::time_point castStart;
     runWithThreads(renderOptions.threads, [&] {
         // Reprojection: a pool of rows; each task reprojects a band of rows.
@@ -1023,9 +1024,64 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
                 marked[static_cast<std::size_t>(x)] +=
                     rows.castInColumn()[static_cast<std::size_t>(x)];
         }
+        // Groups of columns at least a quarter marked are cast whole by the caster (a pixel
+        // of a whole column costs it about a third of what one marked pixel on its own costs).
+        std::vector<int> wholeUnits;
+        std::vector<char> whole(static_cast<std::size_t>(w), 0);
+        const int units = caster != nullptr ? caster->workUnits(camera) : 0;
+        for (int u = 0; u < units; ++u) {
+            const auto [x0, x1] = caster->unitColumns(camera, u);
+            if (x1 <= x0) break;  // units of rows
+            long count = 0;
+            for (int x = x0; x < x1; ++x)
+                count += marked[static_cast<std::size_t>(x)];
+            if (4 * count < static_cast<long>(x1 - x0) * h) continue;
+            wholeUnits.push_back(u);
+            std::fill(whole.begin() + x0, whole.begin() + x1, char{1});
+            stats.wholeColumns += static_cast<std::uint64_t>(x1 - x0);
+        }
+        if (!wholeUnits.empty()) {
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, wholeUnits.size(), 1),
+                [&](const tbb::blocked_range<std::size_t>& r) {
+                    CastCounters& c = castCounters.local();
+                    std::vector<Rgb8> keptColor;
+                    std::vector<float> keptDepth;
+                    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                        const auto [x0, x1] = caster->unitColumns(camera, wholeUnits[i]);
+                        // The unit writes every pixel of its columns: keep the reprojected
+                        // ones and put them back.
+                        const std::size_t cols = static_cast<std::size_t>(x1 - x0);
+                        keptColor.resize(cols * static_cast<std::size_t>(h));
+                        keptDepth.resize(keptColor.size());
+                        for (int y = 0; y < h; ++y) {
+                            const std::size_t at = static_cast<std::size_t>(y) * w + x0;
+                            std::copy_n(right.color.begin() + at, cols,
+                                        keptColor.begin() + y * cols);
+                            std::copy_n(right.depth.begin() + at, cols,
+                                        keptDepth.begin() + y * cols);
+                        }
+                        UnitCounters unitCounters;
+                        caster->renderUnit(camera, right, wholeUnits[i], unitCounters);
+                        c.steps += unitCounters.steps;
+                        c.restarts += unitCounters.restarts;
+                        for (int y = 0; y < h; ++y) {
+                            for (int x = x0; x < x1; ++x) {
+                                const std::size_t at = static_cast<std::size_t>(y) * w + x;
+                                if (source[at] == RightPixelSource::RayCast) continue;
+                                const std::size_t k = y * cols + static_cast<std::size_t>(x - x0);
+                                right.color[at] = keptColor[k];
+                                right.depth[at] = keptDepth[k];
+                            }
+                        }
+                    }
+                },
+                tbb::simple_partitioner());
+        }
         std::vector<int> queue;
         for (int x = 0; x < w; ++x) {
-            if (marked[static_cast<std::size_t>(x)] > 0) queue.push_back(x);
+            if (marked[static_cast<std::size_t>(x)] > 0 && !whole[static_cast<std::size_t>(x)])
+                queue.push_back(x);
         }
         std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) {
             return marked[static_cast<std::size_t>(a)] > marked[static_cast<std::size_t>(b)];
@@ -1035,7 +1091,7 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
             [&](const tbb::blocked_range<std::size_t>& r) {
                 CastCounters& c = castCounters.local();
                 for (std::size_t i = r.begin(); i < r.end(); ++i)
-                    caster.column(queue[i], right, c);
+                    columns.column(queue[i], right, c);
             },
             tbb::simple_partitioner());
     });
@@ -1087,7 +1143,8 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         out.stats.restarts = out.right.stats.restarts;
         return out;
     }
-    out.right = reprojectRightEye(map, out.left, options, renderOptions, out.source, out.stats);
+    out.right = reprojectRightEye(map, out.left, options, renderOptions, out.source, out.stats,
+                                  caster.get());
     return out;
 }
 

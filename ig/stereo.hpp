@@ -57,6 +57,7 @@ struct StereoStats {
     std::uint64_t skyWithoutCast = 0;  // marked pixels above a column's last hit, not cast
     std::uint64_t steps = 0;           // grid steps of the second pass
     std::uint64_t restarts = 0;        // second-pass rays marched from the map entry
+    std::uint64_t wholeColumns = 0;    // columns cast whole by the caster in the second pass
 };
 
 struct StereoFrame {
@@ -85,10 +86,14 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
                          const StereoOptions& options, const RenderOptions& renderOptions = {});
 
 // The right eye reprojected from a rendered left frame (pose.roll == 0), gaps cast over `map`.
-// Fills `source` (per right pixel) and the right-eye fields of `stats`.
+// Fills `source` (per right pixel) and the right-eye fields of `stats`. With `caster` (over
+// `map`; the fast caster's units are columns), groups of columns that are mostly to be cast (the
+// strip at the right edge that only the right eye sees) are cast whole by it, and their
+// marked pixels taken from that; the other marked pixels are cast one by one.
 RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
                                 const StereoOptions& options, const RenderOptions& renderOptions,
-                                std::vector<RightPixelSource>& source, StereoStats& stats);
+                                std::vector<RightPixelSource>& source, StereoStats& stats,
+                                const Caster* caster = nullptr);
 
 // Composite images, RGB8 rows top first.
 // Left and right side by side (2W x H).

@@ -263,7 +263,8 @@ int main(int argc, char** argv) {
                     ig::StereoStats stats;
                     ig::StereoOptions options = configs[c].options;
                     options.eyeSeparation = e;
-                    right = ig::reprojectRightEye(map, left, options, renderOptions, source, stats);
+                    right = ig::reprojectRightEye(map, left, options, renderOptions, source, stats,
+                                                  caster.get());
                     if (useCpu) stats.rightMs = stats.rightCpuMs;
                     if (stats.rightMs < best.rightMs) best = stats;
                 }

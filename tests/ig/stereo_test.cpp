@@ -342,6 +342,52 @@ TEST(Stereo, RowsOnLanesEqualTheSweep) {
     EXPECT_GT(cast, pixels / 200);
 }
 
+// The second pass with the caster: groups of columns mostly to be cast (the strip only the
+// right eye sees) are cast whole by it. Their marked pixels are then the full cast's exactly,
+// and every other pixel (the reprojected ones in those columns included) is what the pass
+// without the caster gives.
+TEST(Stereo, MostlyMarkedColumnsAreCastWhole) {
+    const ig::TerrainMap map = ig::loadPugetSound();
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(203, 97, ig::degToRad(60));
+    const auto caster = ig::makeCaster(ig::CasterKind::Fast, map);
+    std::uint64_t whole = 0, wholeCast = 0;
+    for (const ig::Pose& pose : ig::sweepPoses(map, 8)) {
+        const double agl = pose.position.z - map.surfaceHeight(pose.position.x, pose.position.y);
+        const ig::RenderedFrame left = ig::renderFrame(*caster, map, pose, in);
+        const ig::StereoOptions o = withSeparation(0.1 * agl);
+        std::vector<ig::RightPixelSource> plainSource, wholeSource;
+        ig::StereoStats plainStats, wholeStats;
+        const ig::RenderedFrame plain =
+            ig::reprojectRightEye(map, left, o, {}, plainSource, plainStats);
+        const ig::RenderedFrame withCaster =
+            ig::reprojectRightEye(map, left, o, {}, wholeSource, wholeStats, caster.get());
+        const ig::RenderedFrame full = ig::renderFrame(*caster, map, withCaster.pose, in);
+        ASSERT_EQ(plainSource, wholeSource);
+        EXPECT_EQ(plainStats.wholeColumns, 0u);
+        whole += wholeStats.wholeColumns;
+        // The columns cast whole here are the strip at the right edge (no other group of
+        // columns is a quarter marked in these views).
+        const int w = in.width;
+        for (int y = 0; y < in.height; ++y) {
+            for (int x = 0; x < w; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * w + x;
+                const bool inWhole = x >= w - static_cast<int>(wholeStats.wholeColumns) &&
+                                     wholeSource[i] == ig::RightPixelSource::RayCast;
+                if (inWhole) {
+                    ++wholeCast;
+                    EXPECT_EQ(withCaster.color[i], full.color[i]) << "x " << x << " y " << y;
+                    EXPECT_EQ(withCaster.depth[i], full.depth[i]) << "x " << x << " y " << y;
+                } else {
+                    EXPECT_EQ(withCaster.color[i], plain.color[i]) << "x " << x << " y " << y;
+                    EXPECT_EQ(withCaster.depth[i], plain.depth[i]) << "x " << x << " y " << y;
+                }
+            }
+        }
+    }
+    EXPECT_GT(whole, 0u);
+    EXPECT_GT(wholeCast, 100u);
+}
+
 double sweepMeanError(const ig::TerrainMap& map, bool abuffer, int poses) {
     const ig::Intrinsics in = ig::Intrinsics::fromFov(160, 120, ig::degToRad(60));
     const auto caster = ig::makeCaster(ig::CasterKind::Fast, map);
