@@ -87,8 +87,8 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
 
 // The right eye reprojected from a rendered left frame (pose.roll == 0), gaps cast over `map`.
 // Fills `source` (per right pixel) and the right-eye fields of `stats`. With `caster` (over
-// `map`; the fast caster's units are columns), groups of columns that are mostly to be cast (the
-// strip at the right edge that only the right eye sees) are cast whole by it, and their
+// `map`; the fast caster's units are columns), groups of columns at least a quarter to be cast
+// (the strip at the right edge that only the right eye sees) are cast whole by it, and their
 // marked pixels taken from that; the other marked pixels are cast one by one.
 RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
                                 const StereoOptions& options, const RenderOptions& renderOptions,
