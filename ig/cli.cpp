@@ -1,18 +1,13 @@
 #include "ig/cli.hpp"
 
+#include "base/text.hpp"
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <sstream>
 #include <vector>
 
@@ -44,7 +39,7 @@ double parseNumber(const std::string& s, const std::string& what) {
         used = 0;
     }
     if (used == 0 || used != s.size() || !std::isfinite(v)) {
-        throw InputError(what + ": '" + s + "' is not a finite number");
+        throw InputError(what + ": " + base::quoted(s) + " is not a finite number");
     }
     return v;
 }
@@ -60,7 +55,23 @@ std::vector<std::string> split(const std::string& s, char sep) {
 }
 }  // namespace
 
+namespace {
+// A terrain number against its range, before anything is loaded.
+void checkRange(const std::optional<double>& v, const char* flag, double lo, double hi,
+                const char* unit) {
+    if (!v) return;
+    if (!std::isfinite(*v) || *v < lo || *v > hi) {
+        throw InputError(std::string(flag) + ": " + base::number(*v) + " is outside " +
+                         base::number(lo) + " .. " + base::number(hi) + " " + unit);
+    }
+}
+}  // namespace
+
 TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+    checkRange(o.spacing, "--spacing", 0.001, 1e5, "metres");
+    checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
+    checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
+    checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
     if (!o.synthetic.empty()) {
         if (!o.height.empty() || !o.color.empty()) {
             throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
@@ -124,8 +135,11 @@ std::string describeTerrain(const TerrainMap& map) {
     std::string text = buf;
     if (map.filledSamples() > 0) {
         const double total = static_cast<double>(map.width()) * map.height();
-        std::snprintf(buf, sizeof buf, ", %zu samples without data filled (%.2g %%)",
-                      map.filledSamples(), 100.0 * map.filledSamples() / total);
+        // Never "100 %" (or "1e+02 %") while some samples had data.
+        const double pct = 100.0 * static_cast<double>(map.filledSamples()) / total;
+        std::snprintf(
+            buf, sizeof buf, ", %zu samples without data filled (%.4g %%)", map.filledSamples(),
+            static_cast<double>(map.filledSamples()) < total ? std::min(pct, 99.99) : pct);
         text += buf;
     }
     return text;
@@ -172,53 +186,6 @@ int runProgram(const char* name, const std::function<int()>& body) {
         std::fprintf(stderr, "%s: error: %s\n", name, e.what());
         return 1;
     }
-}
-
-void writeTextOutput(const std::string& flag, const std::string& path, const std::string& text) {
-    if (path == "-") {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        if (std::fflush(stdout) != 0)
-            throw InputError(flag + " -: cannot write to standard output");
-        return;
-    }
-    const std::string tmp = path + ".part";
-    {
-        std::ofstream out(tmp, std::ios::binary);
-        out << text;
-        out.close();
-        if (!out) {
-            std::remove(tmp.c_str());
-            throw InputError(flag + " " + path + ": cannot write the file");
-        }
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw InputError(flag + " " + path + ": cannot write the file");
-    }
-}
-
-void checkOutputFile(const std::string& flag, const std::string& path) {
-    if (path == "-") return;
-    const std::string what = flag + " " + path + ": ";
-    if (path.empty()) throw InputError(flag + ": empty path");
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw InputError(what + "is a folder");
-    std::string dir = std::filesystem::path(path).parent_path().string();
-    if (dir.empty()) dir = ".";
-    if (!std::filesystem::is_directory(dir, ec)) {
-        throw InputError(what + "folder " + dir + " does not exist");
-    }
-    // A file of our own made and removed again in that folder (the write goes through one
-    // like it): permissions, read-only or special file systems all show here.
-    const std::string probe = path + ".part";
-    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-    if (fd < 0) {
-        const int err = errno;
-        if (err == EEXIST) return;  // left by an earlier run; the write replaces it
-        throw InputError(what + "cannot create files in " + dir + ": " + std::strerror(err));
-    }
-    ::close(fd);
-    ::unlink(probe.c_str());
 }
 
 }  // namespace ig

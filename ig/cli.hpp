@@ -26,7 +26,9 @@ struct TerrainOptions {
 };
 
 void addTerrainOptions(CLI::App& app, TerrainOptions& options);
-// Loads what the flags name; throws InputError.
+// Loads what the flags name; throws InputError. The numbers are checked first against ranges
+// that make physical sense (spacing 1 mm..100 km, height scale 1e-6..1e4 m per unit, offset and
+// void height within +-100 km).
 TerrainMap loadTerrainFromOptions(const TerrainOptions& options);
 // One line describing a loaded map, for logs.
 std::string describeTerrain(const TerrainMap& map);
@@ -44,12 +46,4 @@ Pose defaultViewPose(const TerrainMap& map);
 // Runs a program's body: an InputError prints "NAME: message" and exits 2, any other exception
 // prints "NAME: error: message" and exits 1; otherwise the body's own exit code.
 int runProgram(const char* name, const std::function<int()>& body);
-// Writes `text` to `path` ('-': standard output), replacing the file only when all was written;
-// throws InputError naming `flag` and the path when it cannot.
-void writeTextOutput(const std::string& flag, const std::string& path, const std::string& text);
-// Checks before a long run that a file can be written at `path` later ('-': standard output,
-// always fine): not a folder, in a folder that exists and takes new files. Throws InputError
-// naming `flag` and the path otherwise. Leaves nothing behind (an existing file is untouched).
-void checkOutputFile(const std::string& flag, const std::string& path);
-
 }  // namespace ig

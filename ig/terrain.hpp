@@ -1,6 +1,7 @@
 // Terrain map: a heightfield of integer heights with scale/offset and an RGB8 colour per sample.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -113,6 +114,13 @@ class TerrainMap {
     LargeVector<std::uint16_t> cellMax_;
     std::size_t filledSamples_ = 0;
 };
+
+// Whether (x, y) lies within the map's own size of the map; positions further off are taken for
+// a mistake of coordinates (UTM or degrees instead of metres from the map's south-west sample).
+inline bool nearMap(const TerrainMap& map, double x, double y) {
+    const double far = std::max(map.extentX(), map.extentY());
+    return x > -far && y > -far && x < map.extentX() + far && y < map.extentY() + far;
+}
 
 // Asks the kernel to back [data, data + bytes) with transparent huge pages, collapsing what is
 // already populated, where the kernel supports it; a no-op for small ranges or when turned off.

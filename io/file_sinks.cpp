@@ -47,10 +47,7 @@ Y4mSink::~Y4mSink() {
 }
 
 void Y4mSink::discard() {
-    if (file_ && file_ != stdout) {
-        std::fclose(file_);
-        ::unlink(partPath_.c_str());
-    }
+    out_.discard();
     file_ = nullptr;
 }
 
@@ -62,35 +59,24 @@ int Y4mSink::open(const VideoFormat& format, std::string* error) {
         return fail(error, name + ": " + bad, -EINVAL);
     }
     format_ = format;
-    if (path_ == "-") {
-        file_ = stdout;
-    } else {
-        struct stat st {};
-        if (::stat(path_.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
-            return fail(error, name + ": is a directory", -EISDIR);
-        }
-        partPath_ = path_ + ".part";
-        const int fd = ::open(partPath_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-        if (fd < 0) {
-            const int e = errno;
-            return fail(error, name + ": cannot create " + partPath_ + ": " + errnoText(e), -e);
-        }
-        file_ = ::fdopen(fd, "wb");
-        if (!file_) {
-            const int e = errno;
-            ::close(fd);
-            ::unlink(partPath_.c_str());
-            return fail(error, name + ": " + errnoText(e), -e);
-        }
-        std::setvbuf(file_, nullptr, _IOFBF, kFileBuffer);
-    }
+    std::string why;
+    if (const int rc = out_.open(path_, &why); rc != 0) return fail(error, "y4m:" + why, rc);
+    file_ = out_.get();
+    if (file_ != stdout) std::setvbuf(file_, nullptr, _IOFBF, kFileBuffer);
     const char* colour = format.format == PixelFormat::Y8 ? "mono" : "422";
-    if (std::fprintf(file_, "YUV4MPEG2 W%d H%d F30000:1001 Ib A10:11 C%s\n", format.width,
-                     format.height, colour) < 0) {
+    char header[128];
+    const int headerBytes =
+        std::snprintf(header, sizeof header, "YUV4MPEG2 W%d H%d F30000:1001 Ib A10:11 C%s\n",
+                      format.width, format.height, colour);
+    if (std::fputs(header, file_) < 0) {
         const int e = errno ? errno : EIO;
         discard();
         return fail(error, name + ": cannot write: " + errnoText(e), -e);
     }
+    const std::size_t luma = static_cast<std::size_t>(format.width) * format.height;
+    const std::size_t chroma = static_cast<std::size_t>(format.width / 2) * format.height;
+    const std::size_t frameBytes = format.format == PixelFormat::Y8 ? luma : luma + 2 * chroma;
+    out_.keepWholeRecordsOnAbort(static_cast<std::uint64_t>(headerBytes), 6 + frameBytes);
     weaver_ = std::make_unique<FieldWeaver>(format);
     planar_.resize(static_cast<std::size_t>(format.width) * format.height * 2);
     frames_ = 0;
@@ -135,37 +121,30 @@ int Y4mSink::close(std::string* error) {
     if (!file_) return fail(error, name + ": not open", -EBADF);
     weaver_->flush(
         [this](const std::uint8_t* frame, std::size_t stride) { writeFrame(frame, stride); });
-    if (file_ == stdout) {
-        file_ = nullptr;
-        if (std::fflush(stdout) != 0 && writeError_ == 0) writeError_ = errno ? errno : EIO;
-        if (writeError_)
-            return fail(error, name + ": write failed: " + errnoText(writeError_), -writeError_);
-        return 0;
-    }
-    if (writeError_ == 0 && (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0)) {
-        writeError_ = errno ? errno : EIO;
-    }
-    const int closeRc = std::fclose(file_);
     file_ = nullptr;
-    if (closeRc != 0 && writeError_ == 0) writeError_ = errno ? errno : EIO;
-    if (writeError_ == 0 && ::rename(partPath_.c_str(), path_.c_str()) != 0) writeError_ = errno;
     if (writeError_ != 0) {
-        ::unlink(partPath_.c_str());
+        out_.discard();
         return fail(error, name + ": write failed: " + errnoText(writeError_), -writeError_);
     }
+    std::string why;
+    if (const int rc = out_.commit(&why); rc != 0) return fail(error, "y4m:" + why, rc);
     return 0;
 }
 
 // ---- PNG -------------------------------------------------------------------------------------
 
-PngSink::PngSink(std::string directory, int every)
-    : directory_(std::move(directory)), every_(every < 1 ? 1 : every) {}
+PngSink::PngSink(std::string directory, int every, bool overwrite)
+    : directory_(std::move(directory)), every_(every < 1 ? 1 : every), overwrite_(overwrite) {}
 
 int PngSink::open(const VideoFormat& format, std::string* error) {
     const std::string name = "png:" + directory_;
     if (directory_.empty()) return fail(error, "png: no output directory given", -EINVAL);
     if (const std::string bad = checkVideoFormat(format); !bad.empty()) {
         return fail(error, name + ": " + bad, -EINVAL);
+    }
+    std::string why;
+    if (const int rc = checkOutputFolder(directory_, overwrite_, &why); rc != 0) {
+        return fail(error, "png:" + why, rc);
     }
     struct stat st {};
     if (::stat(directory_.c_str(), &st) != 0) {

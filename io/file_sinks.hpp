@@ -8,12 +8,15 @@
 
 #include "io/field_weaver.hpp"
 #include "io/frame_sink.hpp"
+#include "io/output_file.hpp"
 
 namespace io {
 
 // YUV4MPEG2, "Ib" (bottom field first), F30000:1001, A10:11, C422 (Uyvy, Rgb8) or Cmono (Y8).
-// Each Bottom+Top pair of fields becomes one woven frame. Written to PATH.part and renamed to
-// PATH by a successful close(); a failed or abandoned sink leaves no file behind.
+// Each Bottom+Top pair of fields becomes one woven frame. Written under the output-file policy
+// (io/output_file.hpp): a file goes to PATH.part, renamed to PATH by a successful close(); a
+// failed or abandoned sink leaves no file behind; a device or FIFO is written in place; on a
+// second stop signal the file is cut to its last whole frame and renamed into place.
 class Y4mSink final : public FrameSink {
   public:
     explicit Y4mSink(std::string path);
@@ -29,8 +32,9 @@ class Y4mSink final : public FrameSink {
     void writeFrame(const std::uint8_t* frame, std::size_t stride);
     void discard();
 
-    std::string path_, partPath_;
+    std::string path_;
     VideoFormat format_;
+    OutputFile out_;
     std::FILE* file_ = nullptr;
     std::unique_ptr<FieldWeaver> weaver_;
     std::vector<std::uint8_t> planar_;
@@ -39,10 +43,11 @@ class Y4mSink final : public FrameSink {
 };
 
 // Every `every`-th woven frame as DIR/frame_NNNNNN.png (RGB, or grey for Y8); NNNNNN counts
-// woven frames from 0. open() creates DIR if its parent exists.
+// woven frames from 0. open() creates DIR if its parent exists, and refuses a folder that is not
+// empty unless `overwrite`.
 class PngSink final : public FrameSink {
   public:
-    PngSink(std::string directory, int every);
+    PngSink(std::string directory, int every, bool overwrite = false);
     int open(const VideoFormat& format, std::string* error) override;
     int writeField(const FieldBuffer& field) override;
     int close(std::string* error) override;
@@ -54,6 +59,7 @@ class PngSink final : public FrameSink {
 
     std::string directory_;
     int every_;
+    bool overwrite_;
     VideoFormat format_;
     std::unique_ptr<FieldWeaver> weaver_;
     std::vector<std::uint8_t> rgb_;

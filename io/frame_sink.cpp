@@ -12,7 +12,7 @@ constexpr int kDefaultPngEvery = 30;  // one woven frame a second at NTSC rates
 
 }  // namespace
 
-std::unique_ptr<FrameSink> makeSink(const std::string& spec, std::string* error) {
+std::unique_ptr<FrameSink> makeSink(const std::string& spec, std::string* error, bool overwrite) {
     auto bad = [&](const std::string& why) -> std::unique_ptr<FrameSink> {
         if (error) {
             *error = "output '" + spec + "': " + why +
@@ -48,9 +48,27 @@ std::unique_ptr<FrameSink> makeSink(const std::string& spec, std::string* error)
             every = n;
             if (dir.empty()) return bad("missing directory");
         }
-        return std::make_unique<PngSink>(dir, every);
+        return std::make_unique<PngSink>(dir, every, overwrite);
     }
     return bad("unknown output kind '" + kind + "'");
+}
+
+std::string sinkPath(const std::string& spec) {
+    if (spec.rfind("y4m:", 0) == 0) return spec.substr(4);
+    if (spec.rfind("png:", 0) == 0) {
+        const std::string rest = spec.substr(4);
+        const std::size_t last = rest.rfind(':');
+        if (last != std::string::npos && last + 1 < rest.size() &&
+            rest.find_first_not_of("0123456789", last + 1) == std::string::npos) {
+            return rest.substr(0, last);
+        }
+        return rest;
+    }
+    return {};
+}
+
+bool sinkWritesFolder(const std::string& spec) {
+    return spec.rfind("png:", 0) == 0;
 }
 
 }  // namespace io

@@ -25,6 +25,12 @@ class FrameSink {
 
 // spec: "y4m:PATH" (PATH "-" = stdout) | "v4l2:/dev/videoN" | "png:DIR[:EVERY_N]" | "null".
 // Returns nullptr and sets `error` on a malformed spec; bad paths are reported by open().
-std::unique_ptr<FrameSink> makeSink(const std::string& spec, std::string* error);
+// `overwrite`: a png:DIR that is not empty is written into (else open() refuses it).
+std::unique_ptr<FrameSink> makeSink(const std::string& spec, std::string* error,
+                                    bool overwrite = false);
+// The file or folder a spec writes ("" for v4l2 and null), for the checks made before a run.
+std::string sinkPath(const std::string& spec);
+// True when the spec writes a folder (png:DIR).
+bool sinkWritesFolder(const std::string& spec);
 
 }  // namespace io

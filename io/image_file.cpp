@@ -2,6 +2,8 @@
 
 #include <png.h>
 
+#include "io/output_file.hpp"
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -11,49 +13,6 @@
 namespace io {
 namespace {
 
-// A file written under a temporary name and renamed into place on commit.
-class AtomicFile {
-  public:
-    explicit AtomicFile(const std::string& path) : path_(path) {
-        if (path == "-") {
-            file_ = stdout;
-            return;
-        }
-        tmp_ = path + ".tmp";
-        file_ = std::fopen(tmp_.c_str(), "wb");
-        if (!file_) err_ = errno;
-    }
-    ~AtomicFile() {
-        if (file_ && file_ != stdout) {
-            std::fclose(file_);
-            std::remove(tmp_.c_str());
-        }
-    }
-    std::FILE* get() const { return file_; }
-    int openError() const { return err_; }
-    int commit() {
-        if (file_ == stdout) return std::fflush(stdout) == 0 ? 0 : -EIO;
-        const bool ok = std::fflush(file_) == 0 && !std::ferror(file_);
-        const int closeRc = std::fclose(file_);
-        file_ = nullptr;
-        if (!ok || closeRc != 0) {
-            std::remove(tmp_.c_str());
-            return -EIO;
-        }
-        if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
-            const int e = errno;
-            std::remove(tmp_.c_str());
-            return -e;
-        }
-        return 0;
-    }
-
-  private:
-    std::string path_, tmp_;
-    std::FILE* file_ = nullptr;
-    int err_ = 0;
-};
-
 int fail(std::string* error, const std::string& path, const std::string& what, int rc) {
     if (error) *error = path + ": " + what;
     return rc;
@@ -62,11 +21,11 @@ int fail(std::string* error, const std::string& path, const std::string& what, i
 int writePngImpl(const std::string& path, int width, int height, int channels, int bitDepth,
                  const std::uint8_t* rows, std::size_t rowBytes, std::string* error) {
     if (width <= 0 || height <= 0) return fail(error, path, "image has no pixels", -EINVAL);
-    AtomicFile out(path);
-    if (!out.get()) {
-        return fail(error, path,
-                    std::string("cannot open for writing: ") + std::strerror(out.openError()),
-                    -out.openError());
+    OutputFile out;
+    std::string why;
+    if (const int rc = out.open(path, &why); rc != 0) {
+        if (error) *error = why;
+        return rc;
     }
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
     png_infop info = png ? png_create_info_struct(png) : nullptr;
@@ -76,7 +35,8 @@ int writePngImpl(const std::string& path, int width, int height, int channels, i
     }
     if (setjmp(png_jmpbuf(png))) {
         png_destroy_write_struct(&png, &info);
-        return fail(error, path, "PNG encoding failed", -EIO);
+        const int err = errno ? errno : EIO;
+        return fail(error, path, std::string("PNG encoding failed: ") + std::strerror(err), -err);
     }
     png_init_io(png, out.get());
     png_set_compression_level(png, 3);
@@ -90,9 +50,9 @@ int writePngImpl(const std::string& path, int width, int height, int channels, i
     }
     png_write_end(png, nullptr);
     png_destroy_write_struct(&png, &info);
-    const int rc = out.commit();
-    if (rc != 0) return fail(error, path, std::string("write failed: ") + std::strerror(-rc), rc);
-    return 0;
+    const int rc = out.commit(&why);
+    if (rc != 0 && error) *error = why;
+    return rc;
 }
 
 }  // namespace
@@ -124,20 +84,20 @@ int writePfm(const std::string& path, int width, int height, std::span<const flo
     if (values.size() < static_cast<std::size_t>(width) * height) {
         return fail(error, path, "value buffer smaller than the image", -EINVAL);
     }
-    AtomicFile out(path);
-    if (!out.get()) {
-        return fail(error, path,
-                    std::string("cannot open for writing: ") + std::strerror(out.openError()),
-                    -out.openError());
+    OutputFile out;
+    std::string why;
+    if (const int rc = out.open(path, &why); rc != 0) {
+        if (error) *error = why;
+        return rc;
     }
     std::fprintf(out.get(), "Pf\n%d %d\n-1.0\n", width, height);
     for (int y = height - 1; y >= 0; --y) {
         std::fwrite(values.data() + static_cast<std::size_t>(y) * width, sizeof(float), width,
                     out.get());
     }
-    const int rc = out.commit();
-    if (rc != 0) return fail(error, path, std::string("write failed: ") + std::strerror(-rc), rc);
-    return 0;
+    const int rc = out.commit(&why);
+    if (rc != 0 && error) *error = why;
+    return rc;
 }
 
 }  // namespace io

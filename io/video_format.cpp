@@ -78,8 +78,8 @@ std::string checkVideoFormat(const VideoFormat& format) {
     if (format.width <= 0 || format.height < 2 || format.width > kMaxDimension ||
         format.height > kMaxDimension) {
         return "size " + std::to_string(format.width) + "x" + std::to_string(format.height) +
-               " is outside 1x2 .. " + std::to_string(kMaxDimension) + "x" +
-               std::to_string(kMaxDimension);
+               ": a video frame is 1.." + std::to_string(kMaxDimension) + " pixels wide and 2.." +
+               std::to_string(kMaxDimension) + " lines high (two fields)";
     }
     if (format.format != PixelFormat::Y8 && format.width % 2 != 0) {
         return "width " + std::to_string(format.width) + " must be even for 4:2:2 output";

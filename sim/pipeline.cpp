@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <numbers>
 #include <thread>
 
@@ -188,6 +189,18 @@ void Pipeline::publish(ig::RenderedFrame&& frame) {
     frames_.publish();
 }
 
+bool Pipeline::stopAsked() const {
+    return options_.stop && options_.stop->load(std::memory_order_acquire);
+}
+
+void Pipeline::renderSleepUntil(double t) {
+    constexpr double kStep = 0.05;
+    for (double now = clock_.now(); now < t; now = clock_.now()) {
+        if (stop_.load(std::memory_order_acquire) || stopAsked()) return;
+        clock_.sleepUntil(std::min(t, now + kStep));
+    }
+}
+
 void Pipeline::renderLoop() {
     // A renderer on every core starves the field loop now and then even at real-time priority
     // (stalls of up to ~100 ms were measured on 2 cores); one core is left to it by default.
@@ -211,8 +224,8 @@ void Pipeline::renderLoop() {
                 const double at = c0_ + static_cast<double>(slot) * period;
                 ++slot;
                 if (at > start) {
-                    clock_.sleepUntil(at);
-                    if (stop_.load(std::memory_order_acquire)) break;
+                    renderSleepUntil(at);
+                    if (stop_.load(std::memory_order_acquire) || stopAsked()) break;
                     start = clock_.now();
                 }
             }
@@ -221,7 +234,7 @@ void Pipeline::renderLoop() {
             arena.execute([&] { frame = renderAt(poseTime, sequence); });
             if (options_.renderStall) {
                 const double stall = options_.renderStall(sequence);
-                if (stall > 0.0) clock_.sleepUntil(clock_.now() + stall);
+                if (stall > 0.0) renderSleepUntil(clock_.now() + stall);
             }
             const double took = clock_.now() - start;
             renderEstimate_ = 0.75 * renderEstimate_ + 0.25 * took;
@@ -249,8 +262,12 @@ void Pipeline::renderSimulatedUntil(double t) {
         }
         if (nextRenderStart_ > t + kEps) return;
         // A render starting now (simulated): aimed at its nominal completion; a stall makes
-        // it late without the renderer knowing beforehand.
+        // it late without the renderer knowing beforehand. One that could complete only after
+        // the run's last field is never shown, so it is not rendered (a rate of 1e-6 Hz would
+        // otherwise fly the pose source a million seconds ahead).
         const double aim = nextRenderStart_ + period;
+        if (aim > runEnd_ + kEps) return;
+        if (!(aim > nextRenderStart_)) return;  // times too large to step by a render period
         pendingFrame_ = renderAt(aim, nextSequence_);
         const double stall = options_.renderStall ? options_.renderStall(nextSequence_) : 0.0;
         pendingCompletion_ = aim + std::max(stall, 0.0);
@@ -268,13 +285,15 @@ PipelineResult Pipeline::run() {
 
     // Frame 0 is rendered before the first slot, at the start pose, so field 0 has a frame.
     t0_ = poses_.startTime();
+    runEnd_ = prp::fieldTime(t0_, fieldCount_);
     const double before = clock_.now();
     publish(renderAt(t0_, 0));
     frames_.fetch();
     renderEstimate_ = clock_.now() - before;
+    stats_.addFrame(renderEstimate_ * 1e3);  // frame 0 counts among the frames rendered
     c0_ = clock_.now() + (simulated ? 0.0 : options_.startDelay);
     nextRenderStart_ = t0_;
-    renderStartClock_ = c0_;
+    renderStartClock_ = before;
 
     // The renderer thread stops and is joined on every way out of this function.
     struct RendererThread {
@@ -296,6 +315,10 @@ PipelineResult Pipeline::run() {
         const double deadline = c0_ + static_cast<double>(n) * prp::kFieldPeriod;
         clock_.sleepUntil(deadline);
         if (renderFailed_.load(std::memory_order_acquire)) break;
+        if (stopAsked()) {
+            result.stopped = true;
+            break;
+        }
         const double t = prp::fieldTime(t0_, n);
         if (simulated) renderSimulatedUntil(t);
         const ig::Pose pose = poses_.advanceTo(t);
@@ -306,8 +329,8 @@ PipelineResult Pipeline::run() {
         const double handoff = clock_.now();
         if (rc < 0) {
             result.sinkError = rc;
-            result.error = "the output refused field " + std::to_string(n) + " (error " +
-                           std::to_string(-rc) + ")";
+            result.error =
+                "the output refused field " + std::to_string(n) + ": " + std::strerror(-rc);
             break;
         }
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,

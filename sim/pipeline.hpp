@@ -71,12 +71,16 @@ struct PipelineOptions {
     std::function<void(const prp::Field&, const io::FieldBuffer&)> onField;
     // About four times a second with a one-line status (field thread).
     std::function<void(const std::string&)> progress;
+    // When set and true, the run ends after the field in hand (SIGINT/SIGTERM): the result is
+    // a good run of the fields emitted so far, with `stopped` set. The renderer's waits end too.
+    const std::atomic<bool>* stop = nullptr;
 };
 
 struct PipelineResult {
     StatsSummary stats;
-    int sinkError = 0;  // first error a sink call returned (-errno), 0 if none
-    std::string error;  // what stopped the run early, empty when it ran to the end
+    int sinkError = 0;     // first error a sink call returned (-errno), 0 if none
+    std::string error;     // what stopped the run early, empty when it ran to the end
+    bool stopped = false;  // ended early by PipelineOptions::stop (not an error)
     bool ok() const { return error.empty(); }
 };
 
@@ -101,6 +105,9 @@ class Pipeline {
 
   private:
     void renderLoop();
+    bool stopAsked() const;
+    // The renderer's waits: in steps of at most 50 ms, ended early by a stop.
+    void renderSleepUntil(double t);
     void renderSimulatedUntil(double t);
     ig::RenderedFrame renderAt(double poseTime, std::uint64_t sequence);
     void publish(ig::RenderedFrame&& frame);
@@ -112,6 +119,7 @@ class Pipeline {
     PipelineOptions options_;
     std::uint64_t fieldCount_;
     double t0_ = 0.0;              // simulation time of field 0
+    double runEnd_ = 0.0;          // simulation time just after the last field
     double c0_ = 0.0;              // clock time of field 0's slot
     double renderEstimate_ = 0.0;  // seconds a render is expected to take (wall)
     StatsCollector stats_;

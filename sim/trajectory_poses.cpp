@@ -3,17 +3,15 @@
 #include "ig/error.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 namespace sim {
 
-bool nearMap(const ig::TerrainMap& map, double x, double y) {
-    const double far = std::max(map.extentX(), map.extentY());
-    return x > -far && y > -far && x < map.extentX() + far && y < map.extentY() + far;
-}
-
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
-                              const std::string& name, double clearance, double step) {
+                              const std::string& name, double clearance, double step,
+                              double duration) {
     auto check = [&](double t) {
         const ig::Pose p = trajectory.poseAt(t);
         const double ground = map.surfaceHeight(p.position.x, p.position.y);
@@ -29,7 +27,7 @@ void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap
     };
     bool near = false;
     for (const TrajectorySample& s : trajectory.samples())
-        near = near || nearMap(map, s.pose.position.x, s.pose.position.y);
+        near = near || ig::nearMap(map, s.pose.position.x, s.pose.position.y);
     if (!near) {
         const glm::dvec3 p = trajectory.samples().front().pose.position;
         char buf[320];
@@ -40,10 +38,21 @@ void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap
                       p.x, p.y, map.extentX(), map.extentY());
         throw ig::InputError(name + ": " + buf);
     }
-    for (const TrajectorySample& s : trajectory.samples())
-        check(s.t);
-    for (double t = trajectory.startTime(); t < trajectory.endTime(); t += step)
-        check(t);
+    // Only the span the run flies, at no more than kMaxChecks times: a span or time the file
+    // makes huge (t = 1e16, where t + step == t) bounds nothing.
+    const double start = trajectory.startTime();
+    const double end = std::min(trajectory.endTime(), start + std::max(duration, 0.0));
+    constexpr double kMaxChecks = 1e6;
+    const double span = end - start;
+    const double every = std::max(step, span / kMaxChecks);
+    for (const TrajectorySample& s : trajectory.samples()) {
+        if (s.t <= end) check(s.t);
+    }
+    if (!(span > 0.0) || !(every > 0.0)) return;
+    const auto count = static_cast<std::uint64_t>(std::min(std::ceil(span / every), kMaxChecks));
+    for (std::uint64_t i = 0; i < count; ++i)
+        check(start + span * (static_cast<double>(i) / static_cast<double>(count)));
+    check(end);
 }
 
 }  // namespace sim

@@ -5,6 +5,7 @@
 #include "sim/pose_source.hpp"
 #include "sim/trajectory.hpp"
 
+#include <limits>
 #include <string>
 
 namespace sim {
@@ -24,17 +25,14 @@ class TrajectoryPoses final : public PoseSource {
     Trajectory trajectory_;
 };
 
-// Whether (x, y) lies within the map's own size of the map; positions further off are taken
-// for a mistake of coordinates (UTM or degrees instead of metres from the map's south-west
-// sample).
-bool nearMap(const ig::TerrainMap& map, double x, double y);
-
 // Throws ig::InputError naming `name` when the trajectory passes within
-// `clearance` metres of the terrain surface (checked every `step` seconds and
-// at every sample), or when every sample lies further from the map than the
-// map's own size (positions in another frame, such as UTM or degrees, instead
-// of metres from the map's south-west sample).
+// `clearance` metres of the terrain surface (checked every `step` seconds, at
+// most a million times, and at every sample, over the `duration` seconds from
+// its start that a run flies), or when every sample lies further from the map
+// than the map's own size (positions in another frame, such as UTM or degrees,
+// instead of metres from the map's south-west sample).
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
-                              const std::string& name, double clearance = 1.0, double step = 0.05);
+                              const std::string& name, double clearance = 1.0, double step = 0.05,
+                              double duration = std::numeric_limits<double>::infinity());
 
 }  // namespace sim

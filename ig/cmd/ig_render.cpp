@@ -1,9 +1,12 @@
 // ig-render: renders one frame of a terrain with a chosen caster; writes colour, depth, stats.
+#include "base/text.hpp"
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/stereo.hpp"
 #include "io/image_file.hpp"
+#include "io/output_file.hpp"
+#include "io/stop_signals.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -13,6 +16,7 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,14 +48,14 @@ constexpr const char* kConventions = R"(Conventions:
 // ---- Stereo (--stereo): left eye by the fast caster, right eye reprojected or cast. ----------
 
 struct StereoFlags {
-    double separation = std::numeric_limits<double>::quiet_NaN();
+    std::optional<double> separation;
     std::string right = "reproject";
     std::string variant = "wan";
     bool noAbuffer = false;
     double gapThreshold = 2.0;
     std::string outLeft, outRight, outSbs, outAnaglyph, outMask;
 
-    bool enabled() const { return !std::isnan(separation); }
+    bool enabled() const { return separation.has_value(); }
 };
 
 void addStereoFlags(CLI::App& app, StereoFlags& s) {
@@ -94,7 +98,11 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
         throw ig::InputError("--stereo: give --out-left and --out-right");
     }
     ig::StereoOptions so;
-    so.eyeSeparation = s.separation;
+    if (!(std::isfinite(*s.separation) && *s.separation > 0.0 && *s.separation <= 1e4)) {
+        throw ig::InputError("--stereo " + base::number(*s.separation) +
+                             ": the eye separation must be more than 0 and at most 10000 metres");
+    }
+    so.eyeSeparation = *s.separation;
     so.method = ig::parseRightEyeMethod(s.right);
     if (s.variant == "adelson-hodges") {
         so.variant = ig::ReprojectVariant::AdelsonHodges;
@@ -121,7 +129,7 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
         throw ig::InputError("--depth " + error);
     }
     const double pixels = static_cast<double>(w) * h;
-    j["stereo"] = {{"eye_separation_m", s.separation},
+    j["stereo"] = {{"eye_separation_m", *s.separation},
                    {"right", s.right},
                    {"reproject", s.variant},
                    {"abuffer", !s.noAbuffer},
@@ -138,7 +146,7 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
     std::fprintf(stderr,
                  "stereo %dx%d, e = %g m: left %.1f ms, right (%s) %.1f ms = %.1f%% of left; "
                  "right pixels %.2f%% reprojected, %.2f%% interpolated, %.2f%% ray cast\n",
-                 w, h, s.separation, f.stats.leftMs, s.right.c_str(), f.stats.rightMs,
+                 w, h, *s.separation, f.stats.leftMs, s.right.c_str(), f.stats.rightMs,
                  100.0 * j["right_over_left"].get<double>(), 100.0 * f.stats.reprojected / pixels,
                  100.0 * f.stats.interpolated / pixels, 100.0 * f.stats.rayCast / pixels);
 }
@@ -160,7 +168,7 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
     j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
     runStereo(s, map, pose, intr, options, depthPath, j);
-    if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+    if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
     return 0;
 }
 
@@ -213,18 +221,22 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("ig-render", [&]() -> int {
-        // Every file it writes, checked before the terrain is loaded and the frame rendered.
-        // (--out is not written with --stereo.)
-        for (const auto& [flag, path] : {std::pair{"--out", stereo.enabled() ? nullptr : &outPath},
-                                         {"--depth", &depthPath},
-                                         {"--json", &jsonPath},
-                                         {"--out-left", &stereo.outLeft},
-                                         {"--out-right", &stereo.outRight},
-                                         {"--out-sbs", &stereo.outSbs},
-                                         {"--out-anaglyph", &stereo.outAnaglyph},
-                                         {"--out-raycast-mask", &stereo.outMask}}) {
-            if (path && !path->empty()) ig::checkOutputFile(flag, *path);
-        }
+        // A signal ends the run at once, leaving no file half written.
+        io::installStopSignals(true);
+        // Every path, checked before the terrain is loaded and the frame rendered: no output
+        // on an input or on another output, standard output for one at most. (--out is not
+        // written with --stereo.)
+        const auto out = io::PathRole::Output;
+        io::checkRunPaths({{"--height", terrain.height, io::PathRole::Input},
+                           {"--color", terrain.color, io::PathRole::Input},
+                           {"--out", stereo.enabled() ? std::string() : outPath, out},
+                           {"--depth", depthPath, out},
+                           {"--json", jsonPath, out},
+                           {"--out-left", stereo.outLeft, out},
+                           {"--out-right", stereo.outRight, out},
+                           {"--out-sbs", stereo.outSbs, out},
+                           {"--out-anaglyph", stereo.outAnaglyph, out},
+                           {"--out-raycast-mask", stereo.outMask, out}});
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -287,7 +299,7 @@ int main(int argc, char** argv) {
                 {{"px", {cp.pixel.x, cp.pixel.y}},
                  {"world", {cp.world.x, cp.world.y, cp.world.z, cp.world.w}}});
         }
-        if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+        if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         if (outPath != "-") {
             std::fprintf(stderr, "%s: %dx%d in %.1f ms (%.1f ns/pixel, %.2f steps/pixel) -> %s\n",
                          casterText.c_str(), frame.width(), frame.height(), frame.stats.renderMs,

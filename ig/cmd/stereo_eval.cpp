@@ -1,11 +1,14 @@
 // stereo-eval: over a pose sweep, the reprojected right eye's time (as a share of the left eye's)
 // and its error against a full ray cast of the right eye, per reprojection configuration.
+#include "base/text.hpp"
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/stereo.hpp"
+#include "io/output_file.hpp"
+#include "io/stop_signals.hpp"
 #include "io/text_file.hpp"
 
 #include <CLI/CLI.hpp>
@@ -18,6 +21,7 @@
 #include <cstring>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -117,7 +121,7 @@ int main(int argc, char** argv) {
     ig::addTerrainOptions(app, terrain);
     std::string sizeText = "720x486", posesPath, jsonPath, extraGaps = "1,4";
     double fovDeg = 60.0, gapThreshold = 2.0, aglFactor = 0.02;
-    double separation = std::numeric_limits<double>::quiet_NaN();
+    std::optional<double> separation;
     int sweep = 20, repeat = 1, threads = 1;
     app.add_option("--size", sizeText, "Image size WxH")->capture_default_str();
     app.add_option("--fov", fovDeg, "Horizontal field of view, degrees")->capture_default_str();
@@ -144,7 +148,12 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("stereo-eval", [&]() -> int {
-        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);  // written at the end
+        // A signal ends the run at once (its one file is written at the end).
+        io::installStopSignals(true);
+        io::checkRunPaths({{"--height", terrain.height, io::PathRole::Input},
+                           {"--color", terrain.color, io::PathRole::Input},
+                           {"--poses", posesPath, io::PathRole::Input},
+                           {"--json", jsonPath, io::PathRole::Output}});
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -154,9 +163,10 @@ int main(int argc, char** argv) {
         if (!std::isfinite(aglFactor) || aglFactor < 0.0) {
             throw ig::InputError("--stereo-agl: must be a finite number >= 0");
         }
-        const bool fixedSeparation = !std::isnan(separation);
-        if (fixedSeparation && (!std::isfinite(separation) || separation < 0.0)) {
-            throw ig::InputError("--stereo: the eye separation must be a finite number >= 0");
+        const bool fixedSeparation = separation.has_value();
+        if (fixedSeparation &&
+            !(std::isfinite(*separation) && *separation >= 0.0 && *separation <= 1e4)) {
+            throw ig::InputError("--stereo: the eye separation must be 0 .. 10000 metres");
         }
         if (clockText != "auto" && clockText != "cpu" && clockText != "wall") {
             throw ig::InputError("--clock '" + clockText + "': expected cpu, wall or auto");
@@ -169,6 +179,20 @@ int main(int argc, char** argv) {
         const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const std::vector<ig::Pose> poses =
             posesPath.empty() ? ig::sweepPoses(map, sweep) : readPoses(posesPath, map);
+        // A pose far off the map is a mistake of coordinates; say so rather than skip it.
+        for (std::size_t k = 0; k < poses.size(); ++k) {
+            const glm::dvec3 p = poses[k].position;
+            if (!ig::nearMap(map, p.x, p.y)) {
+                char buf[320];
+                std::snprintf(buf, sizeof buf,
+                              "pose %zu at (%s, %s) lies far off the map (which spans x 0..%.1f, "
+                              "y 0..%.1f m): x and y are metres east and north of the map's "
+                              "south-west sample",
+                              k + 1, base::number(p.x).c_str(), base::number(p.y).c_str(),
+                              map.extentX(), map.extentY());
+                throw ig::InputError("--poses " + posesPath + ": " + buf);
+            }
+        }
         const ig::Intrinsics intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg));
         ig::RenderOptions renderOptions;
         renderOptions.threads = threads;
@@ -209,7 +233,7 @@ int main(int argc, char** argv) {
             const ig::Pose& pose = poses[k];
             const double agl =
                 pose.position.z - map.surfaceHeight(pose.position.x, pose.position.y);
-            const double e = fixedSeparation ? separation : aglFactor * std::max(agl, 0.0);
+            const double e = fixedSeparation ? *separation : aglFactor * std::max(agl, 0.0);
             const ig::Pose rightPose = ig::rightEyePose(pose, e);
             if (rightPose.position.z <=
                 map.surfaceHeight(rightPose.position.x, rightPose.position.y)) {
@@ -310,7 +334,7 @@ int main(int argc, char** argv) {
         j["repeat"] = repeat;
         j["clock"] = useCpu ? "thread_cpu" : "wall";
         if (fixedSeparation) {
-            j["eye_separation_m"] = separation;
+            j["eye_separation_m"] = *separation;
         } else {
             j["eye_separation_agl"] = aglFactor;
         }
@@ -360,7 +384,7 @@ int main(int argc, char** argv) {
             }
         }
         j["per_pose"] = perPose;
-        if (!jsonPath.empty()) ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+        if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         return 0;
     });
 }

@@ -11,14 +11,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
+#include "base/error.hpp"
+#include "base/text.hpp"
 #include "io/field_clock.hpp"
 #include "io/frame_sink.hpp"
+#include "io/output_file.hpp"
 #include "io/stick.hpp"
+#include "io/stop_signals.hpp"
 
 namespace {
 
@@ -76,7 +80,7 @@ void drawField(const io::VideoFormat& format, io::FieldParity parity, double tim
 
 int runPattern(const std::string& outSpec, double duration, const std::string& sizeText,
                const std::string& formatText, const std::string& clockText,
-               const std::string& jsonPath) {
+               const std::string& jsonPath, bool overwrite) {
     int width = 0, height = 0;
     char x = 0;
     if (std::sscanf(sizeText.c_str(), "%d%c%d", &width, &x, &height) != 3 || x != 'x') {
@@ -99,11 +103,25 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
         return 2;
     }
     std::string error;
-    auto sink = io::makeSink(outSpec, &error);
+    auto sink = io::makeSink(outSpec, &error, overwrite);
     if (!sink) {
         std::fprintf(stderr, "io-check: --out %s\n", error.c_str());
         return 2;
     }
+    // Every path before the run: the JSON is written at the end.
+    const std::vector<io::PathUse> paths = {
+        {"--out", io::sinkPath(outSpec),
+         io::sinkWritesFolder(outSpec) ? io::PathRole::OutputFolder : io::PathRole::Output},
+        {"--json", jsonPath, io::PathRole::Output}};
+    try {
+        io::checkRunPaths(paths);
+    } catch (const base::InputError& e) {
+        std::fprintf(stderr, "io-check: %s\n", e.what());
+        return 2;
+    }
+    // The report goes to standard output unless an output does.
+    std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
+    io::installStopSignals();
     if (sink->open({width, height, *pf}, &error) != 0) {
         std::fprintf(stderr, "io-check: %s\n", error.c_str());
         return 1;
@@ -116,9 +134,10 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
     io::FieldPacer pacer(*clock, t0);
     std::vector<double> lateness, intervals, workMs;
     std::vector<std::uint8_t> row, pixels;
-    std::uint64_t missed = 0, failed = 0;
+    std::uint64_t missed = 0, failed = 0, written = 0;
+    int firstError = 0;
     double lastWake = 0;
-    for (std::uint64_t n = 0; n < fields; ++n) {
+    for (std::uint64_t n = 0; n < fields && !io::stopRequested(); ++n) {
         const io::FieldParity parity = io::fieldParityOf(n);
         const double fieldTime = pacer.deadline(n) - t0;
         drawField(format, parity, fieldTime, row, pixels);  // prepared before the deadline
@@ -130,7 +149,11 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
             pixels.data(),
             static_cast<std::size_t>(format.width) * io::bytesPerPixel(format.format),
             io::fieldLines(format.height, parity)};
-        if (sink->writeField(field) != 0) ++failed;
+        if (const int rc = sink->writeField(field); rc != 0) {
+            if (failed++ == 0) firstError = rc;
+        } else {
+            ++written;
+        }
         const double done = clock->now();
         if (done > pacer.deadline(n + 1)) ++missed;
         lateness.push_back(wake.lateness * 1e3);
@@ -145,20 +168,29 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
     }
     const Percentiles late = percentiles(lateness), interval = percentiles(intervals),
                       work = percentiles(workMs);
-    std::printf("io-check pattern: %llu fields to %s (%dx%d %s, %s clock)\n",
-                static_cast<unsigned long long>(fields), outSpec.c_str(), format.width,
-                format.height, io::pixelFormatName(format.format), clockText.c_str());
-    std::printf("  missed deadlines %llu, sink errors %llu\n",
-                static_cast<unsigned long long>(missed), static_cast<unsigned long long>(failed));
-    std::printf("  wake lateness ms  p50 %.3f  p99 %.3f  max %.3f\n", late.p50, late.p99, late.max);
-    std::printf("  field interval ms p50 %.3f  p99 %.3f  max %.3f\n", interval.p50, interval.p99,
-                interval.max);
-    std::printf("  sink write ms     p50 %.3f  p99 %.3f  max %.3f\n", work.p50, work.p99, work.max);
+    std::fprintf(report, "io-check pattern: %llu of %llu fields to %s (%dx%d %s, %s clock)%s\n",
+                 static_cast<unsigned long long>(written), static_cast<unsigned long long>(fields),
+                 outSpec.c_str(), format.width, format.height, io::pixelFormatName(format.format),
+                 clockText.c_str(), io::stopRequested() ? ", stopped by a signal" : "");
+    std::fprintf(report, "  missed deadlines %llu, sink errors %llu\n",
+                 static_cast<unsigned long long>(missed), static_cast<unsigned long long>(failed));
+    if (failed > 0) {
+        std::fprintf(stderr, "io-check: --out %s: the first refused field: %s\n", outSpec.c_str(),
+                     std::strerror(-firstError));
+    }
+    std::fprintf(report, "  wake lateness ms  p50 %.3f  p99 %.3f  max %.3f\n", late.p50, late.p99,
+                 late.max);
+    std::fprintf(report, "  field interval ms p50 %.3f  p99 %.3f  max %.3f\n", interval.p50,
+                 interval.p99, interval.max);
+    std::fprintf(report, "  sink write ms     p50 %.3f  p99 %.3f  max %.3f\n", work.p50, work.p99,
+                 work.max);
     if (!jsonPath.empty()) {
         auto pj = [](const Percentiles& p) {
             return nlohmann::json{{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}};
         };
-        const nlohmann::json j = {{"fields", fields},
+        const nlohmann::json j = {{"fields", written},
+                                  {"fields_planned", fields},
+                                  {"stopped_by_signal", io::stopSignalNumber()},
                                   {"missed_deadlines", missed},
                                   {"sink_errors", failed},
                                   {"wake_lateness_ms", pj(late)},
@@ -166,13 +198,12 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
                                   {"sink_write_ms", pj(work)},
                                   {"output", outSpec},
                                   {"clock", clockText}};
-        std::ofstream out(jsonPath);
-        out << j.dump(2) << "\n";
-        if (!out) {
-            std::fprintf(stderr, "io-check: --json %s: cannot write\n", jsonPath.c_str());
+        if (io::writeTextFile(jsonPath, j.dump(2) + "\n", &error) != 0) {
+            std::fprintf(stderr, "io-check: --json %s\n", error.c_str());
             return 1;
         }
     }
+    if (io::stopRequested()) return io::exitStatusForStop();
     return missed == 0 && failed == 0 ? 0 : 3;
 }
 
@@ -183,16 +214,23 @@ int runStick(const std::string& spec, double duration, double rate) {
         std::fprintf(stderr, "io-check: %s\n", error.c_str());
         return 2;
     }
+    io::installStopSignals();
     auto clock = io::makeWallClock();
-    const double period = 1.0 / std::clamp(rate, 0.1, 1000.0);
-    for (double t = 0; t <= duration; t += period) {
+    const double period = 1.0 / rate;
+    const auto samples = static_cast<std::uint64_t>(std::floor(duration * rate + 1e-9)) + 1;
+    for (std::uint64_t i = 0; i < samples && !io::stopRequested(); ++i) {
+        const double t = static_cast<double>(i) * period;
+        // Woken at least every 50 ms to see a stop.
+        while (clock->now() < t - 0.05 && !io::stopRequested())
+            clock->sleepUntil(std::min(t, clock->now() + 0.05));
+        if (io::stopRequested()) break;
         clock->sleepUntil(t);
         const io::StickState s = stick->sample(t);
         std::printf("%8.3f  pitch %+5.2f  roll %+5.2f  yaw %+5.2f  throttle %+5.2f  trigger %d\n",
                     t, s.pitch, s.roll, s.yaw, s.throttle, s.trigger ? 1 : 0);
         std::fflush(stdout);
     }
-    return 0;
+    return io::exitStatusForStop();
 }
 
 int listDevices() {
@@ -235,6 +273,7 @@ int main(int argc, char** argv) {
     std::string outSpec = "null", sizeText = "720x486", formatText = "uyvy", clockText = "wall",
                 jsonPath;
     double duration = 5.0;
+    bool overwrite = false;
     auto* pattern =
         app.add_subcommand("pattern", "A moving test pattern to an output, on the field clock");
     pattern->add_option("--out", outSpec, "y4m:PATH | v4l2:/dev/videoN | png:DIR[:EVERY_N] | null")
@@ -255,9 +294,26 @@ int main(int argc, char** argv) {
 
     auto* devices = app.add_subcommand("devices", "List V4L2 and GPIO devices");
 
+    pattern->add_flag("--overwrite", overwrite,
+                      "png:DIR may be a folder that is not empty (its frames are replaced)");
     CLI11_PARSE(app, argc, argv);
-    if (*pattern) return runPattern(outSpec, duration, sizeText, formatText, clockText, jsonPath);
-    if (*stick) return runStick(stickSpec, stickDuration, rate);
+    if (*pattern) {
+        return runPattern(outSpec, duration, sizeText, formatText, clockText, jsonPath, overwrite);
+    }
+    if (*stick) {
+        if (!(rate >= 0.1 && rate <= 1000.0)) {
+            std::fprintf(stderr,
+                         "io-check stick: --rate %s: must be 0.1 .. 1000 samples a second\n",
+                         base::number(rate).c_str());
+            return 2;
+        }
+        if (!(stickDuration >= 0.0 && stickDuration <= 86400.0)) {
+            std::fprintf(stderr, "io-check stick: --duration %s: must be 0 .. 86400 seconds\n",
+                         base::number(stickDuration).c_str());
+            return 2;
+        }
+        return runStick(stickSpec, stickDuration, rate);
+    }
     if (*devices) return listDevices();
     return 0;
 }

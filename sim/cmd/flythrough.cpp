@@ -1,4 +1,5 @@
 // flythrough: flies an aircraft over terrain through the real-time pipeline and writes fields.
+#include "base/text.hpp"
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
@@ -6,7 +7,9 @@
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
 #include "io/frame_sink.hpp"
+#include "io/output_file.hpp"
 #include "io/stick.hpp"
+#include "io/stop_signals.hpp"
 #include "prp/field.hpp"
 #include "sim/pipeline.hpp"
 #include "sim/pose_source.hpp"
@@ -67,13 +70,20 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     const ig::Pose p = ig::parsePose(
         part[0] + "," + part[1] + "," + part[2] + "," + part[3] + ",0,0", map, "--start");
     // As for trajectories: a start far off the map is a mistake of coordinates, not a flight.
-    if (!sim::nearMap(map, p.position.x, p.position.y)) {
+    if (!ig::nearMap(map, p.position.x, p.position.y)) {
         char buf[256];
         std::snprintf(buf, sizeof buf,
                       "lies far off the map (which spans x 0..%.1f, y 0..%.1f m): X and Y are "
                       "metres east and north of the map's south-west sample",
                       map.extentX(), map.extentY());
         throw ig::InputError("--start '" + text + "': " + buf);
+    }
+    const double ground = map.surfaceHeight(p.position.x, p.position.y);
+    if (!(p.position.z >= ground + 1.0)) {
+        throw ig::InputError("--start '" + text + "': Z " + base::number(p.position.z) +
+                             " m is not above the terrain there (ground at " +
+                             base::number(ground) +
+                             " m); write Z as +H for H metres above the ground");
     }
     sim::FlightState s;
     s.position = p.position;
@@ -106,7 +116,7 @@ int main(int argc, char** argv) {
     int renderThreads = 0;
     std::string levelsText = "auto";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
-    bool terrainPointsOnly = false;
+    bool terrainPointsOnly = false, overwrite = false;
 
     auto* trajectoryOpt =
         app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
@@ -122,7 +132,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--contact", contactPath, "Contact sheet PNG ('none': no sheet)")
         ->capture_default_str();
-    app.add_option("--size", sizeText, "Output frame WxH (NTSC: 720x486 or 720x480)")
+    app.add_option("--size", sizeText,
+                   "Output frame WxH, 1..8192 x 2..8192, even width for uyvy (NTSC: 720x486 or "
+                   "720x480)")
         ->capture_default_str();
     app.add_option("--format", formatText, "Output pixels: uyvy | y8 | rgb8")
         ->capture_default_str();
@@ -148,6 +160,8 @@ int main(int argc, char** argv) {
     app.add_flag("--agc", agc, "Automatic gain control");
     app.add_flag("--anti-twitter", antiTwitter, "Vertical filter against interlace twitter");
     app.add_flag("--quiet", quiet, "No progress line");
+    app.add_flag("--overwrite", overwrite,
+                 "png:DIR may be a folder that is not empty (its frames are replaced)");
     CLI11_PARSE(app, argc, argv);
 
     std::unique_ptr<io::FrameSink> sink;
@@ -156,8 +170,9 @@ int main(int argc, char** argv) {
         if (duration && !(*duration > 0.0 && *duration <= 86400.0)) {
             throw ig::InputError("--duration: must be more than 0 and at most 86400 seconds");
         }
-        if (!(renderHz >= 0.0 && renderHz <= 1000.0)) {
-            throw ig::InputError("--render-hz: must be 0 (uncapped) or up to 1000");
+        if (!(renderHz == 0.0 || (renderHz >= 0.01 && renderHz <= 1000.0))) {
+            throw ig::InputError("--render-hz " + base::number(renderHz) +
+                                 ": must be 0 (uncapped) or 0.01 .. 1000");
         }
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
@@ -180,10 +195,41 @@ int main(int argc, char** argv) {
             throw ig::InputError("--clock '" + clockText + "': expected wall or simulated");
         }
         const bool simulated = clockText == "simulated";
+        io::VideoFormat format;
+        format.width = width;
+        format.height = height;
+        format.format = sim::toIo(*prpFormat);
+        if (const std::string bad = io::checkVideoFormat(format); !bad.empty()) {
+            throw ig::InputError("--size " + sizeText + ": " + bad);
+        }
 
         std::string error;
-        sink = io::makeSink(outSpec, &error);
+        sink = io::makeSink(outSpec, &error, overwrite);
         if (!sink) throw ig::InputError("--out " + error);
+
+        // Outputs: the default paths live in ./out, created here; other paths must exist.
+        if (outSpec == kDefaultOut || contactPath == kDefaultContact) {
+            std::error_code ec;
+            std::filesystem::create_directories("out", ec);
+            if (ec) throw ig::InputError("out: cannot create the folder: " + ec.message());
+        }
+        // Every path of the run before anything is loaded: inputs are never overwritten, no two
+        // outputs share a file, standard output carries one of them at most.
+        const bool wantContact = contactPath != "none" && !contactPath.empty();
+        const std::string stickFile =
+            stickSpec.rfind("script:", 0) == 0 ? stickSpec.substr(7) : std::string();
+        const std::vector<io::PathUse> paths = {
+            {"--height", terrain.height, io::PathRole::Input},
+            {"--color", terrain.color, io::PathRole::Input},
+            {"--trajectory", trajectoryPath, io::PathRole::Input},
+            {"--stick", stickFile, io::PathRole::Input},
+            {"--out", io::sinkPath(outSpec),
+             io::sinkWritesFolder(outSpec) ? io::PathRole::OutputFolder : io::PathRole::Output},
+            {"--contact", wantContact ? contactPath : std::string(), io::PathRole::Output},
+            {"--json", jsonPath, io::PathRole::Output}};
+        io::checkRunPaths(paths);
+        // Where things went: standard output, unless an output is written there.
+        std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
 
         const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
@@ -194,7 +240,9 @@ int main(int argc, char** argv) {
         std::string flightName;
         if (!trajectoryPath.empty()) {
             sim::Trajectory trajectory = sim::Trajectory::loadCsv(trajectoryPath);
-            sim::checkTrajectoryClearance(trajectory, map, trajectoryPath);
+            sim::checkTrajectoryClearance(
+                trajectory, map, trajectoryPath, 1.0, 0.05,
+                duration.value_or(trajectory.endTime() - trajectory.startTime()));
             flightSeconds = trajectory.endTime() - trajectory.startTime();
             flightName = "trajectory " + trajectoryPath;
             poses = std::make_unique<sim::TrajectoryPoses>(std::move(trajectory));
@@ -222,20 +270,6 @@ int main(int argc, char** argv) {
                                  ": spans no time; give --duration");
         }
 
-        // Outputs: the default paths live in ./out, created here; other paths must exist.
-        if (outSpec == kDefaultOut || contactPath == kDefaultContact) {
-            std::error_code ec;
-            std::filesystem::create_directories("out", ec);
-            if (ec) throw ig::InputError("out: cannot create the folder: " + ec.message());
-        }
-        // The files written at the end are checked now, so that a long run is not lost to them.
-        const bool wantContact = contactPath != "none" && !contactPath.empty();
-        if (wantContact) ig::checkOutputFile("--contact", contactPath);
-        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);
-        io::VideoFormat format;
-        format.width = width;
-        format.height = height;
-        format.format = sim::toIo(*prpFormat);
         if (sink->open(format, &error) != 0) throw ig::InputError("--out " + error);
         const io::VideoFormat opened = sink->format();  // a copy: it outlives the sink
 
@@ -297,21 +331,27 @@ int main(int argc, char** argv) {
                      opened.width, opened.height, io::pixelFormatName(opened.format), level.width,
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
+        // SIGINT/SIGTERM end the run after the field in hand; the outputs are finished below.
+        io::installStopSignals();
+        options.stop = &io::stopFlag();
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();
         if (live) std::fprintf(stderr, "\n");
 
         // A failed run drops its output (the sink discards it); a good one is closed, and a
         // file appears only when it is complete.
-        if (!result.ok()) throw std::runtime_error(result.error);
+        if (!result.ok()) throw std::runtime_error("--out " + outSpec + ": " + result.error);
         const int closed = sink->close(&error);
         sink.reset();
         if (closed != 0) throw std::runtime_error(error);
+        if (result.stopped) {
+            std::fprintf(stderr, "flythrough: stopped by signal %d after %zu fields\n",
+                         io::stopSignalNumber(), static_cast<std::size_t>(result.stats.fields));
+        }
         std::fprintf(stderr, "%s", sim::formatSummary(result.stats).c_str());
-        // Where things went: stdout, unless stdout carries the JSON.
-        std::FILE* report = jsonPath == "-" ? stderr : stdout;
-        const bool file = outSpec.rfind("y4m:", 0) == 0 || outSpec.rfind("png:", 0) == 0;
-        std::fprintf(report, "video: %s\n", file ? outSpec.substr(4).c_str() : outSpec.c_str());
+        const std::string videoPath = io::sinkPath(outSpec);
+        std::fprintf(report, "video: %s\n",
+                     videoPath.empty() ? outSpec.c_str() : videoPath.c_str());
         if (sheet) {
             if (sheet->write(contactPath, &error) != 0) throw std::runtime_error(error);
             std::fprintf(report, "contact sheet: %s (%d frames)\n", contactPath.c_str(),
@@ -328,8 +368,9 @@ int main(int argc, char** argv) {
             j["roll_margin"] = geometry.coverRoll;
             j["warp"] = warpText;
             j["render_hz_cap"] = renderHz;
-            ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+            j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
+            io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }
-        return 0;
+        return result.stopped ? io::exitStatusForStop() : 0;
     });
 }

@@ -3,6 +3,8 @@
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "io/image_file.hpp"
+#include "io/output_file.hpp"
+#include "io/stop_signals.hpp"
 #include "prp/evaluation.hpp"
 #include "sim/plot.hpp"
 #include "sim/trajectory.hpp"
@@ -20,6 +22,9 @@
 #include <sstream>
 
 namespace {
+
+// Where the tables go: standard output, or standard error when an output is written there.
+std::FILE* tableOut = stdout;
 
 constexpr const char* kNotes = R"(For base frames spread along each trajectory, a frame with margins
 is rendered by the fast caster (--levels) at time t (roll 0), warped by each model to t + k * 1001/60000 s,
@@ -95,28 +100,28 @@ nlohmann::json cellsJson(const prp::EvalResult& r) {
 
 void printTable(const std::string& title, const prp::EvalResult& r,
                 const std::vector<int>& horizons) {
-    std::printf("\n%s (%d base frames)\n", title.c_str(), r.baseFrames);
-    std::printf("%-11s", "model");
+    std::fprintf(tableOut, "\n%s (%d base frames)\n", title.c_str(), r.baseFrames);
+    std::fprintf(tableOut, "%-11s", "model");
     for (const int k : horizons)
-        std::printf("  k=%-10d", k);
-    std::printf("  %9s %9s %8s\n", "ns/px", "fallbacks", "edge%");
+        std::fprintf(tableOut, "  k=%-10d", k);
+    std::fprintf(tableOut, "  %9s %9s %8s\n", "ns/px", "fallbacks", "edge%");
     std::size_t i = 0;
     while (i < r.cells.size()) {
         const prp::WarpModel m = r.cells[i].model;
-        std::printf("%-11s", std::string(prp::warpModelName(m)).c_str());
+        std::fprintf(tableOut, "%-11s", std::string(prp::warpModelName(m)).c_str());
         double ns = 0, edge = 0;
         int fb = 0, n = 0;
         for (; i < r.cells.size() && r.cells[i].model == m; ++i) {
             const prp::EvalCell& c = r.cells[i];
-            std::printf("  %5.2f/%5.2f%%", c.psnrDb, c.maePct);
+            std::fprintf(tableOut, "  %5.2f/%5.2f%%", c.psnrDb, c.maePct);
             ns += c.nsPerPixel;
             edge += c.edgeFraction;
             fb += c.fallbacks;
             ++n;
         }
-        std::printf("  %9.2f %9d %8.3f\n", ns / n, fb, 100.0 * edge / n);
+        std::fprintf(tableOut, "  %9.2f %9d %8.3f\n", ns / n, fb, 100.0 * edge / n);
     }
-    std::printf("(cells: PSNR dB / mean absolute error %% of full scale)\n");
+    std::fprintf(tableOut, "(cells: PSNR dB / mean absolute error %% of full scale)\n");
 }
 
 }  // namespace
@@ -153,10 +158,19 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("warp-eval", [&]() -> int {
-        // The files written at the end, checked before the run.
-        if (!jsonPath.empty()) ig::checkOutputFile("--json", jsonPath);
-        if (!csvPath.empty()) ig::checkOutputFile("--csv", csvPath);
-        if (!plotPath.empty()) ig::checkOutputFile("--plot", plotPath);
+        // A signal ends the run at once (its files are written at the end). Every path is
+        // checked before the run: no output on an input or another output.
+        io::installStopSignals(true);
+        std::vector<io::PathUse> paths = {{"--height", terrain.height, io::PathRole::Input},
+                                          {"--color", terrain.color, io::PathRole::Input},
+                                          {"--json", jsonPath, io::PathRole::Output},
+                                          {"--csv", csvPath, io::PathRole::Output},
+                                          {"--plot", plotPath, io::PathRole::Output}};
+        for (const std::string& t : trajectories)
+            paths.push_back({"--trajectory", t, io::PathRole::Input});
+        io::checkRunPaths(paths);
+        // The tables go to standard error when an output takes standard output.
+        if (io::usesStdout(paths)) tableOut = stderr;
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -192,14 +206,14 @@ int main(int argc, char** argv) {
             loaded.push_back(sim::Trajectory::loadCsv(p));
 
         const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
-        std::printf("terrain: %s\n", ig::describeTerrain(map).c_str());
+        std::fprintf(tableOut, "terrain: %s\n", ig::describeTerrain(map).c_str());
         // The shipped trajectories are flown over Puget Sound; over another map they are laid
         // over it (scaled to fit, heights above its highest ground under the path).
         if (shippedTrajectories && !(terrain.height.empty() && terrain.synthetic.empty())) {
             for (std::size_t i = 0; i < loaded.size(); ++i) {
                 const sim::FittedTrajectory f = sim::fitTrajectoryToMap(loaded[i], map);
-                std::printf("%s: laid over the map, scale %.3g, heights above %.1f m\n",
-                            trajectories[i].c_str(), f.scale, f.ground);
+                std::fprintf(tableOut, "%s: laid over the map, scale %.3g, heights above %.1f m\n",
+                             trajectories[i].c_str(), f.scale, f.ground);
                 loaded[i] = f.trajectory;
             }
         }
@@ -235,10 +249,10 @@ int main(int argc, char** argv) {
             j["terrain"] = ig::describeTerrain(map);
             j["results"] = cellsJson(all);
             j["trajectories"] = perTrajectory;
-            ig::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+            io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }
         if (!csvPath.empty()) {
-            std::ofstream out(csvPath);
+            std::ostringstream out;
             out << "trajectory,model,horizon,psnr_db,mae_pct,ns_per_pixel,fallbacks,edge_"
                    "fraction\n";
             auto rows = [&](const std::string& name, const prp::EvalResult& r) {
@@ -251,7 +265,7 @@ int main(int argc, char** argv) {
             for (std::size_t i = 0; i < parts.size(); ++i)
                 rows(trajectories[i], parts[i]);
             rows("all", all);
-            if (!out) throw ig::InputError("--csv " + csvPath + ": cannot write the file");
+            io::writeTextOutput("--csv", csvPath, out.str());
         }
         if (!plotPath.empty()) {
             std::vector<sim::PlotSeries> series;
@@ -281,7 +295,7 @@ int main(int argc, char** argv) {
             const auto px = sim::renderPlot(series, po);
             std::string error;
             if (io::writePng8(plotPath, po.width, po.height, 3, px, &error) != 0) {
-                throw ig::InputError(error);
+                throw ig::InputError("--plot " + error);
             }
         }
         return 0;

@@ -62,48 +62,4 @@ TEST(DescribeTerrain, CountsFilledSamples) {
         << ig::describeTerrain(map);
 }
 
-// The message of the InputError that checkOutputFile throws ("" when none).
-std::string outputFileError(const std::string& path) {
-    try {
-        ig::checkOutputFile("--json", path);
-    } catch (const ig::InputError& e) {
-        return e.what();
-    }
-    return "";
-}
-
-TEST(CheckOutputFile, AcceptsAWritableFolderAndLeavesNothingBehind) {
-    const std::filesystem::path dir =
-        std::filesystem::temp_directory_path() / ("vig_check_output_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    const std::string path = (dir / "stats.json").string();
-    EXPECT_EQ(outputFileError(path), "");
-    EXPECT_TRUE(std::filesystem::is_empty(dir));
-    // An existing file stays as it is.
-    { std::ofstream(path) << "keep"; }
-    EXPECT_EQ(outputFileError(path), "");
-    std::ifstream in(path);
-    std::string text;
-    in >> text;
-    EXPECT_EQ(text, "keep");
-    EXPECT_EQ(outputFileError("-"), "");
-    std::filesystem::remove_all(dir);
-}
-
-TEST(CheckOutputFile, RefusesWhatCannotBeWritten) {
-    const std::filesystem::path dir =
-        std::filesystem::temp_directory_path() / ("vig_check_refuse_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    EXPECT_NE(outputFileError((dir / "missing" / "a.json").string()).find("does not exist"),
-              std::string::npos);
-    EXPECT_NE(outputFileError(dir.string()).find("is a folder"), std::string::npos);
-    EXPECT_NE(outputFileError("").find("empty path"), std::string::npos);
-    // A folder that takes no new files, even for a privileged user.
-    EXPECT_NE(outputFileError("/proc/vig_stats.json").find("cannot create files in /proc"),
-              std::string::npos);
-    std::filesystem::remove_all(dir);
-}
-
 }  // namespace

@@ -1,0 +1,205 @@
+#!/usr/bin/env bash
+# Programs against a hostile but fair user: outputs that must not replace what they should not,
+# inputs that must not stall a run, signals that must end a run cleanly.
+# Usage: hostile.sh CASE BIN_DIR DATA_DIR
+set -u
+case_name="$1"; bin="$2"; data="$3"
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/vig_hostile_${case_name}_XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+render="$bin/ig-render"; fly="$bin/flythrough"; warp="$bin/warp-eval"; check="$bin/io-check"
+stereo="$bin/stereo-eval"
+
+fail() { echo "FAIL ($case_name): $*"; exit 1; }
+# Runs a command that must fail cleanly: exit 1..127, stderr matching PATTERN. Sets $msg.
+must_refuse() {
+    local pattern="$1"; shift
+    msg=$("$@" 2>&1 >/dev/null); local rc=$?
+    [ "$rc" -ne 0 ] || fail "exit 0 for: $*"
+    [ "$rc" -lt 124 ] || fail "exit $rc (crash or timeout) for: $*"
+    grep -Eq -- "$pattern" <<<"$msg" || fail "message /$pattern/ not in: $msg"
+}
+# Y4M size check: header line plus whole frames of W x H 4:2:2 (2 bytes a pixel) + "FRAME\n".
+whole_frames() {
+    local file="$1" w="$2" h="$3"
+    local header; header=$(head -c 200 "$file" | head -n 1 | wc -c)
+    local size; size=$(stat -c %s "$file")
+    local frame=$((w * h * 2 + 6))
+    [ $(((size - header) % frame)) -eq 0 ] || fail "$file: $size bytes is not whole frames"
+    echo $(((size - header) / frame))
+}
+fly_small=(--size 160x120 --margin 8 --render-threads 1 --quiet)
+
+case "$case_name" in
+# 1. A device node, a symlink: written through, never replaced.
+device_and_symlink_outputs)
+    mknod "$tmp/n" c 1 3 || { echo "SKIP: mknod not permitted"; exit 0; }
+    "$render" --size 160x120 --out "$tmp/n" --json "$tmp/n" --depth "$tmp/n" 2>/dev/null ||
+        fail "ig-render to a device node failed"
+    [ -c "$tmp/n" ] || fail "ig-render replaced the device node"
+    "$fly" "${fly_small[@]}" --clock simulated --duration 0.2 --out "y4m:$tmp/n" --contact "$tmp/n" \
+        --json "$tmp/n" >/dev/null 2>&1 || fail "flythrough to a device node failed"
+    [ -c "$tmp/n" ] || fail "flythrough replaced the device node"
+    mkdir "$tmp/real"; echo old > "$tmp/real/f.png"; ln -s real/f.png "$tmp/link.png"
+    "$render" --size 160x120 --out "$tmp/link.png" 2>/dev/null || fail "ig-render to a symlink failed"
+    [ -L "$tmp/link.png" ] || fail "the symlink was replaced"
+    head -c 4 "$tmp/real/f.png" | grep -q PNG || fail "the symlink's target was not written"
+    ;;
+# 2. Trajectory times so large that t + step == t: the start-up check must still end.
+trajectory_huge_times)
+    printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n1e16,80000,80000,3000,0,-5,0\n10000000000000004,80100,80000,3000,0,-5,0\n' \
+        > "$tmp/t.csv"
+    timeout -s KILL 60 "$fly" "${fly_small[@]}" --clock simulated --out null --contact none --duration 1 \
+        --trajectory "$tmp/t.csv" >/dev/null 2>"$tmp/err"; rc=$?
+    [ "$rc" -ne 137 ] || fail "flythrough hung on a trajectory at t = 1e16"
+    [ "$rc" -lt 124 ] || fail "flythrough crashed (exit $rc)"
+    [ "$rc" -eq 0 ] || grep -q "t.csv" "$tmp/err" || fail "an error that does not name the file: $(cat "$tmp/err")"
+    timeout -s KILL 60 "$warp" --trajectory "$tmp/t.csv" --frames 1 --horizons 1 --models poly --repeats 1 \
+        --size 64x48 >/dev/null 2>"$tmp/err"; rc=$?
+    [ "$rc" -ne 137 ] || fail "warp-eval hung on a trajectory at t = 1e16"
+    [ "$rc" -lt 124 ] || fail "warp-eval crashed (exit $rc)"
+    ;;
+# 3. A small --render-hz: the run still ends at --duration.
+small_render_rate)
+    start=$(date +%s%N)
+    timeout -s KILL 30 "$fly" "${fly_small[@]}" --duration 0.5 --render-hz 0.1 --out null --contact none \
+        --json "$tmp/s.json" >/dev/null 2>&1 || fail "flythrough --render-hz 0.1 failed or hung"
+    took_ms=$((($(date +%s%N) - start) / 1000000))
+    [ "$took_ms" -lt 5000 ] || fail "a 0.5 s run took $took_ms ms"
+    # 12. Stats that agree: every shown frame was rendered.
+    python3 - "$tmp/s.json" <<'EOF' || fail "stats disagree: $(cat "$tmp/s.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["frames_rendered"] >= j["frames_shown"] >= 1, j
+assert j["render_fps"] > 0, j
+EOF
+    timeout -s KILL 30 "$fly" "${fly_small[@]}" --clock simulated --duration 0.5 --render-hz 0.01 --out null \
+        --contact none >/dev/null 2>&1 || fail "simulated --render-hz 0.01 failed or hung"
+    must_refuse "--render-hz" "$fly" --render-hz 1e-6 --out null --contact none --duration 0.1
+    must_refuse "--render-hz" "$fly" --render-hz nan --out null --contact none --duration 0.1
+    ;;
+# 4. Standard output carries one document, whole.
+stdout_is_one_document)
+    "$fly" "${fly_small[@]}" --clock simulated --duration 0.5 --out y4m:- --contact none \
+        > "$tmp/v.y4m" 2>/dev/null || fail "flythrough --out y4m:- failed"
+    frames=$(whole_frames "$tmp/v.y4m" 160 120)
+    [ "$frames" -ge 14 ] || fail "only $frames frames on standard output"
+    must_refuse "standard output" "$fly" --out y4m:- --json - --contact none --duration 0.1
+    must_refuse "standard output" "$render" --size 64x48 --out - --json -
+    ;;
+# 5. An output on an input is refused before any work, the input untouched.
+output_on_input)
+    cp "$data/puget-sound-1k/ps_height_1k.png" "$tmp/v.png"
+    before=$(md5sum < "$tmp/v.png")
+    must_refuse "same file as the input --height" "$render" --height "$tmp/v.png" --out "$tmp/v.png"
+    must_refuse "same file as the input --height" "$render" --height "$tmp/v.png" --out "$tmp/./v.png"
+    [ "$(md5sum < "$tmp/v.png")" = "$before" ] || fail "the height map was changed"
+    cp "$data/trajectories/straight.csv" "$tmp/t.csv"
+    before=$(md5sum < "$tmp/t.csv")
+    must_refuse "same file as the input --trajectory" "$fly" --trajectory "$tmp/t.csv" \
+        --json "$tmp/t.csv" --out null --contact none
+    [ "$(md5sum < "$tmp/t.csv")" = "$before" ] || fail "the trajectory was changed"
+    must_refuse "same file as --out" "$fly" --out "y4m:$tmp/x" --contact "$tmp/x" --duration 0.1
+    [ ! -e "$tmp/x" ] || fail "a file was left at $tmp/x"
+    ;;
+# 6. SIGINT / SIGTERM: the field in hand finishes, every output is written, 130 / 143.
+signals_end_runs_cleanly)
+    for sig in INT TERM; do
+        rm -f "$tmp"/v.y4m* "$tmp"/s.json* "$tmp"/c.png*
+        "$fly" "${fly_small[@]}" --duration 60 --out "y4m:$tmp/v.y4m" --json "$tmp/s.json" \
+            --contact "$tmp/c.png" >/dev/null 2>&1 &
+        pid=$!
+        sleep 2
+        kill -s "$sig" "$pid"
+        wait "$pid"; rc=$?
+        want=$([ "$sig" = INT ] && echo 130 || echo 143)
+        [ "$rc" -eq "$want" ] || fail "SIG$sig: exit $rc, expected $want"
+        frames=$(whole_frames "$tmp/v.y4m" 160 120)
+        [ "$frames" -ge 1 ] || fail "SIG$sig: no frame in the video"
+        python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['fields'] > 0" \
+            "$tmp/s.json" || fail "SIG$sig: no valid JSON"
+        head -c 4 "$tmp/c.png" | grep -q PNG || fail "SIG$sig: no contact sheet"
+        ls "$tmp" | grep -q '\.part$' && fail "SIG$sig: a .part file was left"
+    done
+    # A second signal ends the run at once: the video is still whole frames.
+    rm -f "$tmp"/v.y4m*
+    "$fly" "${fly_small[@]}" --duration 60 --out "y4m:$tmp/v.y4m" --contact none \
+        --render-hz 1 >/dev/null 2>&1 &
+    pid=$!
+    sleep 2
+    kill -s INT "$pid"; kill -s INT "$pid"
+    wait "$pid"; rc=$?
+    [ "$rc" -eq 130 ] || fail "two SIGINTs: exit $rc"
+    whole_frames "$tmp/v.y4m" 160 120 >/dev/null
+    ls "$tmp" | grep -q '\.part$' && fail "two SIGINTs: a .part file was left"
+    # io-check pattern likewise.
+    "$check" pattern --out "y4m:$tmp/p.y4m" --size 160x120 --duration 60 --json "$tmp/p.json" \
+        >/dev/null 2>&1 &
+    pid=$!
+    sleep 1
+    kill -s TERM "$pid"
+    wait "$pid"; rc=$?
+    [ "$rc" -eq 143 ] || fail "io-check pattern SIGTERM: exit $rc"
+    whole_frames "$tmp/p.y4m" 160 120 >/dev/null
+    python3 -c "import json,sys; json.load(open(sys.argv[1]))" "$tmp/p.json" ||
+        fail "io-check pattern: no valid JSON"
+    ;;
+# 7. A png:DIR holding an earlier run is refused unless --overwrite.
+png_folder_reuse)
+    "$check" pattern --out "png:$tmp/d:1" --size 64x48 --duration 0.2 --clock simulated \
+        >/dev/null 2>&1 || fail "first run failed"
+    must_refuse "not empty.*--overwrite" "$check" pattern --out "png:$tmp/d:1" --size 64x48 \
+        --duration 0.1 --clock simulated
+    must_refuse "not empty.*--overwrite" "$fly" "${fly_small[@]}" --out "png:$tmp/d:1" \
+        --duration 0.1 --contact none
+    "$check" pattern --out "png:$tmp/d:1" --size 64x48 --duration 0.1 --clock simulated \
+        --overwrite >/dev/null 2>&1 || fail "--overwrite refused"
+    ;;
+# 8. NaN is refused, not taken for "off".
+stereo_nan)
+    must_refuse "--stereo" "$render" --size 64x48 --stereo nan --out-left "$tmp/l.png" \
+        --out-right "$tmp/r.png"
+    [ ! -e "$tmp/l.png" ] || fail "a frame was written"
+    must_refuse "--stereo" "$stereo" --stereo inf --sweep 2 --size 64x48
+    ;;
+# 9. Messages that name the path, the operation and the reason, readably and bounded.
+clear_messages)
+    [ -w /dev/full ] && must_refuse "/dev/full.*(No space left|space)" "$fly" "${fly_small[@]}" \
+        --clock simulated --duration 0.5 --out y4m:/dev/full --contact none
+    must_refuse "png:/proc.*(denied|not permitted|No such|Read-only|cannot)" "$fly" \
+        "${fly_small[@]}" --out png:/proc/vig --duration 0.1 --contact none
+    must_refuse "--size 1x1.*2\.\.8192 lines" "$fly" --size 1x1 --out null --duration 0.1
+    printf '500000,5200000,3000,0,-5,0\n' > "$tmp/poses.txt"
+    must_refuse "far off the map" "$stereo" --poses "$tmp/poses.txt" --size 64x48
+    must_refuse "'abc' is not a finite number" "$render" --pose 1,2,abc,0,0,0 --out "$tmp/f.png"
+    ;;
+# 10. Numbers that make no physical sense are refused readably.
+terrain_ranges)
+    h="$data/puget-sound-1k/ps_height_1k.png"
+    for flag in --spacing --height-scale --height-offset --void-height; do
+        must_refuse "^ig-render: $flag: 1e\+300 is outside" "$render" --height "$h" "$flag" 1e300 \
+            --out "$tmp/f.png"
+        [ ${#msg} -lt 200 ] || fail "$flag: a ${#msg}-byte message"
+    done
+    must_refuse "--spacing" "$render" --height "$h" --spacing -1 --out "$tmp/f.png"
+    ;;
+# 11. io-check stick and pattern check their numbers and paths before running.
+io_check_numbers)
+    printf '0 axis pitch 0.1\n' > "$tmp/s.stick"
+    for rate in 0 -5 nan inf; do
+        must_refuse "--rate" "$check" stick "script:$tmp/s.stick" --rate "$rate" --duration 0.1
+    done
+    must_refuse "--duration" "$check" stick "script:$tmp/s.stick" --duration -1
+    start=$(date +%s)
+    must_refuse "/proc" "$check" pattern --out null --duration 5 --json /proc/vig.json
+    [ $(($(date +%s) - start)) -lt 3 ] || fail "pattern --json /proc failed only after the run"
+    ;;
+# 12. A start under the ground is refused.
+start_underground)
+    must_refuse "--start.*not above the terrain" "$fly" --start 80000,80000,-100,0 --out null \
+        --duration 0.1 --contact none
+    ;;
+*)
+    fail "unknown case"
+    ;;
+esac
+echo "ok: $case_name"
