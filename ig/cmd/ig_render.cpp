@@ -241,7 +241,7 @@ int main(int argc, char** argv) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
         if (margin < 0 || margin > 4096) throw ig::InputError("--margin: must be 0..4096 pixels");
-        if (threads < 0) throw ig::InputError("--threads: must be 0 or more");
+        if (threads < 0 || threads > 1024) throw ig::InputError("--threads: must be 0..1024");
         if (!(haze >= 0.0) || !std::isfinite(haze)) throw ig::InputError("--haze: must be >= 0");
         const auto [w, h] = ig::parseSize(sizeText);
         const ig::CasterKind kind = ig::parseCasterKind(casterText);

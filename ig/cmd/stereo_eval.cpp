@@ -159,7 +159,7 @@ int main(int argc, char** argv) {
         }
         if (sweep < 2 || sweep > 100000) throw ig::InputError("--sweep: must be 2..100000");
         if (repeat < 1 || repeat > 100) throw ig::InputError("--repeat: must be 1..100");
-        if (threads < 0) throw ig::InputError("--threads: must be 0 or more");
+        if (threads < 0 || threads > 1024) throw ig::InputError("--threads: must be 0..1024");
         if (!std::isfinite(aglFactor) || aglFactor < 0.0) {
             throw ig::InputError("--stereo-agl: must be a finite number >= 0");
         }

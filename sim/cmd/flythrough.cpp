@@ -50,7 +50,13 @@ Stick scripts: "TIME axis pitch|roll|yaw|throttle VALUE [ramp S]" or "TIME butto
 down|up" per line. Trajectory CSV: a header naming t,x,y,z,yaw_deg,pitch_deg,roll_deg (any order; other columns ignored).
 --start X,Y,Z,HEADING (metres, degrees; Z written +H is H metres above the terrain) sets where
 a stick flight begins (default: the scenario's start on Puget Sound, else over the south-west
-of the map heading north-east).)";
+of the map heading north-east).
+
+Outputs: a file is written beside its path and renamed into place when complete; a device or
+FIFO is written in place; an output on an input or another output is refused before the run;
+standard output ('-') carries one output at most. SIGINT/SIGTERM end the run after the field in
+hand with every output written (exit 130/143); a second signal ends it at once, the video cut to
+its last whole frame.)";
 
 // "x,y,z,heading": z may be "+H" (above the terrain).
 sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
@@ -178,7 +184,9 @@ int main(int argc, char** argv) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
         if (margin < 0 || margin > 2048) throw ig::InputError("--margin: must be 0..2048 pixels");
-        if (renderThreads < 0) throw ig::InputError("--render-threads: must be 0 or more");
+        if (renderThreads < 0 || renderThreads > 1024) {
+            throw ig::InputError("--render-threads: must be 0..1024");
+        }
         ig::RenderOptions renderOptions;
         renderOptions.levels = ig::parseLevels(levelsText);
         const auto [width, height] = ig::parseSize(sizeText);

@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -327,6 +329,61 @@ TEST(FieldConversion, EnumsAndBuffersMatch) {
     EXPECT_EQ(b.lines, 3);
     EXPECT_EQ(b.stride, 10u);
     EXPECT_EQ(b.data, field.pixels.data());
+}
+
+}  // namespace
+
+namespace {
+
+// SIGINT/SIGTERM reach the loop as PipelineOptions::stop: the field in hand is the last one, and
+// the run is a good one (its outputs are finished), marked stopped.
+TEST(Pipeline, AStopEndsTheRunAfterTheFieldInHand) {
+    World world;
+    std::atomic<bool> stop{false};
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Simulated;
+    options.duration = 5.0;
+    options.stop = &stop;
+    auto flight = world.flight(kGentleScript);
+    RecordingSink sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
+    auto clock = io::makeSimulatedClock();
+    options.onField = [&](const prp::Field& field, const io::FieldBuffer&) {
+        if (field.index == 30) stop = true;
+    };
+    sim::Pipeline pipeline(*flight, world.renderer(), sink, *clock, options);
+    const sim::PipelineResult result = pipeline.run();
+    EXPECT_TRUE(result.ok()) << result.error;
+    EXPECT_TRUE(result.stopped);
+    EXPECT_EQ(sink.seen.size(), 31u);
+    EXPECT_EQ(result.stats.fields, 31u);
+}
+
+// A render rate far below the field rate: the run still ends on time. Wall clock: the
+// renderer's wait for its next slot (20 s away) must end with the run; simulated: a render that
+// could only complete after the run is never started (at 1e-6 Hz the pose source would
+// otherwise be flown a million seconds ahead).
+TEST(Pipeline, ASlowRenderRateNeverOutlastsTheRun) {
+    World world;
+    sim::PipelineOptions options;
+    options.duration = 0.3;
+    options.renderHz = 0.05;
+    const auto start = std::chrono::steady_clock::now();
+    const PipelineRun wall = runPipeline(world, options, kGentleScript);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_TRUE(wall.result.ok());
+    EXPECT_LT(seconds, 5.0) << "the renderer's rate-limit wait held the run";
+    EXPECT_GE(wall.result.stats.framesRendered, wall.result.stats.framesShown);
+
+    options.clock = sim::ClockMode::Simulated;
+    options.renderHz = 1e-6;
+    options.duration = 1.0;
+    const PipelineRun simulated = runPipeline(world, options, kGentleScript);
+    EXPECT_TRUE(simulated.result.ok());
+    EXPECT_EQ(simulated.seen.size(), 60u);
+    EXPECT_EQ(simulated.result.stats.framesRendered, 1u);  // frame 0 only
 }
 
 }  // namespace
