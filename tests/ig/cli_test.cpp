@@ -62,4 +62,42 @@ TEST(DescribeTerrain, CountsFilledSamples) {
         << ig::describeTerrain(map);
 }
 
+// A map nearly all void reads as such, never "1e+02 %" nor "100 %" while one sample had data.
+TEST(DescribeTerrain, NearlyAllVoidReadsAsANumber) {
+    TerrainMap map(100, 100, 1.0, 1.0, 1.0, 0.0);
+    map.updateRange();
+    map.setFilledSamples(9995);
+    EXPECT_NE(ig::describeTerrain(map).find("(99.95 %)"), std::string::npos)
+        << ig::describeTerrain(map);
+    map.setFilledSamples(9999);
+    EXPECT_NE(ig::describeTerrain(map).find("(99.99 %)"), std::string::npos)
+        << ig::describeTerrain(map);
+}
+
+// Terrain numbers outside a physical range are refused before anything is loaded, readably.
+TEST(LoadTerrainFromOptions, RefusesNumbersOutsideTheirRanges) {
+    auto message = [](ig::TerrainOptions o) -> std::string {
+        try {
+            ig::loadTerrainFromOptions(o);
+        } catch (const ig::InputError& e) {
+            return e.what();
+        }
+        return "";
+    };
+    ig::TerrainOptions o;
+    o.synthetic = "64:1";
+    o.spacing = 1e300;
+    EXPECT_EQ(message(o), "--spacing: 1e+300 is outside 0.001 .. 100000 metres");
+    o.spacing = 0.0;
+    EXPECT_NE(message(o).find("--spacing"), std::string::npos);
+    o.spacing.reset();
+    o.synthetic.clear();
+    o.height = "unused.png";
+    o.heightOffset = 1e300;
+    EXPECT_EQ(message(o), "--height-offset: 1e+300 is outside -100000 .. 100000 metres");
+    o.heightOffset.reset();
+    o.heightScale = std::nan("");
+    EXPECT_EQ(message(o), "--height-scale: nan is outside 1e-06 .. 10000 metres per height unit");
+}
+
 }  // namespace
