@@ -139,7 +139,7 @@ TEST(Trajectory, LongOrBinaryBadInputIsQuotedBriefly) {
             ADD_FAILURE() << "accepted";
         } catch (const ig::InputError& e) {
             const std::string msg = e.what();
-            // Binary bytes are escaped (\\xNN): at most 200 of them shown, so about 800 characters.
+            // Binary bytes are escaped (\xNN): at most 200 of them shown, so about 800 characters.
             EXPECT_LE(msg.size(), 1024u) << msg.substr(0, 400);
             EXPECT_EQ(msg.rfind("big.csv:", 0), 0u) << msg.substr(0, 400);
             EXPECT_TRUE(std::all_of(msg.begin(), msg.end(), [](unsigned char c) {
