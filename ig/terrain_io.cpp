@@ -671,8 +671,26 @@ void gdalOpen(const ImageInput& in, GdalDataset& ds) {
     ds.handle =
         GDALOpenEx(name.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
     if (!ds.handle) fail(path, "not a readable image or raster file" + QuietGdal::lastError());
-    if (GDALGetRasterCount(ds.handle) < 1) fail(path, "raster file has no bands");
-    checkSize(path, GDALGetRasterXSize(ds.handle), GDALGetRasterYSize(ds.handle), in.maxSamples);
+    const int bands = GDALGetRasterCount(ds.handle);
+    if (bands < 1) fail(path, "raster file has no bands");
+    const int w = GDALGetRasterXSize(ds.handle), h = GDALGetRasterYSize(ds.handle);
+    checkSize(path, w, h, in.maxSamples);
+    // Reading one band reads whole blocks, of every band when they are interleaved: a header
+    // claiming thousands of bands, or blocks far larger than the image, costs as much as a
+    // raster of that many samples. Up to four bands of the largest image are accepted.
+    int blockW = 0, blockH = 0;
+    GDALGetBlockSize(GDALGetRasterBand(ds.handle, 1), &blockW, &blockH);
+    const std::uint64_t budget = std::uint64_t{4} * in.maxSamples;
+    if (std::uint64_t(w) * std::uint64_t(h) * std::uint64_t(bands) > budget ||
+        std::uint64_t(std::max(blockW, 1)) * std::uint64_t(std::max(blockH, 1)) *
+                std::uint64_t(bands) >
+            budget) {
+        fail(path, "raster of " + std::to_string(w) + " x " + std::to_string(h) + " samples in " +
+                       std::to_string(bands) + " bands, stored in blocks of " +
+                       std::to_string(blockW) + " x " + std::to_string(blockH) +
+                       ": more samples than the " + std::to_string(budget) +
+                       " accepted (four bands of the largest image)");
+    }
 }
 
 Georef readGeoref(const std::string& path, GDALDatasetH ds) {
