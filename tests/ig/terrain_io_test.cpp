@@ -1178,6 +1178,16 @@ TEST(TerrainIo, SampleBudgetRefusesLargerImages) {
     expectInputError(src, {"budget.png", "4 x 4", "too large"});
     src.maxSamples = 16;
     EXPECT_EQ(loadTerrain(src).width(), 4);
+
+    // GDAL reads whole blocks of every interleaved band: four bands of the largest image at most.
+    const std::vector<std::uint8_t> bands(2 * 2 * 5, 9);
+    src.heightPath = tmpPath("five_bands.tif");
+    writeGeoTiff(src.heightPath, 2, 2, 5, GDT_Byte, bands.data(), nullptr);
+    src.maxSamples = 4;
+    expectInputError(src, {"five_bands.tif", "5 bands", "more samples"});
+    src.heightPath = tmpPath("two_bands.tif");
+    writeGeoTiff(src.heightPath, 2, 2, 2, GDT_Byte, bands.data(), nullptr);
+    EXPECT_EQ(loadTerrain(src).width(), 2);
 }
 
 TEST(TerrainIo, BytesInMemoryLoadAsTheFileDoes) {
