@@ -2,14 +2,17 @@
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
+#include <cpl_vsi.h>
 #include <gdal.h>
 #include <jpeglib.h>
 #include <ogr_srs_api.h>
 #include <png.h>
+#include <sys/stat.h>
 
 #include <jerror.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -25,6 +28,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "base/text.hpp"
 #include "ig/error.hpp"
 
 // The magic bytes pick the reader (libpng, libjpeg, or GDAL for everything else); each reader
@@ -37,8 +41,18 @@ namespace {
 static_assert(sizeof(Rgb8) == 3,
               "Rgb8 must be three packed bytes: images are read straight into it");
 
-// Largest image accepted (samples): 2^30, far beyond any map the renderer holds in memory.
-constexpr std::size_t kMaxSamples = std::size_t{1} << 30;
+// Most bytes read from a pipe or other file that cannot seek: a map at the sample limit as
+// uncompressed 32-bit floats.
+constexpr std::uint64_t kMaxStreamBytes = std::uint64_t{4} * kMaxImageSamples;
+
+// Deflate cannot expand data more than 1032-fold (a 258-byte match in two bits at best): a PNG
+// whose header claims more pixel bytes than that of the whole file is truncated or corrupt.
+constexpr std::uint64_t kDeflateMaxRatio = 1032;
+
+// A Huffman-coded JPEG spends at least one bit on every 8 x 8 block of each component a scan
+// holds, and a block of a component subsampled 4 x 4 spans 32 x 32 pixels: at most 8192 pixels
+// per byte of file. (Arithmetic-coded files, rare, can go beyond; they are held to it too.)
+constexpr std::uint64_t kJpegMaxPixelsPerByte = 8192;
 
 [[noreturn]] void fail(const std::string& path, const std::string& what) {
     throw InputError(path + ": " + what);
@@ -51,20 +65,43 @@ std::string formatNumber(double v) {
     return s.str();
 }
 
-void checkSize(const std::string& path, long long width, long long height) {
+// Readable size of a byte count for messages ("1.8 GB").
+std::string formatBytes(double bytes) {
+    if (bytes >= 1e9) return base::number(bytes / 1e9, 3) + " GB";
+    if (bytes >= 1e6) return base::number(bytes / 1e6, 3) + " MB";
+    if (bytes >= 1e3) return base::number(bytes / 1e3, 3) + " kB";
+    return base::number(bytes, 6) + " bytes";
+}
+
+void checkSize(const std::string& path, long long width, long long height, std::size_t maxSamples) {
     if (width <= 0 || height <= 0) fail(path, "image has no pixels");
     if (static_cast<unsigned long long>(width) * static_cast<unsigned long long>(height) >
-            kMaxSamples ||
+            maxSamples ||
         width > (1LL << 30) || height > (1LL << 30)) {
         fail(path, "image too large (" + std::to_string(width) + " x " + std::to_string(height) +
-                       " samples; at most 2^30 supported)");
+                       " samples; at most " + std::to_string(maxSamples) + " supported)");
     }
 }
 
 // ---------------------------------------------------------------------------------------------
-// File sniffing: the magic bytes decide the reader; the extension only sharpens the message.
+// Inputs: a file on disk, read by the decoders themselves, or bytes in memory (given by the
+// caller, or read whole from a pipe, which libpng, libjpeg and GDAL cannot seek in). The magic
+// bytes decide the reader; the extension only sharpens the message.
 
 enum class FileKind { Png, Jpeg, Gdal };
+
+struct ImageInput {
+    std::string path;                     // names the input in messages; the file when on disk
+    bool inMemory = false;                // bytes below, else the file at path
+    std::span<const std::uint8_t> bytes;  // the whole file
+    std::vector<std::uint8_t> storage;    // what was read from a pipe (bytes points into it)
+    std::uint64_t size = 0;               // bytes in the file
+    std::size_t maxSamples = kMaxImageSamples;
+    FileKind kind = FileKind::Gdal;
+    ImageInput() = default;
+    ImageInput(const ImageInput&) = delete;
+    ImageInput& operator=(const ImageInput&) = delete;
+};
 
 std::string lowerExtension(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
@@ -73,24 +110,68 @@ std::string lowerExtension(const std::string& path) {
     return ext;
 }
 
-FileKind sniff(const std::string& path) {
-    if (path.empty()) throw InputError("terrain file name is empty");
-    // GDAL virtual file systems (/vsizip/, /vsicurl/, ...) are not local files.
-    if (path.rfind("/vsi", 0) == 0) return FileKind::Gdal;
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not an image file");
-    std::FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) fail(path, std::string("cannot open: ") + std::strerror(errno));
-    unsigned char magic[8] = {};
-    const std::size_t n = std::fread(magic, 1, sizeof magic, f);
-    std::fclose(f);
-    if (n == sizeof magic && png_sig_cmp(magic, 0, sizeof magic) == 0) return FileKind::Png;
+// Reads the rest of a stream that cannot seek, at most kMaxStreamBytes.
+void readStream(const std::string& path, std::FILE* f, std::vector<std::uint8_t>& out) {
+    std::uint8_t buf[1 << 16];
+    for (;;) {
+        const std::size_t n = std::fread(buf, 1, sizeof buf, f);
+        if (n == 0) break;
+        if (out.size() + n > kMaxStreamBytes) {
+            fail(path, "more than " + formatBytes(static_cast<double>(kMaxStreamBytes)) +
+                           " read without reaching the end; not an image this loader takes");
+        }
+        out.insert(out.end(), buf, buf + n);
+    }
+    if (std::ferror(f)) fail(path, std::string("read failed: ") + std::strerror(errno));
+}
+
+FileKind sniffMagic(const std::string& path, const std::uint8_t* magic, std::size_t n) {
+    if (n >= 8 && png_sig_cmp(magic, 0, sizeof magic) == 0) return FileKind::Png;
     if (n >= 3 && magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF) return FileKind::Jpeg;
     if (n == 0) fail(path, "file is empty");
     const std::string ext = lowerExtension(path);
     if (ext == ".png") fail(path, "not a PNG file (bad signature)");
     if (ext == ".jpg" || ext == ".jpeg") fail(path, "not a JPEG file (bad signature)");
     return FileKind::Gdal;
+}
+
+// Finds out what `path` (or `bytes`, when given) holds; a file that cannot seek is read whole.
+void openInput(const std::string& path, std::span<const std::uint8_t> bytes, std::size_t maxSamples,
+               ImageInput& in) {
+    if (path.empty()) throw InputError("terrain file name is empty");
+    in.path = path;
+    in.maxSamples = maxSamples;
+    if (!bytes.empty()) {
+        in.inMemory = true;
+        in.bytes = bytes;
+        in.size = bytes.size();
+        in.kind = sniffMagic(path, bytes.data(), bytes.size());
+        return;
+    }
+    // GDAL virtual file systems (/vsizip/, /vsicurl/, ...) are not local files.
+    if (path.rfind("/vsi", 0) == 0) {
+        in.kind = FileKind::Gdal;
+        return;
+    }
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not an image file");
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    const std::unique_ptr<std::FILE, int (*)(std::FILE*)> guard(f, std::fclose);
+    struct stat st {};
+    if (::fstat(::fileno(f), &st) == 0 && S_ISREG(st.st_mode)) {
+        in.size = static_cast<std::uint64_t>(st.st_size);
+        std::uint8_t magic[8] = {};
+        const std::size_t n = std::fread(magic, 1, sizeof magic, f);
+        in.kind = sniffMagic(path, magic, n);
+        return;
+    }
+    // A pipe, terminal or device: the decoders seek or read twice, so hold it all.
+    readStream(path, f, in.storage);
+    in.inMemory = true;
+    in.bytes = in.storage;
+    in.size = in.storage.size();
+    in.kind = sniffMagic(path, in.storage.data(), in.storage.size());
 }
 
 // Whether a PNG or JPEG comes with a georeference beside it (a world file such as photo.jgw,
@@ -190,8 +271,22 @@ struct PngErrorState {
 
 void pngWarning(png_structp, png_const_charp) {}
 
+// Bytes in memory handed to libpng in the pieces it asks for.
+struct PngMemorySource {
+    std::span<const std::uint8_t> bytes;
+    std::size_t at = 0;
+};
+
+void pngReadMemory(png_structp png, png_bytep out, png_size_t n) {
+    auto* src = static_cast<PngMemorySource*>(png_get_io_ptr(png));
+    if (n > src->bytes.size() - src->at) png_error(png, "unexpected end of data");
+    std::memcpy(out, src->bytes.data() + src->at, n);
+    src->at += n;
+}
+
 struct PngReader {
     std::FILE* file = nullptr;
+    PngMemorySource memory;
     png_structp png = nullptr;
     png_infop info = nullptr;
     PngErrorState error;
@@ -206,17 +301,17 @@ struct PngReader {
 
 struct PngHeader {
     png_uint_32 width = 0, height = 0;
-    int bitDepth = 0, colorType = 0;
+    int bitDepth = 0, colorType = 0, channels = 0;
 };
 
-bool pngReadHeader(png_structp png, png_infop info, std::FILE* file, PngHeader* header) {
+bool pngReadHeader(png_structp png, png_infop info, PngHeader* header) {
     if (setjmp(png_jmpbuf(png))) return false;
-    png_init_io(png, file);
     png_read_info(png, info);
     header->width = png_get_image_width(png, info);
     header->height = png_get_image_height(png, info);
     header->bitDepth = png_get_bit_depth(png, info);
     header->colorType = png_get_color_type(png, info);
+    header->channels = png_get_channels(png, info);
     return true;
 }
 
@@ -264,18 +359,45 @@ std::string pngColorTypeName(int colorType) {
     }
 }
 
-// Opens `path`, reads its header, and checks the size. Throws InputError on failure.
-void pngOpen(const std::string& path, PngReader& r, PngHeader& header) {
-    r.file = std::fopen(path.c_str(), "rb");
-    if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+// Opens the input, reads its header, and checks the size it claims against the budget and the
+// file's length before anything is allocated for the pixels. Throws InputError on failure.
+void pngOpen(const ImageInput& in, PngReader& r, PngHeader& header) {
+    const std::string& path = in.path;
+    if (!in.inMemory) {
+        r.file = std::fopen(path.c_str(), "rb");
+        if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    }
     r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &r.error, pngError, pngWarning);
     if (!r.png) fail(path, "out of memory opening PNG");
     r.info = png_create_info_struct(r.png);
     if (!r.info) fail(path, "out of memory opening PNG");
-    if (!pngReadHeader(r.png, r.info, r.file, &header)) {
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+    // Fuzzing: mutated chunks reach the checks after the checksums (never in the product).
+    png_set_crc_action(r.png, PNG_CRC_QUIET_USE, PNG_CRC_QUIET_USE);
+    png_set_option(r.png, PNG_IGNORE_ADLER32, PNG_OPTION_ON);
+#endif
+    if (in.inMemory) {
+        r.memory.bytes = in.bytes;
+        png_set_read_fn(r.png, &r.memory, pngReadMemory);
+    } else {
+        png_init_io(r.png, r.file);
+    }
+    if (!pngReadHeader(r.png, r.info, &header)) {
         fail(path, std::string("corrupt or truncated PNG (") + r.error.message + ")");
     }
-    checkSize(path, header.width, header.height);
+    checkSize(path, header.width, header.height, in.maxSamples);
+    const std::uint64_t rowBytes =
+        (std::uint64_t{header.width} * header.channels * header.bitDepth + 7) / 8;
+    const std::uint64_t claimed = rowBytes * header.height;
+    if (claimed > kDeflateMaxRatio * in.size + 1024) {
+        fail(path, "PNG header claims " + std::to_string(header.width) + " x " +
+                       std::to_string(header.height) + " pixels (" +
+                       formatBytes(static_cast<double>(claimed)) +
+                       " of image data) but the file has only " +
+                       formatBytes(static_cast<double>(in.size)) +
+                       ", which deflate cannot expand to more than 1032 times its size: the file "
+                       "is truncated or corrupt");
+    }
 }
 
 // Reads the image rows of an opened PNG into `pixels` (rowBytes per row, file order).
@@ -290,10 +412,11 @@ void pngReadPixels(const std::string& path, PngReader& r, std::size_t height, st
     }
 }
 
-HeightRaster readPngHeights(const std::string& path) {
+HeightRaster readPngHeights(const ImageInput& in) {
+    const std::string& path = in.path;
     PngReader r;
     PngHeader header;
-    pngOpen(path, r, header);
+    pngOpen(in, r, header);
     if (header.colorType != PNG_COLOR_TYPE_GRAY) {
         fail(path, "height map must be an 8- or 16-bit greyscale PNG; this one is " +
                        pngColorTypeName(header.colorType));
@@ -327,10 +450,11 @@ HeightRaster readPngHeights(const std::string& path) {
     return out;
 }
 
-ColorRaster readPngColors(const std::string& path) {
+ColorRaster readPngColors(const ImageInput& in) {
+    const std::string& path = in.path;
     PngReader r;
     PngHeader header;
-    pngOpen(path, r, header);
+    pngOpen(in, r, header);
     png_size_t rowBytes = 0;
     if (!pngPrepare(r.png, r.info, true, &rowBytes)) {
         fail(path, std::string("corrupt PNG (") + r.error.message + ")");
@@ -363,11 +487,12 @@ struct JpegErrorState {
     std::longjmp(state->jump, 1);
 }
 
-// Warnings are silent, except a premature end of data, which is an error here: libjpeg would
-// otherwise pad the image with grey.
+// Warnings are silent, except a premature end of data, which is an error here, raised at once:
+// libjpeg would otherwise pad the rest of the image with grey (of any size the header claims).
 void jpegEmitMessage(j_common_ptr cinfo, int level) {
     if (level < 0 && cinfo->err->msg_code == JWRN_JPEG_EOF) {
         reinterpret_cast<JpegErrorState*>(cinfo->err)->truncated = true;
+        jpegErrorExit(cinfo);
     }
 }
 
@@ -385,13 +510,24 @@ struct JpegReader {
     }
 };
 
-bool jpegStart(jpeg_decompress_struct* cinfo, JpegErrorState* error, std::FILE* file) {
+bool jpegReadHeader(jpeg_decompress_struct* cinfo, JpegErrorState* error, std::FILE* file,
+                    std::span<const std::uint8_t> bytes) {
     if (setjmp(error->jump)) return false;
     jpeg_create_decompress(cinfo);
-    jpeg_stdio_src(cinfo, file);
+    if (file) {
+        jpeg_stdio_src(cinfo, file);
+    } else {
+        jpeg_mem_src(cinfo, bytes.data(), static_cast<unsigned long>(bytes.size()));
+    }
     jpeg_read_header(cinfo, TRUE);
     // Grey stays grey (expanded to RGB by the caller); everything else is converted to RGB.
     cinfo->out_color_space = cinfo->num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
+    return true;
+}
+
+// Progressive files are read whole here, into coefficients for the whole image.
+bool jpegStart(jpeg_decompress_struct* cinfo, JpegErrorState* error) {
+    if (setjmp(error->jump)) return false;
     jpeg_start_decompress(cinfo);
     return true;
 }
@@ -408,19 +544,35 @@ bool jpegReadRows(jpeg_decompress_struct* cinfo, JpegErrorState* error, std::uin
 }
 
 // Reads a JPEG as 1 (grey) or 3 (RGB) channels, rows in file order.
-std::vector<std::uint8_t> readJpeg(const std::string& path, int& width, int& height,
-                                   int& channels) {
+std::vector<std::uint8_t> readJpeg(const ImageInput& in, int& width, int& height, int& channels) {
+    const std::string& path = in.path;
     JpegReader r;
-    r.file = std::fopen(path.c_str(), "rb");
-    if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    if (!in.inMemory) {
+        r.file = std::fopen(path.c_str(), "rb");
+        if (!r.file) fail(path, std::string("cannot open: ") + std::strerror(errno));
+    }
     r.cinfo.err = jpeg_std_error(&r.error.manager);
     r.error.manager.error_exit = jpegErrorExit;
     r.error.manager.emit_message = jpegEmitMessage;
     r.created = true;  // jpeg_destroy_decompress is safe even if creation fails part-way
-    if (!jpegStart(&r.cinfo, &r.error, r.file)) {
+    auto corrupt = [&] {
+        if (r.error.truncated) fail(path, "truncated JPEG (premature end of data)");
         fail(path, std::string("corrupt JPEG (") + r.error.message + ")");
+    };
+    if (!jpegReadHeader(&r.cinfo, &r.error, r.file, in.bytes)) corrupt();
+    // The size the header claims, against the budget and the file's length, before libjpeg
+    // allocates for it.
+    checkSize(path, r.cinfo.image_width, r.cinfo.image_height, in.maxSamples);
+    const std::uint64_t claimed = std::uint64_t{r.cinfo.image_width} * r.cinfo.image_height;
+    if (claimed > kJpegMaxPixelsPerByte * in.size) {
+        fail(path, "JPEG header claims " + std::to_string(r.cinfo.image_width) + " x " +
+                       std::to_string(r.cinfo.image_height) + " pixels but the file has only " +
+                       formatBytes(static_cast<double>(in.size)) +
+                       ", fewer than a JPEG needs for so many (at least a bit per 32 x 32 "
+                       "pixels): the file is truncated or corrupt");
     }
-    checkSize(path, r.cinfo.output_width, r.cinfo.output_height);
+    if (!jpegStart(&r.cinfo, &r.error)) corrupt();
+    checkSize(path, r.cinfo.output_width, r.cinfo.output_height, in.maxSamples);
     channels = r.cinfo.output_components;
     if (channels != 1 && channels != 3) {
         fail(path, "unsupported JPEG with " + std::to_string(channels) + " channels");
@@ -429,17 +581,15 @@ std::vector<std::uint8_t> readJpeg(const std::string& path, int& width, int& hei
     height = static_cast<int>(r.cinfo.output_height);
     const std::size_t rowBytes = static_cast<std::size_t>(width) * channels;
     std::vector<std::uint8_t> pixels(rowBytes * height);
-    if (!jpegReadRows(&r.cinfo, &r.error, pixels.data(), rowBytes)) {
-        fail(path, std::string("corrupt JPEG (") + r.error.message + ")");
-    }
-    if (r.error.truncated) fail(path, "truncated JPEG (premature end of data)");
+    if (!jpegReadRows(&r.cinfo, &r.error, pixels.data(), rowBytes)) corrupt();
     return pixels;
 }
 
-HeightRaster readJpegHeights(const std::string& path) {
+HeightRaster readJpegHeights(const ImageInput& in) {
+    const std::string& path = in.path;
     HeightRaster out;
     int channels = 0;
-    std::vector<std::uint8_t> pixels = readJpeg(path, out.width, out.height, channels);
+    std::vector<std::uint8_t> pixels = readJpeg(in, out.width, out.height, channels);
     if (channels != 1) {
         fail(path, "height map must be greyscale; this JPEG is colour (" +
                        std::to_string(channels) + " channels)");
@@ -449,10 +599,10 @@ HeightRaster readJpegHeights(const std::string& path) {
     return out;
 }
 
-ColorRaster readJpegColors(const std::string& path) {
+ColorRaster readJpegColors(const ImageInput& in) {
     ColorRaster out;
     int channels = 0;
-    std::vector<std::uint8_t> pixels = readJpeg(path, out.width, out.height, channels);
+    std::vector<std::uint8_t> pixels = readJpeg(in, out.width, out.height, channels);
     out.pixels.resize(static_cast<std::size_t>(out.width) * out.height);
     if (channels == 3) {
         std::memcpy(out.pixels.data(), pixels.data(), pixels.size());
@@ -488,23 +638,59 @@ class QuietGdal {
     }
 };
 
+// A dataset, and the in-memory file (/vsimem/) it was opened from when the bytes were in memory.
 struct GdalDataset {
     GDALDatasetH handle = nullptr;
+    std::string memoryFile;
     GdalDataset() = default;
     GdalDataset(const GdalDataset&) = delete;
     GdalDataset& operator=(const GdalDataset&) = delete;
     ~GdalDataset() {
         if (handle) GDALClose(handle);
+        if (!memoryFile.empty()) VSIUnlink(memoryFile.c_str());
     }
 };
 
-void gdalOpen(const std::string& path, GdalDataset& ds) {
+void gdalOpen(const ImageInput& in, GdalDataset& ds) {
+    const std::string& path = in.path;
     gdalInit();
+    std::string name = path;
+    if (in.inMemory) {
+        // A name of its own (loads may run at once), ending as the input's so that drivers
+        // which go by the extension recognise it.
+        static std::atomic<unsigned long> serial{0};
+        ds.memoryFile = "/vsimem/vig_terrain_" + std::to_string(serial++) + "/" +
+                        std::filesystem::path(path).filename().string();
+        // GDAL opens it read-only and never writes through the pointer.
+        VSILFILE* f = VSIFileFromMemBuffer(
+            ds.memoryFile.c_str(), const_cast<GByte*>(in.bytes.data()), in.bytes.size(), FALSE);
+        if (!f) fail(path, "cannot hand the data to GDAL" + QuietGdal::lastError());
+        VSIFCloseL(f);
+        name = ds.memoryFile;
+    }
     ds.handle =
-        GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+        GDALOpenEx(name.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
     if (!ds.handle) fail(path, "not a readable image or raster file" + QuietGdal::lastError());
-    if (GDALGetRasterCount(ds.handle) < 1) fail(path, "raster file has no bands");
-    checkSize(path, GDALGetRasterXSize(ds.handle), GDALGetRasterYSize(ds.handle));
+    const int bands = GDALGetRasterCount(ds.handle);
+    if (bands < 1) fail(path, "raster file has no bands");
+    const int w = GDALGetRasterXSize(ds.handle), h = GDALGetRasterYSize(ds.handle);
+    checkSize(path, w, h, in.maxSamples);
+    // Reading one band reads whole blocks, of every band when they are interleaved: a header
+    // claiming thousands of bands, or blocks far larger than the image, costs as much as a
+    // raster of that many samples. Up to four bands of the largest image are accepted.
+    int blockW = 0, blockH = 0;
+    GDALGetBlockSize(GDALGetRasterBand(ds.handle, 1), &blockW, &blockH);
+    const std::uint64_t budget = std::uint64_t{4} * in.maxSamples;
+    if (std::uint64_t(w) * std::uint64_t(h) * std::uint64_t(bands) > budget ||
+        std::uint64_t(std::max(blockW, 1)) * std::uint64_t(std::max(blockH, 1)) *
+                std::uint64_t(bands) >
+            budget) {
+        fail(path, "raster of " + std::to_string(w) + " x " + std::to_string(h) + " samples in " +
+                       std::to_string(bands) + " bands, stored in blocks of " +
+                       std::to_string(blockW) + " x " + std::to_string(blockH) +
+                       ": more samples than the " + std::to_string(budget) +
+                       " accepted (four bands of the largest image)");
+    }
 }
 
 Georef readGeoref(const std::string& path, GDALDatasetH ds) {
@@ -560,11 +746,12 @@ double verticalUnitMetres(std::string name) {
     return 0.0;
 }
 
-HeightRaster readGdalHeights(const std::string& path, double scale, double offset, bool userScale,
+HeightRaster readGdalHeights(const ImageInput& in, double scale, double offset, bool userScale,
                              const std::optional<double>& voidHeight) {
+    const std::string& path = in.path;
     QuietGdal quiet;
     GdalDataset ds;
-    gdalOpen(path, ds);
+    gdalOpen(in, ds);
     HeightRaster out;
     out.width = GDALGetRasterXSize(ds.handle);
     out.height = GDALGetRasterYSize(ds.handle);
@@ -695,10 +882,11 @@ std::vector<Rgb8> readWideColors(const std::string& path, GDALDatasetH ds, int w
     return px;
 }
 
-ColorRaster readGdalColors(const std::string& path) {
+ColorRaster readGdalColors(const ImageInput& in) {
+    const std::string& path = in.path;
     QuietGdal quiet;
     GdalDataset ds;
-    gdalOpen(path, ds);
+    gdalOpen(in, ds);
     ColorRaster out;
     out.width = GDALGetRasterXSize(ds.handle);
     out.height = GDALGetRasterYSize(ds.handle);
@@ -748,33 +936,21 @@ ColorRaster readGdalColors(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // Loading, georeference and colour resampling.
 
-HeightRaster readHeights(const std::string& path, double scale, double offset, bool userScale,
-                         const std::optional<double>& voidHeight) {
-    switch (sniff(path)) {
-        case FileKind::Png:
-            if (!hasGeoSidecar(path)) return readPngHeights(path);
-            break;
-        case FileKind::Jpeg:
-            if (!hasGeoSidecar(path)) return readJpegHeights(path);
-            break;
-        case FileKind::Gdal:
-            break;
-    }
-    return readGdalHeights(path, scale, offset, userScale, voidHeight);
+// PNG and JPEG go to libpng and libjpeg, unless a georeference beside the file makes GDAL read
+// them (only for files on disk: a world file sits beside a file).
+bool ownDecoder(const ImageInput& in) {
+    return in.kind != FileKind::Gdal && (in.inMemory || !hasGeoSidecar(in.path));
 }
 
-ColorRaster readColors(const std::string& path) {
-    switch (sniff(path)) {
-        case FileKind::Png:
-            if (!hasGeoSidecar(path)) return readPngColors(path);
-            break;
-        case FileKind::Jpeg:
-            if (!hasGeoSidecar(path)) return readJpegColors(path);
-            break;
-        case FileKind::Gdal:
-            break;
-    }
-    return readGdalColors(path);
+HeightRaster readHeights(const ImageInput& in, double scale, double offset, bool userScale,
+                         const std::optional<double>& voidHeight) {
+    if (ownDecoder(in)) return in.kind == FileKind::Png ? readPngHeights(in) : readJpegHeights(in);
+    return readGdalHeights(in, scale, offset, userScale, voidHeight);
+}
+
+ColorRaster readColors(const ImageInput& in) {
+    if (ownDecoder(in)) return in.kind == FileKind::Png ? readPngColors(in) : readJpegColors(in);
+    return readGdalColors(in);
 }
 
 void checkPositive(const std::string& path, const char* what, double v) {
@@ -1163,8 +1339,12 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     if (src.voidHeight && !std::isfinite(*src.voidHeight)) {
         fail(path, "void height must be finite (got " + formatNumber(*src.voidHeight) + ")");
     }
-    HeightRaster hr =
-        readHeights(path, userScale, userOffset, src.heightScale.has_value(), src.voidHeight);
+    HeightRaster hr;
+    {
+        ImageInput in;
+        openInput(path, src.heightBytes, src.maxSamples, in);
+        hr = readHeights(in, userScale, userOffset, src.heightScale.has_value(), src.voidHeight);
+    }
     if (hr.width < 2 || hr.height < 2) {
         fail(path, "height map needs at least 2 x 2 samples (has " + std::to_string(hr.width) +
                        " x " + std::to_string(hr.height) + ")");
@@ -1178,7 +1358,9 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     ColorRaster cr;
     const bool hasColor = !src.colorPath.empty();
     if (hasColor) {
-        cr = readColors(src.colorPath);
+        ImageInput in;
+        openInput(src.colorPath, src.colorBytes, src.maxSamples, in);
+        cr = readColors(in);
         normaliseOrientation(cr.pixels, cr.width, cr.height, cr.geo);
     }
     resolveUnits(hr.geo, hr.width, hr.height, hasColor ? &cr.geo : nullptr, cr.width, cr.height);

@@ -4,12 +4,16 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "ig/terrain.hpp"
 
 namespace ig {
+
+// Largest image accepted, samples (width x height): the renderer's map limit.
+inline constexpr std::size_t kMaxImageSamples = std::size_t{1} << 30;
 
 // What the user named on the command line. docs/formats.md describes the formats and conventions.
 struct TerrainSource {
@@ -21,6 +25,13 @@ struct TerrainSource {
     // Height (metres) given to the samples the file marks as having no data (its no-data value,
     // its mask, NaN); unset: they are interpolated from the samples around them (fillVoids).
     std::optional<double> voidHeight;
+    // Largest height or colour image accepted, samples; a header claiming more is refused before
+    // anything is allocated for it.
+    std::size_t maxSamples = kMaxImageSamples;
+    // A file's bytes when they are already in memory (non-empty): decoded as the file would be,
+    // its path only naming it in messages (no world file or other file beside it is looked for).
+    // Pipes and other files that cannot seek are read into memory by the loader itself.
+    std::span<const std::uint8_t> heightBytes, colorBytes;
 };
 
 // Fills the samples of a w x h grid (rows contiguous) whose `valid` entry is 0 from the valid

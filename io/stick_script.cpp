@@ -5,6 +5,7 @@
 #include <cstring>
 #include <vector>
 
+#include "base/text.hpp"
 #include "io/gpio_stick.hpp"
 #include "io/stick.hpp"
 #include "io/text_file.hpp"
@@ -97,10 +98,10 @@ std::unique_ptr<StickInput> makeScriptedStick(std::string_view text, const std::
         if (w.empty()) continue;
         double time = 0.0;
         if (!parseNumber(w[0], &time) || time < 0.0) {
-            return fail("time '" + std::string(w[0]) + "' is not a number of seconds >= 0");
+            return fail("time " + base::quoted(w[0]) + " is not a number of seconds >= 0");
         }
         if (time < lastTime) {
-            return fail("time " + std::string(w[0]) + " is earlier than the event before it");
+            return fail("time " + base::quoted(w[0]) + " is earlier than the event before it");
         }
         lastTime = time;
         if (w.size() < 2) return fail("missing event kind after the time (axis or button)");
@@ -110,21 +111,21 @@ std::unique_ptr<StickInput> makeScriptedStick(std::string_view text, const std::
             if (w.size() < 4) return fail("expected 'TIME axis NAME VALUE [ramp SECONDS]'");
             const auto found = std::find(kNames.begin(), kNames.end(), w[2]);
             if (found == kNames.end()) {
-                return fail("unknown axis '" + std::string(w[2]) +
-                            "' (pitch, roll, yaw or throttle)");
+                return fail("unknown axis " + base::quoted(w[2]) +
+                            " (pitch, roll, yaw or throttle)");
             }
             double value = 0.0;
             if (!parseNumber(w[3], &value) || value < -1.0 || value > 1.0) {
-                return fail("axis value '" + std::string(w[3]) + "' is not a number in [-1, 1]");
+                return fail("axis value " + base::quoted(w[3]) + " is not a number in [-1, 1]");
             }
             double ramp = 0.0;
             if (w.size() > 4) {
                 if (w[4] != "ramp" || w.size() != 6) {
-                    return fail("unexpected '" + std::string(w[4]) +
-                                "' (only 'ramp SECONDS' may follow the value)");
+                    return fail("unexpected " + base::quoted(w[4]) +
+                                " (only 'ramp SECONDS' may follow the value)");
                 }
                 if (!parseNumber(w[5], &ramp) || ramp < 0.0) {
-                    return fail("ramp '" + std::string(w[5]) + "' is not a number of seconds >= 0");
+                    return fail("ramp " + base::quoted(w[5]) + " is not a number of seconds >= 0");
                 }
             }
             std::vector<AxisEvent>& events = stick->axes[found - kNames.begin()];
@@ -133,13 +134,13 @@ std::unique_ptr<StickInput> makeScriptedStick(std::string_view text, const std::
         } else if (w[1] == "button") {
             if (w.size() != 4) return fail("expected 'TIME button trigger down|up'");
             if (w[2] != "trigger")
-                return fail("unknown button '" + std::string(w[2]) + "' (trigger)");
+                return fail("unknown button " + base::quoted(w[2]) + " (trigger)");
             if (w[3] != "down" && w[3] != "up") {
-                return fail("button state '" + std::string(w[3]) + "' is not down or up");
+                return fail("button state " + base::quoted(w[3]) + " is not down or up");
             }
             stick->trigger.push_back({time, w[3] == "down"});
         } else {
-            return fail("unknown event kind '" + std::string(w[1]) + "' (axis or button)");
+            return fail("unknown event kind " + base::quoted(w[1]) + " (axis or button)");
         }
     }
     return stick;
@@ -165,7 +166,8 @@ std::unique_ptr<StickInput> makeStick(const std::string& spec, std::string* erro
         return stick;
     }
     if (error) {
-        *error = "stick '" + spec + "': expected script:FILE or gpiod:CHIP:OFFSETS[:active-low]";
+        *error = "stick " + base::quoted(spec) +
+                 ": expected script:FILE or gpiod:CHIP:OFFSETS[:active-low]";
     }
     return nullptr;
 }

@@ -1,5 +1,6 @@
 #include "sim/trajectory.hpp"
 
+#include "base/text.hpp"
 #include "ig/error.hpp"
 #include "io/text_file.hpp"
 
@@ -109,7 +110,7 @@ Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) 
             for (int k = 0; k < 7; ++k) {
                 if (!seen[k]) {
                     throw ig::InputError(where + "no column '" + std::string(kNames[k]) + "'; " +
-                                         expected + ", found '" + std::string(line) + "'");
+                                         expected + ", found " + base::quoted(line));
                 }
             }
             columns = fields.size();
@@ -129,15 +130,15 @@ Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) 
             const char* end = field.data() + field.size();
             const auto [ptr, ec] = std::from_chars(field.data(), end, v[k]);
             if (field.empty() || ec != std::errc() || ptr != end) {
-                throw ig::InputError(where + column + " '" + std::string(field) +
-                                     "' is not a number");
+                throw ig::InputError(where + column + " " + base::quoted(field) +
+                                     " is not a number");
             }
             if (!std::isfinite(v[k])) throw ig::InputError(where + column + " is not finite");
         }
         if (!samples.empty() && !(v[0] > samples.back().t)) {
-            throw ig::InputError(where + "time " + std::to_string(v[0]) +
+            throw ig::InputError(where + "time " + base::number(v[0], 10) +
                                  " does not increase (previous " +
-                                 std::to_string(samples.back().t) + ")");
+                                 base::number(samples.back().t, 10) + ")");
         }
         TrajectorySample s;
         s.t = v[0];

@@ -70,24 +70,14 @@ std::vector<ig::Pose> readPoses(const std::string& path, const ig::TerrainMap& m
     std::string text, why;
     if (io::readTextFile(path, text, &why) != 0)
         throw ig::InputError("--poses " + path + ": " + why);
-    std::istringstream in(text);
-    std::vector<ig::Pose> poses;
-    std::string line;
-    int lineNo = 0;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        const auto hash = line.find('#');
-        if (hash != std::string::npos) line.resize(hash);
-        line.erase(std::remove_if(line.begin(), line.end(),
-                                  [](unsigned char c) { return std::isspace(c); }),
-                   line.end());
-        if (line.empty()) continue;
-        const std::string what = "--poses " + path + " line " + std::to_string(lineNo);
-        const ig::Pose p = ig::parsePose(line, map, what);
-        if (p.roll != 0.0) throw ig::InputError(what + ": stereo renders roll = 0");
-        poses.push_back(p);
+    std::vector<int> lines;
+    std::vector<ig::Pose> poses = ig::parsePoseList(text, map, "--poses " + path, &lines);
+    for (std::size_t k = 0; k < poses.size(); ++k) {
+        if (poses[k].roll != 0.0) {
+            throw ig::InputError("--poses " + path + " line " + std::to_string(lines[k]) +
+                                 ": stereo renders roll = 0");
+        }
     }
-    if (poses.empty()) throw ig::InputError("--poses " + path + ": no poses in the file");
     return poses;
 }
 

@@ -12,7 +12,10 @@
 #include <gdal/ogr_srs_api.h>
 #endif
 
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <csetjmp>
 #include <cstdint>
@@ -23,6 +26,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ig/error.hpp"
@@ -1098,6 +1102,178 @@ TEST(TerrainIo, RejectsTooSmallHeightMap) {
     src.heightPath = tmpPath("one_row.png");
     writePng16Grey(src.heightPath, 5, 1, {1, 2, 3, 4, 5});
     expectInputError(src, {"one_row.png", "2 x 2"});
+}
+
+// --- Sizes the header claims, in-memory and streamed input ---------------------------------------
+
+// 74 bytes: a PNG header claiming 30000 x 30000 16-bit samples (1.8 GB), a few bytes of IDAT.
+const std::vector<std::uint8_t> kHugePng = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44,
+    0x52, 0x00, 0x00, 0x75, 0x30, 0x00, 0x00, 0x75, 0x30, 0x10, 0x00, 0x00, 0x00, 0x00, 0x13,
+    0xdc, 0x7b, 0x25, 0x00, 0x00, 0x00, 0x11, 0x49, 0x44, 0x41, 0x54, 0x78, 0xda, 0x63, 0x60,
+    0x80, 0x00, 0x00, 0x00, 0x08, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xf1, 0x5c,
+    0xec, 0x8a, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+
+std::vector<std::uint8_t> readBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void writeBytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+}
+
+// Refused from the header, before any decoding or allocation for the pixels: well under a
+// second (reading it used to allocate 1.8 GB and take seconds).
+TEST(TerrainIo, PngClaimingMoreThanItsLengthCanHoldIsRefusedAtOnce) {
+    ASSERT_EQ(kHugePng.size(), 74u);
+    TerrainSource src;
+    src.heightPath = tmpPath("huge_claim.png");
+    writeBytes(src.heightPath, kHugePng);
+    const auto start = std::chrono::steady_clock::now();
+    expectInputError(src, {"huge_claim.png", "30000 x 30000", "74 bytes", "1032", "corrupt"});
+    src.heightPath = "in_memory.png";
+    src.heightBytes = kHugePng;
+    expectInputError(src, {"in_memory.png", "30000 x 30000", "74 bytes"});
+    // As a colour image too.
+    src.heightPath = tmpPath("ok_for_huge.png");
+    src.heightBytes = {};
+    writePng16Grey(src.heightPath, 2, 2, {1, 2, 3, 4});
+    src.colorPath = tmpPath("huge_claim.png");
+    expectInputError(src, {"huge_claim.png", "30000 x 30000"});
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.5);
+}
+
+TEST(TerrainIo, JpegClaimingMoreThanItsLengthCanHoldIsRefusedAtOnce) {
+    const std::string path = tmpPath("huge_claim.jpg");
+    writeJpegRgb(path, 8, 8, std::vector<Rgb8>(64, Rgb8{90, 90, 90}), 1);
+    std::vector<std::uint8_t> bytes = readBytes(path);
+    // The frame header (SOF0): FF C0, length, precision, then height and width, big-endian.
+    bool patched = false;
+    for (std::size_t k = 0; k + 9 < bytes.size() && !patched; ++k) {
+        if (bytes[k] == 0xFF && bytes[k + 1] == 0xC0) {
+            for (std::size_t at : {k + 5, k + 7}) {
+                bytes[at] = 30000 >> 8;
+                bytes[at + 1] = 30000 & 0xFF;
+            }
+            patched = true;
+        }
+    }
+    ASSERT_TRUE(patched);
+    writeBytes(path, bytes);
+    TerrainSource src;
+    src.heightPath = path;
+    const auto start = std::chrono::steady_clock::now();
+    expectInputError(src, {"huge_claim.jpg", "30000 x 30000", "corrupt"});
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.5);
+}
+
+TEST(TerrainIo, SampleBudgetRefusesLargerImages) {
+    TerrainSource src;
+    src.heightPath = tmpPath("budget.png");
+    writePng16Grey(src.heightPath, 4, 4, std::vector<std::uint16_t>(16, 7));
+    src.maxSamples = 15;
+    expectInputError(src, {"budget.png", "4 x 4", "too large"});
+    src.maxSamples = 16;
+    EXPECT_EQ(loadTerrain(src).width(), 4);
+
+    // GDAL reads whole blocks of every interleaved band: four bands of the largest image at most.
+    const std::vector<std::uint8_t> bands(2 * 2 * 5, 9);
+    src.heightPath = tmpPath("five_bands.tif");
+    writeGeoTiff(src.heightPath, 2, 2, 5, GDT_Byte, bands.data(), nullptr);
+    src.maxSamples = 4;
+    expectInputError(src, {"five_bands.tif", "5 bands", "more samples"});
+    src.heightPath = tmpPath("two_bands.tif");
+    writeGeoTiff(src.heightPath, 2, 2, 2, GDT_Byte, bands.data(), nullptr);
+    EXPECT_EQ(loadTerrain(src).width(), 2);
+}
+
+TEST(TerrainIo, BytesInMemoryLoadAsTheFileDoes) {
+    const int w = 5, h = 4;
+    std::vector<std::uint16_t> v(w * h);
+    for (int k = 0; k < w * h; ++k)
+        v[k] = static_cast<std::uint16_t>(100 * k);
+    const std::vector<float> z(w * h, 12.5f);
+    const double gt[6] = {-120.0, 0.001, 0.0, 35.0, 0.0, -0.001};
+    writePng16Grey(tmpPath("mem.png"), w, h, v);
+    writeGeoTiff(tmpPath("mem.tif"), w, h, 1, GDT_Float32, z.data(), gt);
+    for (const char* name : {"mem.png", "mem.tif"}) {
+        TerrainSource fromFile;
+        fromFile.heightPath = tmpPath(name);
+        const std::vector<std::uint8_t> bytes = readBytes(fromFile.heightPath);
+        TerrainSource fromMemory;
+        fromMemory.heightPath = name;
+        fromMemory.heightBytes = bytes;
+        const TerrainMap a = loadTerrain(fromFile), b = loadTerrain(fromMemory);
+        ASSERT_EQ(a.width(), b.width()) << name;
+        ASSERT_EQ(a.height(), b.height()) << name;
+        EXPECT_EQ(a.spacingX(), b.spacingX()) << name;
+        EXPECT_TRUE(
+            std::equal(a.rawHeights().begin(), a.rawHeights().end(), b.rawHeights().begin()))
+            << name;
+    }
+}
+
+// A height map (and a colour image) read from a pipe, as from /dev/stdin: held in memory.
+TEST(TerrainIo, HeightMapAndColourFromPipes) {
+    const int w = 6, h = 5;
+    std::vector<std::uint16_t> v(w * h);
+    for (int k = 0; k < w * h; ++k)
+        v[k] = static_cast<std::uint16_t>(1000 + 37 * k);
+    const std::string pngPath = tmpPath("pipe_source.png");
+    writePng16Grey(pngPath, w, h, v);
+    const std::string jpgPath = tmpPath("pipe_source.jpg");
+    writeJpegRgb(jpgPath, w, h, std::vector<Rgb8>(w * h, Rgb8{200, 100, 50}));
+    const std::string tifPath = tmpPath("pipe_source.tif");
+    const std::vector<float> z(w * h, 3.0f);
+    writeGeoTiff(tifPath, w, h, 1, GDT_Float32, z.data(), nullptr);
+
+    // Writes `source` into the FIFO at `fifo` from a thread (a FIFO opens when both ends do).
+    auto feed = [](const std::string& fifo, const std::string& source) {
+        return std::thread([fifo, bytes = readBytes(source)] {
+            std::FILE* f = std::fopen(fifo.c_str(), "wb");
+            if (!f) return;
+            std::fwrite(bytes.data(), 1, bytes.size(), f);
+            std::fclose(f);
+        });
+    };
+    auto makeFifo = [](const std::string& name) {
+        const std::string path = tmpPath(name);
+        std::filesystem::remove(path);
+        EXPECT_EQ(::mkfifo(path.c_str(), 0600), 0) << path;
+        return path;
+    };
+    const std::string heightFifo = makeFifo("heights.fifo"), colorFifo = makeFifo("colour.fifo");
+    TerrainSource src;
+    src.heightPath = heightFifo;
+    src.colorPath = colorFifo;
+    // loadTerrain opens the heights first, then the colours.
+    std::thread a = feed(heightFifo, pngPath), b = feed(colorFifo, jpgPath);
+    TerrainMap map;
+    EXPECT_NO_THROW(map = loadTerrain(src));
+    a.join();
+    b.join();
+    ASSERT_EQ(map.width(), w);
+    ASSERT_EQ(map.height(), h);
+    EXPECT_EQ(map.raw(0, h - 1), v[0]);  // file row 0 is the north edge
+    EXPECT_EQ(map.raw(w - 1, 0), v[w * h - 1]);
+    EXPECT_NEAR(map.colorAt(2, 2).r, 200, 3);
+
+    src.colorPath.clear();
+    std::thread c = feed(heightFifo, tifPath);
+    EXPECT_NO_THROW(map = loadTerrain(src));
+    c.join();
+    EXPECT_EQ(map.width(), w);
+    EXPECT_DOUBLE_EQ(map.heightAt(1, 1), 3.0);
+
+    // A corrupt stream names the FIFO.
+    const std::string junk = tmpPath("junk.bin");
+    writeText(junk, "not an image, through a pipe\n");
+    std::thread d = feed(heightFifo, junk);
+    expectInputError(src, {"heights.fifo"});
+    d.join();
 }
 
 TEST(TerrainIo, WgsDegreeLengths) {

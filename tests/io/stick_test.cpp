@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <filesystem>
 #include <fstream>
@@ -95,6 +96,29 @@ TEST(ScriptedStick, BadLinesNameTheLine) {
         EXPECT_EQ(makeScriptedStick(text, "flight.stick", &error), nullptr) << line;
         EXPECT_EQ(error.rfind("flight.stick:3: ", 0), 0u) << line << " -> " << error;
         EXPECT_NE(error.find(expect), std::string::npos) << line << " -> " << error;
+    }
+}
+
+// A 10 MB bad line (or raw binary) is quoted, escaped and cut, not echoed whole.
+TEST(ScriptedStick, LongOrBinaryBadInputIsQuotedBriefly) {
+    std::string binary(4096, '\0');
+    for (std::size_t k = 0; k < binary.size(); ++k)
+        binary[k] = static_cast<char>(k * 131 + 7);
+    const std::string cases[] = {
+        std::string(10 << 20, '9') + "x axis pitch 0\n",
+        "0 axis pitch " + std::string(10 << 20, '1') + "\n",
+        "0 " + std::string(10 << 20, 'k') + "\n",
+        binary,
+        "0 axis " + binary + "\n",
+    };
+    for (const std::string& text : cases) {
+        std::string error;
+        EXPECT_EQ(makeScriptedStick(text, "big.stick", &error), nullptr);
+        EXPECT_LE(error.size(), 320u) << error.substr(0, 400);
+        EXPECT_EQ(error.rfind("big.stick:1: ", 0), 0u) << error.substr(0, 400);
+        EXPECT_TRUE(std::all_of(error.begin(), error.end(), [](unsigned char c) {
+            return c >= 0x20 && c < 0x7f;
+        })) << error.substr(0, 400);
     }
 }
 

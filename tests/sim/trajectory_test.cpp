@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -118,6 +119,45 @@ TEST(Trajectory, BadFilesNameTheLine) {
         }
     }
     EXPECT_THROW(Trajectory::loadCsv("no/such/file.csv"), ig::InputError);
+}
+
+// A 10 MB bad line (or raw binary) is quoted, escaped and cut, not echoed whole.
+TEST(Trajectory, LongOrBinaryBadInputIsQuotedBriefly) {
+    const std::string h = "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n";
+    std::string binary(4096, '\0');
+    for (std::size_t k = 0; k < binary.size(); ++k)
+        binary[k] = static_cast<char>(k * 131 + 7);
+    const std::string cases[] = {
+        std::string(10 << 20, 'x') + "\n",                        // header
+        h + "0,0," + std::string(10 << 20, '7') + "z,0,0,0,0\n",  // a field
+        binary,                                                   // no header, binary
+        h + "1," + binary + ",0,0,0,0,0\n",
+    };
+    for (const std::string& text : cases) {
+        try {
+            Trajectory::parseCsv(text, "big.csv");
+            ADD_FAILURE() << "accepted";
+        } catch (const ig::InputError& e) {
+            const std::string msg = e.what();
+            // Binary bytes are escaped (\xNN): at most 200 of them shown, so about 800 characters.
+            EXPECT_LE(msg.size(), 1024u) << msg.substr(0, 400);
+            EXPECT_EQ(msg.rfind("big.csv:", 0), 0u) << msg.substr(0, 400);
+            EXPECT_TRUE(std::all_of(msg.begin(), msg.end(), [](unsigned char c) {
+                return c >= 0x20 && c < 0x7f;
+            })) << msg.substr(0, 400);
+        }
+    }
+    // The quoted part of a 10 MB line: at most about 200 bytes of it, and its length.
+    try {
+        Trajectory::parseCsv(cases[0], "big.csv");
+    } catch (const ig::InputError& e) {
+        const std::string msg = e.what();
+        const std::size_t quote = msg.find("found '");
+        ASSERT_NE(quote, std::string::npos) << msg;
+        EXPECT_LE(msg.size() - quote, 260u) << msg;
+        EXPECT_LE(msg.size(), 450u) << msg;
+        EXPECT_NE(msg.find("(10485760 bytes)"), std::string::npos) << msg;
+    }
 }
 
 TEST(Trajectory, ShippedTrajectoriesLoad) {
