@@ -159,7 +159,8 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& what) 
 Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what) {
     const auto parts = split(text, ',');
     if (parts.size() != 6) {
-        throw InputError(what + ": expected x,y,z,yaw,pitch,roll (6 numbers), got '" + text + "'");
+        throw InputError(what + ": expected x,y,z,yaw,pitch,roll (6 numbers), got " +
+                         base::quoted(text));
     }
     Pose p;
     p.position.x = parseNumber(parts[0], what + " x");

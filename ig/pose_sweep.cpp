@@ -2,10 +2,10 @@
 
 #include <cctype>
 #include <cmath>
-#include <cstdlib>
 #include <string>
 
 #include "base/text.hpp"
+#include "ig/cli.hpp"
 #include "ig/error.hpp"
 
 namespace ig {
@@ -31,21 +31,6 @@ std::vector<Pose> sweepPoses(const TerrainMap& map, int count) {
     return poses;
 }
 
-namespace {
-
-// One number of a pose line, as strtod reads it (the whole field, finite).
-double poseNumber(std::string_view field, const std::string& what) {
-    const std::string text(field);
-    char* end = nullptr;
-    const double v = text.empty() ? 0.0 : std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) {
-        throw InputError(what + ": " + base::quoted(field) + " is not a finite number");
-    }
-    return v;
-}
-
-}  // namespace
-
 std::vector<Pose> parsePoseList(std::string_view text, const TerrainMap& map,
                                 const std::string& name, std::vector<int>* lines) {
     std::vector<Pose> poses;
@@ -63,33 +48,9 @@ std::vector<Pose> parsePoseList(std::string_view text, const TerrainMap& map,
         }
         if (line.empty()) continue;
         const std::string what = name + " line " + std::to_string(lineNo);
-        std::string_view fields[6];
-        std::string_view rest = line;
-        int count = 0;
-        for (;;) {
-            const std::size_t comma = rest.find(',');
-            if (count < 6) fields[count] = rest.substr(0, comma);
-            ++count;
-            if (comma == std::string_view::npos) break;
-            rest.remove_prefix(comma + 1);
-        }
-        if (count != 6) {
-            throw InputError(what + ": expected x,y,z,yaw,pitch,roll (6 numbers), got " +
-                             base::quoted(line));
-        }
-        Pose p;
-        p.position.x = poseNumber(fields[0], what + " x");
-        p.position.y = poseNumber(fields[1], what + " y");
-        if (!fields[2].empty() && fields[2][0] == '+') {
-            p.position.z = map.surfaceHeight(p.position.x, p.position.y) +
-                           poseNumber(fields[2].substr(1), what + " z");
-        } else {
-            p.position.z = poseNumber(fields[2], what + " z");
-        }
-        p.yaw = degToRad(poseNumber(fields[3], what + " yaw"));
-        p.pitch = degToRad(poseNumber(fields[4], what + " pitch"));
-        p.roll = degToRad(poseNumber(fields[5], what + " roll"));
-        if (!p.isFinite()) throw InputError(what + ": pose is not finite");
+        // The pose parser the flags use: numbers finite, "+H" above the ground, bad input
+        // quoted briefly.
+        const Pose p = parsePose(line, map, what);
         poses.push_back(p);
         if (lines) lines->push_back(lineNo);
     }
