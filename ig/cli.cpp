@@ -78,7 +78,7 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
         }
         const auto parts = split(o.synthetic, ':');
         if (parts.empty() || parts.size() > 2) {
-            throw InputError("--synthetic: expected SIZE[:SEED], got '" + o.synthetic + "'");
+            throw InputError("--synthetic: expected SIZE[:SEED], got " + base::quoted(o.synthetic));
         }
         const double size = parseNumber(parts[0], "--synthetic size");
         const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
@@ -86,8 +86,8 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
             size > 16384 || seed > 1e15) {
             throw InputError(
                 "--synthetic: SIZE must be a whole number 2..16384 and SEED a whole "
-                "number 0..1e15, got '" +
-                o.synthetic + "'");
+                "number 0..1e15, got " +
+                base::quoted(o.synthetic));
         }
         const double spacing = o.spacing.value_or(10.0);
         if (!(spacing > 0.0) || !std::isfinite(spacing)) {
@@ -147,11 +147,11 @@ std::string describeTerrain(const TerrainMap& map) {
 
 std::pair<int, int> parseSize(const std::string& text, const std::string& what) {
     const auto parts = split(text, 'x');
-    if (parts.size() != 2) throw InputError(what + ": expected WxH, got '" + text + "'");
+    if (parts.size() != 2) throw InputError(what + ": expected WxH, got " + base::quoted(text));
     const double w = parseNumber(parts[0], what), h = parseNumber(parts[1], what);
     if (w != std::floor(w) || h != std::floor(h) || w < 1 || h < 1 || w > 16384 || h > 16384) {
-        throw InputError(what + ": width and height must be whole numbers from 1 to 16384, got '" +
-                         text + "'");
+        throw InputError(what + ": width and height must be whole numbers from 1 to 16384, got " +
+                         base::quoted(text));
     }
     return {static_cast<int>(w), static_cast<int>(h)};
 }

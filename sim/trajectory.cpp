@@ -135,6 +135,12 @@ Trajectory Trajectory::parseCsv(std::string_view text, const std::string& name) 
             }
             if (!std::isfinite(v[k])) throw ig::InputError(where + column + " is not finite");
         }
+        if (!(std::abs(v[0]) <= kMaxTrajectoryTime)) {
+            throw ig::InputError(where + "time " + base::number(v[0], 10) +
+                                 " s is out of range: trajectory times lie within +-" +
+                                 base::number(kMaxTrajectoryTime) +
+                                 " s (beyond that a double cannot resolve a field period)");
+        }
         if (!samples.empty() && !(v[0] > samples.back().t)) {
             throw ig::InputError(where + "time " + base::number(v[0], 10) +
                                  " does not increase (previous " +
@@ -158,6 +164,11 @@ Trajectory Trajectory::fromSamples(std::vector<TrajectorySample> samples, const 
     for (std::size_t i = 0; i < samples.size(); ++i) {
         if (!samples[i].pose.isFinite() || !std::isfinite(samples[i].t)) {
             throw ig::InputError(name + ": sample " + std::to_string(i) + " is not finite");
+        }
+        if (!(std::abs(samples[i].t) <= kMaxTrajectoryTime)) {
+            throw ig::InputError(name + ": sample " + std::to_string(i) + ": time " +
+                                 base::number(samples[i].t, 10) + " s is out of range (+-" +
+                                 base::number(kMaxTrajectoryTime) + " s)");
         }
         if (i > 0) {
             if (!(samples[i].t > samples[i - 1].t)) {

@@ -15,6 +15,10 @@ struct TrajectorySample {
     ig::Pose pose;  // angles unwrapped along the trajectory (shortest arc between rows)
 };
 
+// Trajectory times lie within +-kMaxTrajectoryTime seconds (about 32 years): beyond it a double
+// no longer resolves a field period to better than a microsecond.
+inline constexpr double kMaxTrajectoryTime = 1e9;
+
 // CSV whose header names the columns t, x, y, z, yaw_deg, pitch_deg, roll_deg in any order (names
 // compared without case or spaces; other columns are ignored, e.g. speed or a phase label);
 // times strictly increasing; metres and degrees (yaw clockwise from north, pitch up, roll right

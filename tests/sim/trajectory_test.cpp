@@ -106,6 +106,8 @@ TEST(Trajectory, BadFilesNameTheLine) {
         {h + "0,0,0,0,0,0,0\n1,nan,0,0,0,0,0\n", "bad.csv:3: column 2"},
         {h + "0,0,0,0,0,0,0\n1,0,0,inf,0,0,0\n", "bad.csv:3: column 4"},
         {h + "0,0,,0,0,0,0\n", "bad.csv:2: column 3"},
+        {h + "1e16,0,0,0,0,0,0\n", "bad.csv:2: time 1e+16 s is out of range"},
+        {h + "-2e9,0,0,0,0,0,0\n", "bad.csv:2: time -2000000000 s is out of range"},
         {h, "no trajectory rows"},
         {"", "no header"},
     };
@@ -119,6 +121,11 @@ TEST(Trajectory, BadFilesNameTheLine) {
         }
     }
     EXPECT_THROW(Trajectory::loadCsv("no/such/file.csv"), ig::InputError);
+    // The limit itself is accepted.
+    EXPECT_NO_THROW(Trajectory::parseCsv(h + "1e9,0,0,0,0,0,0\n", "edge.csv"));
+    std::vector<sim::TrajectorySample> far(1);
+    far[0].t = 3e9;
+    EXPECT_THROW(Trajectory::fromSamples(far, "far"), ig::InputError);
 }
 
 // A 10 MB bad line (or raw binary) is quoted, escaped and cut, not echoed whole.
