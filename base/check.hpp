@@ -40,12 +40,11 @@ struct CheckVoidify {
 
 }  // namespace base
 
-#define CHECK(condition)                                                                        \
-    (condition) ? (void)0                                                                       \
+#define CHECK(condition)  \
+    (condition) ? (void)0 \
                 : ::base::CheckVoidify() & ::base::CheckFailure(__FILE__, __LINE__, #condition)
 
-#define BASE_CHECK_OP(a, op, b)                                                                 \
-    CHECK((a)op(b)) << "(" << (a) << " " #op " " << (b) << ") "
+#define BASE_CHECK_OP(a, op, b) CHECK((a)op(b)) << "(" << (a) << " " #op " " << (b) << ") "
 
 #define CHECK_EQ(a, b) BASE_CHECK_OP(a, ==, b)
 #define CHECK_NE(a, b) BASE_CHECK_OP(a, !=, b)
@@ -56,13 +55,27 @@ struct CheckVoidify {
 
 #ifdef NDEBUG
 // Compiled but never evaluated, so the condition stays type-checked and variables it names used.
-#define DCHECK(condition) while (false) CHECK(condition)
-#define DCHECK_EQ(a, b) while (false) CHECK_EQ(a, b)
-#define DCHECK_NE(a, b) while (false) CHECK_NE(a, b)
-#define DCHECK_LT(a, b) while (false) CHECK_LT(a, b)
-#define DCHECK_LE(a, b) while (false) CHECK_LE(a, b)
-#define DCHECK_GT(a, b) while (false) CHECK_GT(a, b)
-#define DCHECK_GE(a, b) while (false) CHECK_GE(a, b)
+#define DCHECK(condition) \
+    while (false)         \
+    CHECK(condition)
+#define DCHECK_EQ(a, b) \
+    while (false)       \
+    CHECK_EQ(a, b)
+#define DCHECK_NE(a, b) \
+    while (false)       \
+    CHECK_NE(a, b)
+#define DCHECK_LT(a, b) \
+    while (false)       \
+    CHECK_LT(a, b)
+#define DCHECK_LE(a, b) \
+    while (false)       \
+    CHECK_LE(a, b)
+#define DCHECK_GT(a, b) \
+    while (false)       \
+    CHECK_GT(a, b)
+#define DCHECK_GE(a, b) \
+    while (false)       \
+    CHECK_GE(a, b)
 #else
 #define DCHECK(condition) CHECK(condition)
 #define DCHECK_EQ(a, b) CHECK_EQ(a, b)

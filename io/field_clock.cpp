@@ -46,16 +46,6 @@ std::unique_ptr<FieldClock> makeSimulatedClock() {
     return std::make_unique<SimulatedClock>();
 }
 
-double fieldDeadline(double t0, std::uint64_t index) {
-    // index * 1001 is exact in 64 bits for any run shorter than ~10^10 years; one rounding.
-    return t0 + static_cast<double>(index * 1001) / 60000.0;
-}
-
-std::int64_t fieldDeadlineNs(std::uint64_t index) {
-    // 1001/60000 s = 50050000/3 ns.
-    return static_cast<std::int64_t>(index * 50050000ull / 3ull);
-}
-
 FieldWake FieldPacer::wait(std::uint64_t index) {
     FieldWake w;
     w.deadline = deadline(index);

@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <memory>
 
+#include "base/video_timing.hpp"
+
 namespace io {
 
 // Seconds since the clock was created. sleepUntil() takes an absolute time, so a loop that
@@ -35,12 +37,6 @@ class SimulatedClock final : public FieldClock {
     double now_ = 0.0;
 };
 
-// Start of field `index` of a stream whose field 0 starts at `t0`: t0 + index * 1001/60000,
-// computed from the index (no running sum), so deadlines never drift.
-double fieldDeadline(double t0, std::uint64_t index);
-// The same in integer nanoseconds from 0, exact to the nanosecond (floor).
-std::int64_t fieldDeadlineNs(std::uint64_t index);
-
 // When a field actually left, against its deadline.
 struct FieldWake {
     double deadline = 0.0;
@@ -49,12 +45,13 @@ struct FieldWake {
     bool late = false;      // the deadline had passed before the wait began
 };
 
-// Paces a field loop: wait(n) sleeps until field n's deadline.
+// Paces a field loop: wait(n) sleeps until field n's deadline, base::fieldTime(t0, n), the
+// field's instant on this clock (computed from the index, so deadlines never drift).
 class FieldPacer {
   public:
     FieldPacer(FieldClock& clock, double t0) : clock_(clock), t0_(t0) {}
     FieldWake wait(std::uint64_t index);
-    double deadline(std::uint64_t index) const { return fieldDeadline(t0_, index); }
+    double deadline(std::uint64_t index) const { return base::fieldTime(t0_, index); }
     double start() const { return t0_; }
 
   private:

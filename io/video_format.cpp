@@ -31,49 +31,6 @@ void yccToRgb(int y, int cb, int cr, std::uint8_t* out) {
 
 }  // namespace
 
-int bytesPerPixel(PixelFormat format) {
-    switch (format) {
-        case PixelFormat::Uyvy:
-            return 2;
-        case PixelFormat::Y8:
-            return 1;
-        case PixelFormat::Rgb8:
-            return 3;
-    }
-    return 0;
-}
-
-const char* pixelFormatName(PixelFormat format) {
-    switch (format) {
-        case PixelFormat::Uyvy:
-            return "uyvy";
-        case PixelFormat::Y8:
-            return "y8";
-        case PixelFormat::Rgb8:
-            return "rgb8";
-    }
-    return "?";
-}
-
-std::optional<PixelFormat> parsePixelFormat(std::string_view name) {
-    if (name == "uyvy") return PixelFormat::Uyvy;
-    if (name == "y8" || name == "grey" || name == "gray") return PixelFormat::Y8;
-    if (name == "rgb8" || name == "rgb") return PixelFormat::Rgb8;
-    return std::nullopt;
-}
-
-int fieldLines(int frameHeight, FieldParity parity) {
-    return parity == FieldParity::Top ? (frameHeight + 1) / 2 : frameHeight / 2;
-}
-
-int fieldFirstLine(FieldParity parity) {
-    return parity == FieldParity::Top ? 0 : 1;
-}
-
-FieldParity fieldParityOf(std::uint64_t fieldIndex) {
-    return fieldIndex % 2 == 0 ? FieldParity::Bottom : FieldParity::Top;
-}
-
 std::string checkVideoFormat(const VideoFormat& format) {
     if (format.width <= 0 || format.height < 2 || format.width > kMaxDimension ||
         format.height > kMaxDimension) {

@@ -7,10 +7,20 @@
 #include <string>
 #include <string_view>
 
+#include "base/video_timing.hpp"
+
 namespace io {
 
-enum class FieldParity { Top, Bottom };     // Top = frame lines 0,2,4,...; Bottom = lines 1,3,5,...
-enum class PixelFormat { Uyvy, Y8, Rgb8 };  // Uyvy = BT.601 Y'CbCr 4:2:2, 2 bytes per pixel
+// Parity, pixel format and field timing are the ones every module uses (base/video_timing).
+using base::bytesPerPixel;
+using base::fieldFirstLine;
+using base::fieldLines;
+using base::FieldParity;
+using base::fieldParity;
+using base::kFieldPeriod;
+using base::parsePixelFormat;
+using base::PixelFormat;
+using base::pixelFormatName;
 
 // One output video format; `height` counts the lines of the full (woven) frame.
 struct VideoFormat {
@@ -29,16 +39,6 @@ struct FieldBuffer {
     int lines = 0;
 };
 
-inline constexpr double kNtscFieldPeriod = 1001.0 / 60000.0;  // seconds per NTSC field
-
-int bytesPerPixel(PixelFormat format);
-const char* pixelFormatName(PixelFormat format);  // "uyvy", "y8", "rgb8"
-std::optional<PixelFormat> parsePixelFormat(std::string_view name);
-// Lines of a field of `parity` in a frame of `frameHeight` lines, and the frame line it starts at.
-int fieldLines(int frameHeight, FieldParity parity);
-int fieldFirstLine(FieldParity parity);
-// NTSC order: field 0 is Bottom, then alternating.
-FieldParity fieldParityOf(std::uint64_t fieldIndex);
 // Empty when `format` is usable; otherwise what is wrong with it.
 std::string checkVideoFormat(const VideoFormat& format);
 // Fills `pixels` pixels of `format` with black (Y' 16, Cb Cr 128 for Y'CbCr; 0 for Y8 and RGB).

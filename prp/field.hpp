@@ -8,39 +8,30 @@
 #include <string_view>
 #include <vector>
 
+#include "base/video_timing.hpp"
+
 namespace prp {
 
-// Top = frame lines 0, 2, 4, ...; Bottom = frame lines 1, 3, 5, ...
-enum class Parity { Top, Bottom };
-// Uyvy = BT.601 studio-range Y'CbCr 4:2:2, 2 bytes per pixel (Cb Y0 Cr Y1).
-enum class PixelFormat { Rgb8, Y8, Uyvy };
+// FieldParity, pixel format and field timing are the ones every module uses (base/video_timing).
+using base::bytesPerPixel;
+using base::fieldFirstLine;
+using base::fieldLines;
+using base::FieldParity;
+using base::fieldParity;
+using base::fieldTime;
+using base::kFieldPeriod;
+using base::parsePixelFormat;
+using base::PixelFormat;
+
 // How a field is made from the latest rendered frame.
 enum class WarpModel { Poly, Affine, Homography, Depth, Hold };
 // What the fit fell back to when the model's own fit was unusable.
 enum class Fallback { None, Affine, Rotation, Hold };
 
-// Seconds per NTSC field.
-inline constexpr double kFieldPeriod = 1001.0 / 60000.0;
-
-// Field index 0 is Bottom (NTSC sends the bottom field first), then parities alternate.
-Parity fieldParity(std::uint64_t fieldIndex);
-// t0 + fieldIndex * kFieldPeriod.
-double fieldTime(double t0, std::uint64_t fieldIndex);
-// First frame line of a parity (0 for Top, 1 for Bottom).
-inline int firstLine(Parity parity) {
-    return parity == Parity::Top ? 0 : 1;
-}
-// Number of frame lines of `parity` in a frame of `frameHeight` lines.
-int fieldLines(int frameHeight, Parity parity);
-// Bytes per pixel of a format (Uyvy: 2, averaged over a pixel pair).
-int bytesPerPixel(PixelFormat format);
-
 // "poly" | "affine" | "homography" | "depth" | "hold"; empty for anything else.
 std::optional<WarpModel> parseWarpModel(std::string_view name);
 std::string_view warpModelName(WarpModel model);
 std::string_view fallbackName(Fallback fallback);
-// "rgb8" | "y8" | "uyvy"; empty for anything else.
-std::optional<PixelFormat> parsePixelFormat(std::string_view name);
 
 // The warp a field used. For quadratic warps (poly, affine, rotation fallback, hold) `a` and `b`
 // map an output-frame point (x, y) (continuous, pixel centres at +0.5, full-frame line numbers)
@@ -61,7 +52,7 @@ struct WarpInfo {
 // One field: only the lines of its parity. `pixels` is reused from field to field.
 struct Field {
     std::uint64_t index = 0;
-    Parity parity = Parity::Bottom;
+    FieldParity parity = FieldParity::Bottom;
     double time = 0.0;                // the instant the field shows, seconds
     std::uint64_t frameSequence = 0;  // rendered frame it came from
     double frameTime = 0.0;           // that frame's pose time
@@ -79,7 +70,7 @@ struct Field {
 
     const std::uint8_t* line(int fieldLine) const { return pixels.data() + fieldLine * stride; }
     // Frame line number of field line `fieldLine`.
-    int frameLine(int fieldLine) const { return 2 * fieldLine + firstLine(parity); }
+    int frameLine(int fieldLine) const { return 2 * fieldLine + fieldFirstLine(parity); }
 };
 
 }  // namespace prp

@@ -131,8 +131,8 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         out.warp = fitWarp(frame, poseAtField, geometry, fit, hasPrevious_ ? &previous_ : nullptr);
         if (depthModel) out.warp.model = WarpModel::Depth;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
-        const FieldView view{out.pixels.data(),     out.stride, out.width,
-                             firstLine(out.parity), out.lines,  out.format};
+        const FieldView view{out.pixels.data(),          out.stride, out.width,
+                             fieldFirstLine(out.parity), out.lines,  out.format};
         const ApplyResult r =
             out.warp.projective
                 ? applyHomography(source, Homography{out.warp.h}, view, gainQ8, options_.agc)
@@ -217,7 +217,7 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
     const Quadratic hold = Quadratic::fromAffine(geometry.sourceFromOutputHold());
     const ig::Rgb8* color = sourcePixels(frame);
     std::uint64_t edge = 0;
-    const int first = firstLine(out.parity);
+    const int first = fieldFirstLine(out.parity);
     for (int line = 0; line < out.lines; ++line) {
         const int y = first + 2 * line;
         const std::size_t rowStart = static_cast<std::size_t>(y) * ow;

@@ -27,38 +27,10 @@ namespace sim {
 // - Each render is aimed at the time it is expected to complete, so a fresh frame's age is
 //   about zero and ages grow while the next render runs.
 
-io::FieldParity toIo(prp::Parity parity) {
-    return parity == prp::Parity::Top ? io::FieldParity::Top : io::FieldParity::Bottom;
-}
-
-io::PixelFormat toIo(prp::PixelFormat format) {
-    switch (format) {
-        case prp::PixelFormat::Rgb8:
-            return io::PixelFormat::Rgb8;
-        case prp::PixelFormat::Y8:
-            return io::PixelFormat::Y8;
-        case prp::PixelFormat::Uyvy:
-            return io::PixelFormat::Uyvy;
-    }
-    return io::PixelFormat::Uyvy;
-}
-
-prp::PixelFormat toPrp(io::PixelFormat format) {
-    switch (format) {
-        case io::PixelFormat::Rgb8:
-            return prp::PixelFormat::Rgb8;
-        case io::PixelFormat::Y8:
-            return prp::PixelFormat::Y8;
-        case io::PixelFormat::Uyvy:
-            return prp::PixelFormat::Uyvy;
-    }
-    return prp::PixelFormat::Uyvy;
-}
-
 io::FieldBuffer toFieldBuffer(const prp::Field& field) {
     io::FieldBuffer b;
     b.index = field.index;
-    b.parity = toIo(field.parity);
+    b.parity = field.parity;
     b.time = field.time;
     b.data = field.pixels.data();
     b.stride = field.stride;
@@ -175,7 +147,7 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
           std::max(0.0, std::round(options.duration / prp::kFieldPeriod)))) {
     options_.prp.outWidth = sink.format().width;
     options_.prp.outHeight = sink.format().height;
-    options_.prp.format = toPrp(sink.format().format);
+    options_.prp.format = sink.format().format;
 }
 
 Pipeline::~Pipeline() = default;
@@ -309,11 +281,11 @@ PipelineResult Pipeline::run() {
     const FieldPriority priority(!simulated && options_.raiseFieldPriority);
 
     prp::Field field;
+    io::FieldPacer pacer(clock_, c0_);
     double nextProgress = c0_;
     std::uint64_t missed = 0;
     for (std::uint64_t n = 0; n < fieldCount_; ++n) {
-        const double deadline = c0_ + static_cast<double>(n) * prp::kFieldPeriod;
-        clock_.sleepUntil(deadline);
+        const double deadline = pacer.wait(n).deadline;
         if (renderFailed_.load(std::memory_order_acquire)) break;
         if (stopAsked()) {
             result.stopped = true;

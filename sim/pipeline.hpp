@@ -137,10 +137,7 @@ class Pipeline {
     ig::RenderedFrame pendingFrame_;
 };
 
-// prp / io conversions (the two modules do not know each other).
-io::FieldParity toIo(prp::Parity parity);
-io::PixelFormat toIo(prp::PixelFormat format);
-prp::PixelFormat toPrp(io::PixelFormat format);
+// A processed field as the output layer takes it (prp and io do not know each other).
 io::FieldBuffer toFieldBuffer(const prp::Field& field);
 
 }  // namespace sim

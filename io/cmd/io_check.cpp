@@ -129,7 +129,7 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
     const io::VideoFormat format = sink->format();
     auto clock = clockText == "wall" ? io::makeWallClock() : io::makeSimulatedClock();
     const std::uint64_t fields =
-        static_cast<std::uint64_t>(std::llround(duration / io::kNtscFieldPeriod));
+        static_cast<std::uint64_t>(std::llround(duration / io::kFieldPeriod));
     const double t0 = clock->now() + 0.05;
     io::FieldPacer pacer(*clock, t0);
     std::vector<double> lateness, intervals, workMs;
@@ -138,7 +138,7 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
     int firstError = 0;
     double lastWake = 0;
     for (std::uint64_t n = 0; n < fields && !io::stopRequested(); ++n) {
-        const io::FieldParity parity = io::fieldParityOf(n);
+        const io::FieldParity parity = io::fieldParity(n);
         const double fieldTime = pacer.deadline(n) - t0;
         drawField(format, parity, fieldTime, row, pixels);  // prepared before the deadline
         const io::FieldWake wake = pacer.wait(n);

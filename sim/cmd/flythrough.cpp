@@ -206,7 +206,7 @@ int main(int argc, char** argv) {
         io::VideoFormat format;
         format.width = width;
         format.height = height;
-        format.format = sim::toIo(*prpFormat);
+        format.format = *prpFormat;
         if (const std::string bad = io::checkVideoFormat(format); !bad.empty()) {
             throw ig::InputError("--size " + sizeText + ": " + bad);
         }

@@ -8,19 +8,6 @@
 namespace io {
 namespace {
 
-TEST(FieldDeadline, IsExactForEveryIndex) {
-    // 1001/60000 s = 50050000/3 ns: every third field lands on a whole nanosecond.
-    for (std::uint64_t n :
-         {0ull, 1ull, 2ull, 3ull, 59940ull, 3600ull * 60000 / 1001 * 24, 1ull << 33}) {
-        EXPECT_EQ(fieldDeadlineNs(3 * n), static_cast<std::int64_t>(n * 50050000ull)) << n;
-        const double t = fieldDeadline(0.0, 3 * n);
-        EXPECT_NEAR(t, static_cast<double>(n) * 0.05005, 1e-15 * std::max(1.0, t) * 4) << n;
-    }
-    EXPECT_EQ(fieldDeadlineNs(1), 16683333);
-    EXPECT_EQ(fieldDeadline(0.0, 60000), 1001.0);
-    EXPECT_EQ(fieldDeadline(5.0, 0), 5.0);
-}
-
 // A simulated loop that works a random amount after each wake: deadlines stay exactly on the
 // t0 + n * period grid for a day of fields, while a loop that sleeps "period after the last
 // wake" drifts by the work time.
@@ -37,7 +24,7 @@ TEST(FieldPacer, AbsoluteDeadlinesDoNotDrift) {
         const FieldWake w = pacer.wait(n);
         ASSERT_FALSE(w.late) << n;
         ASSERT_EQ(w.woke, w.deadline) << n;
-        ASSERT_EQ(w.deadline, fieldDeadline(t0, n));
+        ASSERT_EQ(w.deadline, base::fieldTime(t0, n));
         const double dt = work(rng);
         clock.advance(dt);
         relativeWake += 1001.0 / 60000.0 + dt;  // a relative-sleep loop's wake time
@@ -54,12 +41,12 @@ TEST(FieldPacer, ReportsLateFieldsWithoutSleeping) {
     for (std::uint64_t n = 1; n <= 2; ++n) {
         const FieldWake w = pacer.wait(n);
         EXPECT_TRUE(w.late) << n;
-        EXPECT_NEAR(w.lateness, 0.05 - fieldDeadline(0.0, n), 1e-12);
+        EXPECT_NEAR(w.lateness, 0.05 - base::fieldTime(0.0, n), 1e-12);
         EXPECT_EQ(w.woke, 0.05);
     }
     const FieldWake w3 = pacer.wait(3);
     EXPECT_FALSE(w3.late);
-    EXPECT_EQ(w3.woke, fieldDeadline(0.0, 3));
+    EXPECT_EQ(w3.woke, base::fieldTime(0.0, 3));
 }
 
 TEST(SimulatedClock, NeverGoesBackwards) {

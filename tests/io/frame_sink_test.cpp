@@ -244,8 +244,8 @@ TEST(VideoFormat, FieldGeometry) {
         EXPECT_EQ(fieldLines(h, FieldParity::Top) + fieldLines(h, FieldParity::Bottom), h);
     }
     EXPECT_EQ(fieldLines(486, FieldParity::Bottom), 243);
-    EXPECT_EQ(fieldParityOf(0), FieldParity::Bottom);
-    EXPECT_EQ(fieldParityOf(1), FieldParity::Top);
+    EXPECT_EQ(fieldParity(0), FieldParity::Bottom);
+    EXPECT_EQ(fieldParity(1), FieldParity::Top);
     EXPECT_TRUE(checkVideoFormat({720, 486, PixelFormat::Uyvy}).empty());
     EXPECT_FALSE(checkVideoFormat({0, 486, PixelFormat::Uyvy}).empty());
     EXPECT_FALSE(checkVideoFormat({721, 486, PixelFormat::Uyvy}).empty());

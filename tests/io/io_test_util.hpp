@@ -29,7 +29,7 @@ struct TestField {
     FieldBuffer buffer;
 
     TestField(const VideoFormat& format, std::uint64_t index, double time = 0.0) {
-        const FieldParity parity = fieldParityOf(index);
+        const FieldParity parity = fieldParity(index);
         const int lines = fieldLines(format.height, parity);
         const std::size_t stride =
             static_cast<std::size_t>(format.width) * bytesPerPixel(format.format);

@@ -63,14 +63,14 @@ TEST(V4l2Sink, BuffersAlternateBottomTopWithTimestampsAndPixels) {
     ASSERT_EQ(sink->open(format, &error), 0) << error;
     const int kFields = 10;  // more than the buffers: they must come back and be reused
     for (int i = 0; i < kFields; ++i) {
-        TestField f(format, i, fieldDeadline(2.0, i));
+        TestField f(format, i, base::fieldTime(2.0, i));
         ASSERT_EQ(sink->writeField(f.buffer), 0) << "field " << i;
     }
     const auto& q = dev->queued();
     ASSERT_EQ(q.size(), static_cast<std::size_t>(kFields));
     for (int i = 0; i < kFields; ++i) {
         EXPECT_EQ(q[i].v4l2Field, i % 2 == 0 ? V4L2_FIELD_BOTTOM : V4L2_FIELD_TOP) << i;
-        EXPECT_NEAR(q[i].timestampUs * 1e-6, fieldDeadline(2.0, i), 1e-6) << i;
+        EXPECT_NEAR(q[i].timestampUs * 1e-6, base::fieldTime(2.0, i), 1e-6) << i;
         if (i > 0) {
             EXPECT_GT(q[i].timestampUs, q[i - 1].timestampUs);
         }
@@ -255,7 +255,7 @@ TEST(V4l2Sink, RealOutputDevice) {
     const VideoFormat format = sink.format();
     int queued = 0;
     for (int i = 0; i < 8; ++i) {
-        if (sink.writeField(TestField(format, i, fieldDeadline(0.0, i)).buffer) == 0) ++queued;
+        if (sink.writeField(TestField(format, i, base::fieldTime(0.0, i)).buffer) == 0) ++queued;
     }
     EXPECT_GE(queued, 2);
     EXPECT_EQ(sink.close(&error), 0) << error;

@@ -65,7 +65,7 @@ Y4mFile readY4m(const fs::path& path) {
 
 int writeFields(FrameSink& sink, const VideoFormat& format, int count, std::uint64_t first = 0) {
     for (int i = 0; i < count; ++i) {
-        TestField field(format, first + i, fieldDeadline(0.0, first + i));
+        TestField field(format, first + i, base::fieldTime(0.0, first + i));
         const int rc = sink.writeField(field.buffer);
         if (rc != 0) return rc;
     }
