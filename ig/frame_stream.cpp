@@ -1,5 +1,7 @@
 #include "ig/frame_stream.hpp"
 
+#include "base/check.hpp"
+
 #include "ig/caster_impl.hpp"
 
 #include <algorithm>
@@ -120,7 +122,7 @@ RenderedFrame FrameStream::take() {
     std::shared_ptr<Job> job;
     {
         std::lock_guard lock(mutex_);
-        if (jobs_.empty()) throw std::logic_error("FrameStream::take: no frame in flight");
+        CHECK(!jobs_.empty()) << "FrameStream::take: no frame in flight";
         job = jobs_.front();
     }
     arena_->execute([&] { work(*job); });  // the units still unclaimed, if any

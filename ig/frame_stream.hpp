@@ -3,6 +3,9 @@
 // one at a time; a worker that finds none left goes on to the next frame already submitted,
 // instead of idling until the slowest column of the frame is done.
 //
+// The real-time loop (sim::Pipeline) does not use it: it renders one frame at a time with every
+// worker, because on the machines measured the overlap gained nothing (docs/design/multires.md).
+//
 //   ig::FrameStream stream(caster, map, threads);
 //   stream.submit(pose0, intrinsics, t0, 0);
 //   for (;;) {
@@ -43,8 +46,8 @@ class FrameStream {
     void help();
     // Renders what is left of the oldest frame's units with the other workers, waits for
     // every unit of it, casts its control points and returns it (as
-    // renderFrame would have rendered it; stats.renderMs is submit-to-complete). Throws
-    // std::logic_error when nothing is in flight, and rethrows a worker's exception.
+    // renderFrame would have rendered it; stats.renderMs is submit-to-complete). Nothing in
+    // flight is a bug (CHECK); a worker's exception is rethrown.
     RenderedFrame take();
     int inFlight() const;
 

@@ -1,5 +1,7 @@
 #include "ig/image_compare.hpp"
 
+#include "base/check.hpp"
+
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -8,9 +10,9 @@
 namespace ig {
 namespace {
 void checkSizes(std::span<const Rgb8> a, std::span<const Rgb8> b) {
-    if (a.size() != b.size() || a.empty()) {
-        throw std::invalid_argument("image comparison needs two non-empty images of one size");
-    }
+    CHECK(a.size() == b.size() && !a.empty())
+        << "image comparison needs two non-empty images of one size (" << a.size() << ", "
+        << b.size() << " pixels)";
 }
 }  // namespace
 
@@ -36,9 +38,8 @@ double psnrDb(std::span<const Rgb8> a, std::span<const Rgb8> b) {
 }
 
 std::vector<Rgb8> boxDownsample(std::span<const Rgb8> src, int w, int h, int f) {
-    if (w <= 0 || h <= 0 || f <= 0 || src.size() != static_cast<std::size_t>(w) * h * f * f) {
-        throw std::invalid_argument("boxDownsample: the source must hold (w*f) x (h*f) pixels");
-    }
+    CHECK(w > 0 && h > 0 && f > 0 && src.size() == static_cast<std::size_t>(w) * h * f * f)
+        << "boxDownsample: the source must hold (w*f) x (h*f) pixels";
     std::vector<Rgb8> out(static_cast<std::size_t>(w) * h);
     const int n = f * f;
     for (int y = 0; y < h; ++y) {

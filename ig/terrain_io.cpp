@@ -1,5 +1,7 @@
 #include "ig/terrain_io.hpp"
 
+#include "base/check.hpp"
+
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <cpl_vsi.h>
@@ -1288,12 +1290,11 @@ void pullFromCoarse(double* v, const std::uint8_t* ok, int w, int h, const FillL
 std::size_t fillVoids(std::vector<double>& values, const std::vector<std::uint8_t>& valid, int w,
                       int h) {
     const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * std::max(h, 0);
-    if (w <= 0 || h <= 0 || values.size() != n || valid.size() != n) {
-        throw std::invalid_argument("fillVoids: grid sizes disagree");
-    }
+    CHECK(w > 0 && h > 0 && values.size() == n && valid.size() == n)
+        << "fillVoids: grid sizes disagree";
     const auto voids = static_cast<std::size_t>(std::count(valid.begin(), valid.end(), 0));
     if (voids == 0) return 0;
-    if (voids == n) throw std::invalid_argument("fillVoids: no valid sample to fill from");
+    CHECK_LT(voids, n) << "fillVoids: no valid sample to fill from";
     // Push: coarser levels until one has no hole (at the latest the 1 x 1 one).
     std::vector<FillLevel> levels;
     const double* v = values.data();

@@ -37,8 +37,8 @@ struct TerrainSource {
 // Fills the samples of a w x h grid (rows contiguous) whose `valid` entry is 0 from the valid
 // ones around them, smoothly: push-pull over a pyramid of 2 x 2 means of the valid samples
 // (each level's holes take the bilinear interpolation of the next coarser level). Valid samples
-// are left as they are. Returns how many were filled; throws std::invalid_argument when there is
-// no valid sample or the sizes disagree.
+// are left as they are. Returns how many were filled. At least one valid sample and sizes that
+// agree are the caller's to ensure (CHECKed).
 std::size_t fillVoids(std::vector<double>& values, const std::vector<std::uint8_t>& valid, int w,
                       int h);
 

@@ -20,19 +20,20 @@ constexpr float kSkySplat = 1e38f;  // behind every terrain point, in front of "
 
 void checkFrame(const ig::RenderedFrame& frame, bool needDepth) {
     const ig::Intrinsics& in = frame.intrinsics;
-    const std::string what = "rendered frame " + std::to_string(frame.sequence);
+    // Built only for a message: a field's work allocates nothing.
+    const auto what = [&] { return "rendered frame " + std::to_string(frame.sequence); };
     if (in.width < 2 || in.height < 2 || in.margin < 0 || in.windowWidth() < 1 ||
         in.windowHeight() < 1 || !(in.focal > 0.0) || !std::isfinite(in.focal)) {
-        throw ig::InputError(what + ": unusable intrinsics " + std::to_string(in.width) + "x" +
+        throw ig::InputError(what() + ": unusable intrinsics " + std::to_string(in.width) + "x" +
                              std::to_string(in.height) + " margin " + std::to_string(in.margin));
     }
     const std::size_t n = static_cast<std::size_t>(in.width) * static_cast<std::size_t>(in.height);
     if (frame.color.size() != n) {
-        throw ig::InputError(what + ": colour has " + std::to_string(frame.color.size()) +
+        throw ig::InputError(what() + ": colour has " + std::to_string(frame.color.size()) +
                              " pixels, intrinsics say " + std::to_string(n));
     }
     if (needDepth && frame.depth.size() != n) {
-        throw ig::InputError(what + ": depth has " + std::to_string(frame.depth.size()) +
+        throw ig::InputError(what() + ": depth has " + std::to_string(frame.depth.size()) +
                              " pixels, intrinsics say " + std::to_string(n));
     }
 }

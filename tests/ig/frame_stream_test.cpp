@@ -8,9 +8,13 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
+#include <thread>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -96,7 +100,8 @@ TEST(FrameStream, BadInputIsRefusedAndTheStreamGoesOn) {
     const Intrinsics in = Intrinsics::fromFov(64, 48, ig::degToRad(60), 4);
     const auto caster = ig::makeCaster(CasterKind::Fast, map);
     ig::FrameStream stream(*caster, map, 2);
-    EXPECT_THROW(stream.take(), std::logic_error);
+    GTEST_FLAG_SET(death_test_style, "threadsafe");  // the stream has worker threads
+    EXPECT_DEATH(stream.take(), "no frame in flight");
     Pose below = flight(1)[0];
     below.position.z = map.surfaceHeight(below.position.x, below.position.y) - 5.0;
     EXPECT_THROW(stream.submit(below, in), ig::InputError);
@@ -113,16 +118,54 @@ TEST(FrameStream, BadInputIsRefusedAndTheStreamGoesOn) {
     expectSame(stream.take(), ig::renderFrame(*caster, map, flight(1)[0], in, 0.0, 7));
 }
 
+// A caster that counts the work units it renders, each taking a little while, so frames are
+// still in flight when the stream is destroyed.
+class CountingCaster final : public ig::Caster {
+  public:
+    explicit CountingCaster(const ig::Caster& inner) : inner_(inner) {}
+    CasterKind kind() const override { return inner_.kind(); }
+    void render(const ig::Camera& camera, RenderedFrame& frame) const override {
+        inner_.render(camera, frame);
+    }
+    int workUnits(const ig::Camera& camera) const override { return inner_.workUnits(camera); }
+    void renderUnit(const ig::Camera& camera, RenderedFrame& frame, int unit,
+                    ig::UnitCounters& counters) const override {
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+        inner_.renderUnit(camera, frame, unit, counters);
+        units.fetch_add(1, std::memory_order_relaxed);
+    }
+    std::pair<int, int> unitColumns(const ig::Camera& camera, int unit) const override {
+        return inner_.unitColumns(camera, unit);
+    }
+    mutable std::atomic<int> units{0};
+
+  private:
+    const ig::Caster& inner_;
+};
+
 TEST(FrameStream, FramesLeftInFlightAreFinishedOnDestruction) {
     const TerrainMap& map = terrain();
     const Intrinsics in = Intrinsics::fromFov(64, 48, ig::degToRad(60), 4);
-    const auto caster = ig::makeCaster(CasterKind::Fast, map);
+    const auto inner = ig::makeCaster(CasterKind::Fast, map);
+    const std::vector<Pose> poses = flight(3);
+    int unitsPerFlight = 0;
+    for (const Pose& p : poses)
+        unitsPerFlight += inner->workUnits(ig::Camera(p, in));
+    ASSERT_GT(unitsPerFlight, 3);
     for (int threads : {1, 2}) {
-        ig::FrameStream stream(*caster, map, threads);
-        for (const Pose& p : flight(3))
-            stream.submit(p, in);
-    }  // must not hang or touch freed frames (ASan, TSan)
-    SUCCEED();
+        CountingCaster caster(*inner);
+        {
+            ig::FrameStream stream(caster, map, threads);
+            for (const Pose& p : poses)
+                stream.submit(p, in);
+            EXPECT_EQ(stream.inFlight(), 3);
+            EXPECT_LT(caster.units.load(), unitsPerFlight) << "nothing left in flight to test";
+        }  // the destructor waits for every unit of every frame (and frees nothing in use:
+           // ASan, TSan)
+        EXPECT_EQ(caster.units.load(), unitsPerFlight) << threads << " threads";
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        EXPECT_EQ(caster.units.load(), unitsPerFlight) << "a worker outlived the stream";
+    }
 }
 
 }  // namespace

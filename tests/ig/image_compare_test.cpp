@@ -21,7 +21,7 @@ TEST(ImageCompare, PsnrOfKnownNoiseAndIdenticalImages) {
     const std::vector<ig::Rgb8> b(16, ig::Rgb8{110, 90, 100});  // mse = (100 + 100 + 0) / 3
     EXPECT_NEAR(ig::psnrDb(a, b), 10.0 * std::log10(255.0 * 255.0 * 3.0 / 200.0), 1e-9);
     EXPECT_TRUE(std::isinf(ig::psnrDb(a, a)));
-    EXPECT_THROW(ig::psnrDb(a, std::vector<ig::Rgb8>(3)), std::invalid_argument);
+    EXPECT_DEATH(ig::psnrDb(a, std::vector<ig::Rgb8>(3)), "one size");
 }
 
 TEST(ImageCompare, BoxDownsampleAveragesBlocksWithRounding) {
@@ -33,7 +33,7 @@ TEST(ImageCompare, BoxDownsampleAveragesBlocksWithRounding) {
     ASSERT_EQ(out.size(), 2u);
     EXPECT_EQ(out[0].r, 2);
     EXPECT_EQ(out[1].r, 11);
-    EXPECT_THROW(ig::boxDownsample(src, 3, 1, 2), std::invalid_argument);
+    EXPECT_DEATH(ig::boxDownsample(src, 3, 1, 2), "must hold");
 }
 
 }  // namespace

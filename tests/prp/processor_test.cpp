@@ -15,28 +15,6 @@ namespace {
 
 const ig::Intrinsics kIn = ig::Intrinsics::fromFov(96, 72, 1.0, 12);
 
-TEST(FieldTiming, BottomFirstThenAlternating) {
-    EXPECT_EQ(fieldParity(0), FieldParity::Bottom);
-    for (std::uint64_t i = 0; i < 100; ++i) {
-        EXPECT_NE(fieldParity(i), fieldParity(i + 1));
-        EXPECT_NEAR(fieldTime(2.5, i), 2.5 + i * 1001.0 / 60000.0, 1e-12);
-    }
-    EXPECT_NEAR(1.0 / kFieldPeriod, 59.94, 0.001);
-    EXPECT_NEAR(fieldTime(0.0, 60000), 1001.0, 1e-9);
-}
-
-TEST(FieldTiming, LinesOfEachParity) {
-    EXPECT_EQ(fieldLines(486, FieldParity::Top), 243);
-    EXPECT_EQ(fieldLines(486, FieldParity::Bottom), 243);
-    EXPECT_EQ(fieldLines(480, FieldParity::Top), 240);
-    EXPECT_EQ(fieldLines(480, FieldParity::Bottom), 240);
-    EXPECT_EQ(fieldLines(7, FieldParity::Top), 4);
-    EXPECT_EQ(fieldLines(7, FieldParity::Bottom), 3);
-    for (int h = 1; h < 20; ++h) {
-        EXPECT_EQ(fieldLines(h, FieldParity::Top) + fieldLines(h, FieldParity::Bottom), h);
-    }
-}
-
 TEST(WarpModelNames, RoundTrip) {
     for (const WarpModel m : {WarpModel::Poly, WarpModel::Affine, WarpModel::Homography,
                               WarpModel::Depth, WarpModel::Hold}) {
