@@ -1,5 +1,7 @@
 #include "prp/processor.hpp"
 
+#include "base/text.hpp"
+
 #include "ig/error.hpp"
 #include "prp/warp_apply.hpp"
 
@@ -62,6 +64,10 @@ PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options) : opti
           options.maxGain <= 16.0)) {
         throw ig::InputError("AGC gain limits: need 0 < min <= 1 <= max <= 16");
     }
+    if (!(options.holdAfter >= 0.0 && options.holdAfter <= 3600.0)) {
+        throw ig::InputError("hold after " + base::number(options.holdAfter) +
+                             " s: must be from 0 (never) to 3600 s");
+    }
 }
 
 void PostRenderingProcessor::reset() {
@@ -100,8 +106,10 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
                                      double time, std::uint64_t fieldIndex, Field& out) {
     const auto start = std::chrono::steady_clock::now();
-    const bool depthModel = options_.model == WarpModel::Depth;
-    checkFrame(frame, depthModel);
+    const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
+    const WarpModel model = stale ? WarpModel::Hold : options_.model;
+    const bool depthModel = model == WarpModel::Depth;
+    checkFrame(frame, options_.model == WarpModel::Depth);
 
     out.index = fieldIndex;
     out.parity = fieldParity(fieldIndex);
@@ -127,7 +135,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);
     } else {
         FitOptions fit;
-        fit.model = depthModel ? WarpModel::Poly : options_.model;
+        fit.model = depthModel ? WarpModel::Poly : model;
         fit.useSky = options_.useSky;
         out.warp = fitWarp(frame, poseAtField, geometry, fit, hasPrevious_ ? &previous_ : nullptr);
         if (depthModel) out.warp.model = WarpModel::Depth;

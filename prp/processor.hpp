@@ -21,6 +21,10 @@ struct PrpOptions {
     bool antiTwitter = false;  // vertical [1 2 1] / 4 filter against interlace twitter
     bool useSky = true;        // fit sky control points (directions) as well as terrain
     double minGain = 0.25, maxGain = 4.0;
+    // Frame age (seconds) past which a field no longer extrapolates the frame's motion but
+    // holds it (the Hold model: the frame as rendered, roll applied), as when the renderer has
+    // stopped delivering; 0: never.
+    double holdAfter = 0.0;
 };
 
 class PostRenderingProcessor {

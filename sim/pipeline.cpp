@@ -1,10 +1,13 @@
 #include "sim/pipeline.hpp"
 
+#include "base/check.hpp"
+
 #include <pthread.h>
 #include <sched.h>
 #include <sys/resource.h>
 #include <tbb/task_arena.h>
 #include <tbb/task_scheduler_observer.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,6 +16,7 @@
 #include <cstdio>
 #include <cstring>
 #include <numbers>
+#include <stdexcept>
 #include <thread>
 
 namespace sim {
@@ -66,6 +70,16 @@ ig::Intrinsics renderIntrinsics(const RenderGeometry& geometry, const ig::Pose& 
                            : geometry.margin;
     return ig::Intrinsics::fromFov(geometry.windowWidth, geometry.windowHeight, geometry.hfov,
                                    margin);
+}
+
+std::size_t maxFramePixels(const RenderGeometry& geometry) {
+    // An allowance of half a turn covers every roll.
+    const int margin = geometry.coverRoll
+                           ? marginForRoll(geometry.windowWidth, geometry.windowHeight, 0.0,
+                                           std::numbers::pi, geometry.margin)
+                           : geometry.margin;
+    return static_cast<std::size_t>(geometry.windowWidth + 2 * margin) *
+           static_cast<std::size_t>(geometry.windowHeight + 2 * margin);
 }
 
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
@@ -240,18 +254,155 @@ void Pipeline::renderSimulatedUntil(double t) {
         const double aim = nextRenderStart_ + period;
         if (aim > runEnd_ + kEps) return;
         if (!(aim > nextRenderStart_)) return;  // times too large to step by a render period
-        pendingFrame_ = renderAt(aim, nextSequence_);
-        const double stall = options_.renderStall ? options_.renderStall(nextSequence_) : 0.0;
+        if (process_) {
+            // The renderer process renders this one request while the simulated clock stands
+            // still; a renderer that fails it costs a modelled restart, and the frame is lost.
+            ring_->postRequest(poses_.predict(aim), aim, nextSequence_);
+            requested_.store(nextSequence_, std::memory_order_relaxed);
+            std::string why;
+            Await got = awaitFrame(pendingFrame_, renderTimeout(), why);
+            while (got == Await::Frame && pendingFrame_.sequence < nextSequence_) {
+                got = awaitFrame(pendingFrame_, renderTimeout(), why);  // an older answer
+            }
+            ++nextSequence_;
+            if (got != Await::Frame) {
+                restartProcess(why);
+                nextRenderStart_ = aim + std::max(options_.simulatedRestart, 0.0);
+                continue;
+            }
+        } else {
+            pendingFrame_ = renderAt(aim, nextSequence_);
+            ++nextSequence_;
+        }
+        const double stall = options_.renderStall ? options_.renderStall(nextSequence_ - 1) : 0.0;
         pendingCompletion_ = aim + std::max(stall, 0.0);
         stats_.addFrame((pendingCompletion_ - nextRenderStart_) * 1e3);
         pending_ = true;
-        ++nextSequence_;
     }
+}
+
+double Pipeline::renderTimeout() const {
+    if (options_.renderTimeout > 0.0) return options_.renderTimeout;
+    return std::max(0.5, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
+}
+
+void Pipeline::startProcess() {
+    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels);
+    RendererProcessOptions po;
+    po.threads = options_.renderThreads;
+    po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;
+    po.paced = options_.clock == ClockMode::Wall;
+    po.fault = options_.fault;
+    process_ = std::make_unique<RendererProcess>(renderer_, *ring_, po);
+    process_->start();
+}
+
+Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, std::string& why) {
+    timespec start{};
+    clock_gettime(CLOCK_MONOTONIC, &start);
+    for (;;) {
+        const FrameRing::Fetch f = ring_->fetch(into, &why);
+        if (f == FrameRing::Fetch::New) return Await::Frame;
+        if (f == FrameRing::Fetch::Bad) {
+            why = "sent a bad frame (" + why + ")";
+            return Await::Bad;
+        }
+        if (std::optional<std::string> ended = process_->checkEnded()) {
+            why = *ended;
+            return Await::Ended;
+        }
+        timespec now{};
+        clock_gettime(CLOCK_MONOTONIC, &now);
+        const double waited = static_cast<double>(now.tv_sec - start.tv_sec) +
+                              static_cast<double>(now.tv_nsec - start.tv_nsec) * 1e-9;
+        if (waited > timeout) {
+            why = "silent for " + std::to_string(std::lround(waited * 1e3)) + " ms";
+            return Await::Silent;
+        }
+        const timespec pause{0, 200000};
+        nanosleep(&pause, nullptr);
+    }
+}
+
+void Pipeline::restartProcess(const std::string& cause) {
+    process_->kill();
+    {
+        std::lock_guard lock(restartMutex_);
+        RendererRestart r;
+        r.detected = clock_.now();
+        r.cause = cause;
+        stats_.restarts().push_back(std::move(r));
+    }
+    restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
+    restarts_.fetch_add(1, std::memory_order_release);
+    process_->start();
+}
+
+void Pipeline::superviseLoop() {
+    // Wall clock: every 2 ms, whatever the field loop is doing. A fork costs milliseconds,
+    // so it is done here, never on the field thread.
+    try {
+        while (!stop_.load(std::memory_order_acquire)) {
+            std::string cause;
+            if (std::optional<std::string> ended = process_->checkEnded()) {
+                cause = *ended;
+            } else if (badFrame_.load(std::memory_order_acquire)) {
+                std::lock_guard lock(restartMutex_);
+                cause = "sent a bad frame (" + badFrameWhy_ + ")";
+            } else {
+                timespec now{};
+                clock_gettime(CLOCK_MONOTONIC, &now);
+                const std::int64_t nowNs =
+                    static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+                const std::int64_t since = std::max(ring_->lastPublishNs(), processStartNs_);
+                const double silent = static_cast<double>(nowNs - since) * 1e-9;
+                if (silent > renderTimeout()) {
+                    cause = "silent for " + std::to_string(std::lround(silent * 1e3)) + " ms";
+                }
+            }
+            if (!cause.empty()) {
+                restartProcess(cause);
+                timespec now{};
+                clock_gettime(CLOCK_MONOTONIC, &now);
+                processStartNs_ = static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+                badFrame_.store(false, std::memory_order_release);
+            }
+            const timespec pause{0, 2000000};
+            nanosleep(&pause, nullptr);
+        }
+    } catch (...) {
+        renderError_ = std::current_exception();
+        renderFailed_.store(true, std::memory_order_release);
+    }
+}
+
+void Pipeline::noteFrameShown(const ig::RenderedFrame& frame, double clock) {
+    if (frame.sequence == lastShownSequence_) return;
+    lastShownSequence_ = frame.sequence;
+    const std::uint64_t restarts = restarts_.load(std::memory_order_acquire);
+    if (restarts > restartsClosed_ &&
+        frame.sequence > restartAfter_.load(std::memory_order_relaxed)) {
+        std::lock_guard lock(restartMutex_);
+        RendererRestart& r = stats_.restarts().back();
+        r.gapSeconds = clock - lastNewFrameClock_;
+        r.recoverySeconds = clock - r.detected;
+        r.fieldsExtrapolated = gapFields_ - gapHeld_;
+        r.fieldsHeld = gapHeld_;
+        restartsClosed_ = restarts;
+    }
+    lastNewFrameClock_ = clock;
+    gapFields_ = gapHeld_ = 0;
+}
+
+void Pipeline::noteField(double frameAge) {
+    ++gapFields_;
+    if (options_.prp.holdAfter > 0.0 && frameAge > options_.prp.holdAfter) ++gapHeld_;
 }
 
 PipelineResult Pipeline::run() {
     PipelineResult result;
     const bool simulated = options_.clock == ClockMode::Simulated;
+    const bool process = options_.rendererMode == RendererMode::Process;
     prp::PostRenderingProcessor processor(options_.prp);
     stats_.reserve(fieldCount_);
 
@@ -259,15 +410,32 @@ PipelineResult Pipeline::run() {
     t0_ = poses_.startTime();
     runEnd_ = prp::fieldTime(t0_, fieldCount_);
     const double before = clock_.now();
-    publish(renderAt(t0_, 0));
+    if (process) {
+        CHECK_GT(options_.maxFramePixels, 0u) << "a renderer process needs the largest frame size";
+        startProcess();
+        processStartNs_ = ring_->lastPublishNs();
+        ring_->postRequest(poses_.predict(t0_), t0_, 0);
+        std::string why;
+        ig::RenderedFrame& first = simulated ? frames_.back() : shown_;
+        // The first frame also pays for the renderer's start: allow it ten timeouts.
+        if (awaitFrame(first, 10.0 * renderTimeout(), why) != Await::Frame) {
+            throw std::runtime_error("the renderer process gave no first frame: it " + why);
+        }
+        if (simulated) frames_.publish();
+        renderSeconds_.store(first.stats.renderMs * 1e-3, std::memory_order_relaxed);
+    } else {
+        publish(renderAt(t0_, 0));
+    }
     frames_.fetch();
     renderEstimate_ = clock_.now() - before;
     stats_.addFrame(renderEstimate_ * 1e3);  // frame 0 counts among the frames rendered
     c0_ = clock_.now() + (simulated ? 0.0 : options_.startDelay);
     nextRenderStart_ = t0_;
     renderStartClock_ = before;
+    lastNewFrameClock_ = c0_;
 
-    // The renderer thread stops and is joined on every way out of this function.
+    // The renderer thread (or the renderer process's supervisor) stops and is joined on every
+    // way out of this function; the renderer process is stopped after it.
     struct RendererThread {
         std::atomic<bool>& stop;
         std::thread thread;
@@ -277,13 +445,24 @@ PipelineResult Pipeline::run() {
             if (thread.joinable()) thread.join();
         }
     } renderer{stop_, {}};
-    if (!simulated) renderer.thread = std::thread([this] { renderLoop(); });
+    if (!simulated) {
+        if (process) {
+            timespec now{};
+            clock_gettime(CLOCK_MONOTONIC, &now);
+            processStartNs_ = static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+            renderer.thread = std::thread([this] { superviseLoop(); });
+        } else {
+            renderer.thread = std::thread([this] { renderLoop(); });
+        }
+    }
     const FieldPriority priority(!simulated && options_.raiseFieldPriority);
 
     prp::Field field;
     io::FieldPacer pacer(clock_, c0_);
     double nextProgress = c0_;
     std::uint64_t missed = 0;
+    std::uint64_t requestSequence = 1;
+    std::string badWhy;
     for (std::uint64_t n = 0; n < fieldCount_; ++n) {
         const double deadline = pacer.wait(n).deadline;
         if (renderFailed_.load(std::memory_order_acquire)) break;
@@ -294,8 +473,34 @@ PipelineResult Pipeline::run() {
         const double t = prp::fieldTime(t0_, n);
         if (simulated) renderSimulatedUntil(t);
         const ig::Pose pose = poses_.advanceTo(t);
-        frames_.fetch();
-        processor.process(frames_.front(), pose, t, n, field);
+        const ig::RenderedFrame* frame = nullptr;
+        if (process && !simulated) {
+            // Ask for the pose the next frame should show: when it will be ready, half a field
+            // after this request on average.
+            const double aim =
+                t + renderSeconds_.load(std::memory_order_relaxed) + 0.5 * prp::kFieldPeriod;
+            ring_->postRequest(poses_.predict(aim), aim, requestSequence);
+            requested_.store(requestSequence++, std::memory_order_relaxed);
+            const FrameRing::Fetch got = ring_->fetch(shown_, &badWhy);
+            if (got == FrameRing::Fetch::New) {
+                stats_.addFrame(shown_.stats.renderMs);
+                const double took = shown_.stats.renderMs * 1e-3;
+                renderSeconds_.store(
+                    0.75 * renderSeconds_.load(std::memory_order_relaxed) + 0.25 * took,
+                    std::memory_order_relaxed);
+            } else if (got == FrameRing::Fetch::Bad && !badFrame_.load()) {
+                std::lock_guard lock(restartMutex_);
+                badFrameWhy_ = badWhy;
+                badFrame_.store(true, std::memory_order_release);
+            }
+            frame = &shown_;
+        } else {
+            frames_.fetch();
+            frame = &frames_.front();
+        }
+        noteFrameShown(*frame, clock_.now());
+        processor.process(*frame, pose, t, n, field);
+        noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);
         const int rc = sink_.writeField(buffer);
         const double handoff = clock_.now();
@@ -316,17 +521,23 @@ PipelineResult Pipeline::run() {
             char line[200];
             std::snprintf(line, sizeof line,
                           "field %zu/%llu  t %.2f s  missed %llu  frame age %.0f ms  "
-                          "render %.1f fps",
+                          "render %.1f fps  restarts %llu",
                           done, static_cast<unsigned long long>(fieldCount_), t - t0_,
                           static_cast<unsigned long long>(missed), field.frameAge * 1e3,
-                          static_cast<double>(stats_.framesRendered()) / elapsed);
+                          static_cast<double>(stats_.framesRendered()) / elapsed,
+                          static_cast<unsigned long long>(restarts_.load()));
             options_.progress(line);
         }
     }
 
     renderer.join();
+    if (process) {
+        process_.reset();  // asks the renderer to stop; kills it if it does not
+        renderEndClock_ = clock_.now();
+    }
     if (renderError_) std::rethrow_exception(renderError_);
     if (simulated) renderEndClock_ = clock_.now();
+    std::lock_guard lock(restartMutex_);
     result.stats = stats_.summarize(renderEndClock_ - renderStartClock_, simulated);
     return result;
 }

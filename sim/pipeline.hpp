@@ -8,6 +8,7 @@
 #include "prp/processor.hpp"
 #include "sim/mailbox.hpp"
 #include "sim/pose_source.hpp"
+#include "sim/render_process.hpp"
 #include "sim/stats.hpp"
 
 #include <atomic>
@@ -15,17 +16,16 @@
 #include <exception>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 
 namespace sim {
 
 enum class ClockMode { Wall, Simulated };
-
-// Renders one frame for simulation time `time`. `pose` is the full predicted pose, roll
-// included: the frame itself is rendered at roll 0 (the PRP applies roll), and the roll may
-// size its margins. One thread at a time.
-using FrameRenderer =
-    std::function<ig::RenderedFrame(const ig::Pose& pose, double time, std::uint64_t sequence)>;
+// Thread: the renderer is a thread of the field process. Process: a process of its own, started
+// and supervised by the field process, restarted whenever it ends, hangs or sends garbage.
+enum class RendererMode { Thread, Process };
 
 // What the renderer renders: the output window at a horizontal field of view, with margins.
 struct RenderGeometry {
@@ -43,6 +43,8 @@ struct RenderGeometry {
 int marginForRoll(int windowWidth, int windowHeight, double roll, double allowance, int margin);
 // Intrinsics a frame at `pose` gets.
 ig::Intrinsics renderIntrinsics(const RenderGeometry& geometry, const ig::Pose& pose);
+// Pixels of the largest frame `geometry` renders, whatever the roll.
+std::size_t maxFramePixels(const RenderGeometry& geometry);
 
 // A caster over `map` rendering `geometry` (the map must outlive the renderer).
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
@@ -74,6 +76,17 @@ struct PipelineOptions {
     // When set and true, the run ends after the field in hand (SIGINT/SIGTERM): the result is
     // a good run of the fields emitted so far, with `stopped` set. The renderer's waits end too.
     const std::atomic<bool>* stop = nullptr;
+
+    RendererMode rendererMode = RendererMode::Thread;
+    // Process: the largest frame the renderer makes, in pixels (maxFramePixels of its geometry).
+    std::size_t maxFramePixels = 0;
+    // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
+    // restarted; 0: 0.5 s or eight times the running render time, whichever is longer.
+    double renderTimeout = 0.0;
+    // Process, simulated clock: the seconds a restart is modelled as taking.
+    double simulatedRestart = 0.25;
+    // Process: a fault the renderer injects into itself once (tests, demonstrations).
+    std::optional<RendererFault> fault;
 };
 
 struct PipelineResult {
@@ -105,6 +118,16 @@ class Pipeline {
 
   private:
     void renderLoop();
+    // Renderer process: start, frame 0, supervision (wall clock), one render (simulated clock).
+    void startProcess();
+    enum class Await { Frame, Ended, Bad, Silent };
+    Await awaitFrame(ig::RenderedFrame& into, double timeout, std::string& why);
+    void superviseLoop();
+    void restartProcess(const std::string& cause);
+    double renderTimeout() const;
+    // Field thread: gap accounting when a frame newer than the last one shown arrives.
+    void noteFrameShown(const ig::RenderedFrame& frame, double clock);
+    void noteField(double frameAge);
     bool stopAsked() const;
     // The renderer's waits: in steps of at most 50 ms, ended early by a stop.
     void renderSleepUntil(double t);
@@ -128,6 +151,23 @@ class Pipeline {
     std::exception_ptr renderError_;
     std::atomic<bool> renderFailed_{false};
     double renderStartClock_ = 0.0, renderEndClock_ = 0.0;
+
+    // Renderer process.
+    std::unique_ptr<FrameRing> ring_;
+    std::unique_ptr<RendererProcess> process_;
+    ig::RenderedFrame shown_;                     // wall clock: the frame the fields warp
+    std::mutex restartMutex_;                     // guards stats_.restarts()
+    std::atomic<std::uint64_t> restarts_{0};      // restarts so far
+    std::uint64_t restartsClosed_ = 0;            // field thread: restarts whose gap is accounted
+    std::atomic<std::uint64_t> requested_{0};     // the newest sequence asked of the renderer
+    std::atomic<std::uint64_t> restartAfter_{0};  // at the last restart: frames after it are newer
+    std::atomic<bool> badFrame_{false};
+    std::int64_t processStartNs_ = 0;         // supervisor: when the running renderer was started
+    std::string badFrameWhy_;                 // under restartMutex_
+    std::atomic<double> renderSeconds_{0.0};  // running render time (for the timeout)
+    std::uint64_t lastShownSequence_ = ~std::uint64_t{0};
+    double lastNewFrameClock_ = 0.0;
+    std::uint64_t gapFields_ = 0, gapHeld_ = 0;
 
     // Simulated clock renderer state.
     std::uint64_t nextSequence_ = 1;

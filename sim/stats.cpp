@@ -73,12 +73,28 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     s.latenessMs = percentiles(std::move(lateness));
     s.frameAgeMs = percentiles(std::move(ages));
     s.warpMs = percentiles(std::move(warps));
+    s.restarts = restarts_;
     return s;
 }
 
 namespace {
 nlohmann::json toJson(const Percentiles& p) {
     return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}};
+}
+nlohmann::json restartsJson(const std::vector<RendererRestart>& restarts) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const RendererRestart& r : restarts) {
+        list.push_back(
+            {{"detected_s", r.detected},
+             {"cause", r.cause},
+             {"gap_ms",
+              r.gapSeconds >= 0.0 ? nlohmann::json(r.gapSeconds * 1e3) : nlohmann::json(nullptr)},
+             {"recovery_ms", r.recoverySeconds >= 0.0 ? nlohmann::json(r.recoverySeconds * 1e3)
+                                                      : nlohmann::json(nullptr)},
+             {"fields_extrapolated", r.fieldsExtrapolated},
+             {"fields_held", r.fieldsHeld}});
+    }
+    return list;
 }
 }  // namespace
 
@@ -103,6 +119,7 @@ nlohmann::json toJson(const StatsSummary& s) {
         {"fallbacks_by_kind", byKind},
         {"elapsed_s", s.elapsedSeconds},
         {"clock", s.simulatedClock ? "simulated" : "wall"},
+        {"renderer_restarts", restartsJson(s.restarts)},
     };
 }
 
@@ -126,7 +143,17 @@ std::string formatSummary(const StatsSummary& s) {
                   static_cast<unsigned long long>(s.fallbacksByKind[1]),
                   static_cast<unsigned long long>(s.fallbacksByKind[2]),
                   static_cast<unsigned long long>(s.fallbacksByKind[3]));
-    return buf;
+    std::string text = buf;
+    for (const RendererRestart& r : s.restarts) {
+        std::snprintf(buf, sizeof buf,
+                      "renderer restart at %.3f s: %s; gap %.1f ms (%.1f ms after it was "
+                      "noticed), %llu fields extrapolated, %llu held\n",
+                      r.detected, r.cause.c_str(), r.gapSeconds * 1e3, r.recoverySeconds * 1e3,
+                      static_cast<unsigned long long>(r.fieldsExtrapolated),
+                      static_cast<unsigned long long>(r.fieldsHeld));
+        text += buf;
+    }
+    return text;
 }
 
 }  // namespace sim

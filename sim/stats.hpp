@@ -31,6 +31,18 @@ struct FieldRecord {
     std::uint64_t frameSequence = 0;
 };
 
+// One renderer process that ended and was replaced (process renderer only).
+struct RendererRestart {
+    double detected = 0.0;  // clock seconds when the field process noticed
+    std::string cause;      // "killed by signal 9 (Killed)", "silent for 512 ms", ...
+    // Clock seconds from the last new frame before to the first new frame after, and from the
+    // detection to that first frame; -1 when none came before the run ended.
+    double gapSeconds = -1.0;
+    double recoverySeconds = -1.0;
+    std::uint64_t fieldsExtrapolated = 0;  // fields of the gap warped from the last frame
+    std::uint64_t fieldsHeld = 0;          // fields of the gap past the hold horizon
+};
+
 struct StatsSummary {
     std::uint64_t fields = 0;
     std::uint64_t missedDeadlines = 0;  // fields handed over after their slot ended
@@ -47,6 +59,7 @@ struct StatsSummary {
     double renderMsMean = 0.0;
     double elapsedSeconds = 0.0;  // clock seconds from the first slot to the last hand-off
     bool simulatedClock = false;
+    std::vector<RendererRestart> restarts;
 };
 
 // Collects field records (field thread) and frame counts (renderer thread).
@@ -61,11 +74,17 @@ class StatsCollector {
     const std::vector<FieldRecord>& records() const { return records_; }
     std::uint64_t framesRendered() const { return frames_.load(std::memory_order_relaxed); }
 
+    // Field thread (or the thread that supervises the renderer process, under the pipeline's
+    // lock): a renderer restart, and later what its gap cost.
+    std::vector<RendererRestart>& restarts() { return restarts_; }
+    const std::vector<RendererRestart>& restarts() const { return restarts_; }
+
     // renderSeconds: clock seconds over which frames were rendered (for the frame rate).
     StatsSummary summarize(double renderSeconds, bool simulatedClock) const;
 
   private:
     std::vector<FieldRecord> records_;
+    std::vector<RendererRestart> restarts_;
     std::atomic<std::uint64_t> frames_{0};
     std::atomic<std::uint64_t> renderMicros_{0};
 };

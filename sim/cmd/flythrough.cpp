@@ -120,6 +120,9 @@ int main(int argc, char** argv) {
     double fovDeg = 60.0;
     int margin = 48;
     int renderThreads = 0;
+    std::string rendererText = "process";
+    double renderTimeoutMs = 0.0, holdAfterMs = 300.0;
+    std::string faultText;
     std::string levelsText = "auto";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false, overwrite = false;
@@ -155,8 +158,23 @@ int main(int argc, char** argv) {
                  "Keep --margin as it is (default: widen it with the roll so the rolled window "
                  "stays inside the rendered frame)");
     app.add_option("--render-threads", renderThreads,
-                   "Renderer worker threads (0: all cores but one, which the field loop keeps)")
+                   "Renderer worker threads (0: every core for a renderer process; all cores but "
+                   "one, which the field loop keeps, for a renderer thread)")
         ->capture_default_str();
+    app.add_option("--renderer", rendererText,
+                   "process (its own process, restarted if it crashes, hangs or sends garbage) "
+                   "| thread (a thread of the field process)")
+        ->capture_default_str();
+    app.add_option("--render-timeout-ms", renderTimeoutMs,
+                   "Renderer process silent this long is killed and restarted (0: 500 ms or "
+                   "eight renders, whichever is longer)")
+        ->capture_default_str();
+    app.add_option("--hold-after-ms", holdAfterMs,
+                   "Fields extrapolate a frame's motion up to this age, then hold it (0: never)")
+        ->capture_default_str();
+    app.add_option("--inject-renderer-fault", faultText,
+                   "Test a renderer failure once: crash@T | segv@T | exception@T | hang@T | "
+                   "stall@T:MS | garbage@T (T seconds into the run; renderer process only)");
     app.add_option("--levels", levelsText,
                    "Renderer: coarser levels where a voxel shrinks below a pixel, auto (the "
                    "multiresolution caster) | 0 (single level, exact)")
@@ -172,6 +190,9 @@ int main(int argc, char** argv) {
 
     std::unique_ptr<io::FrameSink> sink;
     return ig::runProgram("flythrough", [&]() -> int {
+        // SIGINT/SIGTERM, from here on (loading included), end the run after the field in
+        // hand; the outputs are finished below.
+        io::installStopSignals();
         // Flags first, so a mistake is reported before anything is loaded or opened.
         if (duration && !(*duration > 0.0 && *duration <= 86400.0)) {
             throw ig::InputError("--duration: must be more than 0 and at most 86400 seconds");
@@ -186,6 +207,26 @@ int main(int argc, char** argv) {
         if (margin < 0 || margin > 2048) throw ig::InputError("--margin: must be 0..2048 pixels");
         if (renderThreads < 0 || renderThreads > 1024) {
             throw ig::InputError("--render-threads: must be 0..1024");
+        }
+        if (rendererText != "process" && rendererText != "thread") {
+            throw ig::InputError("--renderer " + base::quoted(rendererText) +
+                                 ": expected process or thread");
+        }
+        const bool rendererProcess = rendererText == "process";
+        if (!(renderTimeoutMs >= 0.0 && renderTimeoutMs <= 600000.0)) {
+            throw ig::InputError("--render-timeout-ms " + base::number(renderTimeoutMs) +
+                                 ": must be 0 (automatic) .. 600000");
+        }
+        if (!(holdAfterMs >= 0.0 && holdAfterMs <= 3600000.0)) {
+            throw ig::InputError("--hold-after-ms " + base::number(holdAfterMs) +
+                                 ": must be 0 (never) .. 3600000");
+        }
+        std::optional<sim::RendererFault> fault;
+        if (!faultText.empty()) {
+            if (!rendererProcess) {
+                throw ig::InputError("--inject-renderer-fault needs --renderer process");
+            }
+            fault = sim::parseRendererFault(faultText, "--inject-renderer-fault");
         }
         ig::RenderOptions renderOptions;
         renderOptions.levels = ig::parseLevels(levelsText);
@@ -286,6 +327,11 @@ int main(int argc, char** argv) {
         options.clock = simulated ? sim::ClockMode::Simulated : sim::ClockMode::Wall;
         options.renderHz = renderHz;
         options.renderThreads = renderThreads;
+        options.rendererMode =
+            rendererProcess ? sim::RendererMode::Process : sim::RendererMode::Thread;
+        options.renderTimeout = renderTimeoutMs * 1e-3;
+        options.fault = fault;
+        options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;
         options.prp.agc = agc;
         options.prp.antiTwitter = antiTwitter;
@@ -328,6 +374,7 @@ int main(int argc, char** argv) {
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
+        options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
             sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions);
         std::unique_ptr<io::FieldClock> clock =
@@ -339,8 +386,6 @@ int main(int argc, char** argv) {
                      opened.width, opened.height, io::pixelFormatName(opened.format), level.width,
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
-        // SIGINT/SIGTERM end the run after the field in hand; the outputs are finished below.
-        io::installStopSignals();
         options.stop = &io::stopFlag();
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();

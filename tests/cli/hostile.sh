@@ -145,6 +145,67 @@ signals_end_runs_cleanly)
     python3 -c "import json,sys; json.load(open(sys.argv[1]))" "$tmp/p.json" ||
         fail "io-check pattern: no valid JSON"
     ;;
+# The renderer process fails in every way it can: the fields go on, the video is whole.
+renderer_faults)
+    for fault in crash@1 segv@1 exception@1 hang@1 stall@1:900 garbage@1; do
+        rm -f "$tmp"/v.y4m "$tmp"/s.json
+        timeout -s KILL 120 "$fly" "${fly_small[@]}" --clock simulated --duration 3 \
+            --out "y4m:$tmp/v.y4m" --json "$tmp/s.json" --contact none --render-timeout-ms 400 \
+            --inject-renderer-fault "$fault" >/dev/null 2>"$tmp/err"; rc=$?
+        [ "$rc" -eq 0 ] || fail "$fault: exit $rc: $(cat "$tmp/err")"
+        frames=$(whole_frames "$tmp/v.y4m" 160 120)
+        [ "$frames" -eq 90 ] || fail "$fault: $frames frames, expected 90"
+        python3 - "$tmp/s.json" "$fault" <<'PY' || fail "$fault: $(cat "$tmp/s.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 180, j["fields"]
+assert j["missed_deadlines"] == 0
+r = j["renderer_restarts"]
+assert len(r) == 1, r
+assert r[0]["gap_ms"] is not None and r[0]["gap_ms"] > 0, r
+PY
+    done
+    # Wall clock: the renderer process killed from outside mid-run.
+    "$fly" "${fly_small[@]}" --duration 4 --out "y4m:$tmp/w.y4m" --json "$tmp/w.json" \
+        --contact none >/dev/null 2>"$tmp/err" &
+    pid=$!
+    sleep 2
+    child=$(pgrep -P "$pid" | head -n 1)
+    [ -n "$child" ] || fail "no renderer process under flythrough $pid"
+    kill -9 "$child"
+    wait "$pid"; rc=$?
+    [ "$rc" -eq 0 ] || fail "renderer killed: exit $rc: $(cat "$tmp/err")"
+    frames=$(whole_frames "$tmp/w.y4m" 160 120)
+    [ "$frames" -eq 120 ] || fail "renderer killed: $frames frames, expected 120"
+    python3 - "$tmp/w.json" <<'PY' || fail "renderer killed: $(cat "$tmp/w.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 240, j["fields"]
+r = j["renderer_restarts"]
+assert len(r) == 1 and "signal 9" in r[0]["cause"], r
+PY
+    ;;
+# SIGINT or SIGTERM at any instant of a run: the video is whole frames, the JSON is written.
+signals_at_random_instants)
+    for i in $(seq 1 20); do
+        rm -f "$tmp"/v.y4m* "$tmp"/s.json*
+        sig=$([ $((i % 2)) -eq 0 ] && echo INT || echo TERM)
+        "$fly" "${fly_small[@]}" --duration 30 --out "y4m:$tmp/v.y4m" --json "$tmp/s.json" \
+            --contact none >/dev/null 2>&1 &
+        pid=$!
+        # From 0.3 s (the program has installed its handlers) to 2 s: loading, the first
+        # frame, the fields.
+        sleep "$((RANDOM % 2)).$((RANDOM % 7 + 3))$((RANDOM % 10))"
+        kill -s "$sig" "$pid"
+        wait "$pid"; rc=$?
+        want=$([ "$sig" = INT ] && echo 130 || echo 143)
+        [ "$rc" -eq "$want" ] || fail "run $i SIG$sig: exit $rc"
+        whole_frames "$tmp/v.y4m" 160 120 >/dev/null
+        python3 -c "import json,sys; json.load(open(sys.argv[1]))" "$tmp/s.json" ||
+            fail "run $i SIG$sig: no valid JSON"
+        ls "$tmp" | grep -q '\.part$' && fail "run $i SIG$sig: a .part file was left"
+    done
+    ;;
 # 7. A png:DIR holding an earlier run is refused unless --overwrite.
 png_folder_reuse)
     "$check" pattern --out "png:$tmp/d:1" --size 64x48 --duration 0.2 --clock simulated \

@@ -380,3 +380,104 @@ TEST(Pipeline, ASlowRenderRateNeverOutlastsTheRun) {
 }
 
 }  // namespace
+
+// The renderer in a process of its own.
+
+namespace renderer_process {
+
+sim::PipelineOptions processOptions(double duration) {
+    sim::PipelineOptions o;
+    o.clock = sim::ClockMode::Simulated;
+    o.duration = duration;
+    o.simulatedRenderHz = 10.0;
+    o.rendererMode = sim::RendererMode::Process;
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 128;
+    geometry.windowHeight = 96;
+    geometry.margin = 8;
+    o.maxFramePixels = sim::maxFramePixels(geometry);
+    o.prp.holdAfter = 0.3;
+    return o;
+}
+
+TEST(RendererProcess, GivesTheFieldsTheThreadRendererGives) {
+    World world;
+    sim::PipelineOptions thread = processOptions(2.0);
+    thread.rendererMode = sim::RendererMode::Thread;
+    const PipelineRun a = runPipeline(world, thread, kGentleScript);
+    const PipelineRun b = runPipeline(world, processOptions(2.0), kGentleScript);
+    ASSERT_TRUE(a.result.ok() && b.result.ok()) << a.result.error << b.result.error;
+    ASSERT_EQ(a.seen.size(), b.seen.size());
+    for (std::size_t n = 0; n < a.seen.size(); ++n) {
+        ASSERT_EQ(a.seen[n].checksum, b.seen[n].checksum) << "field " << n;
+        ASSERT_EQ(a.frameTimes[n], b.frameTimes[n]) << "field " << n;
+    }
+    EXPECT_TRUE(b.result.stats.restarts.empty());
+    EXPECT_EQ(a.result.stats.framesRendered, b.result.stats.framesRendered);
+}
+
+TEST(RendererProcess, FieldsGoOnThroughEveryFault) {
+    struct Case {
+        const char* fault;
+        const char* cause;  // what the restart's cause must say
+    };
+    const Case cases[] = {
+        {"crash@1", "killed by signal 9"},
+        {"segv@1", ""},  // signal 11, or a sanitizer's report and exit
+        {"exception@1", "injected renderer exception"},
+        {"hang@1", "silent for"},
+        {"stall@1:500", "silent for"},
+        {"garbage@1", "bad frame"},
+    };
+    World world;
+    const double duration = 3.0;
+    const std::size_t expected = static_cast<std::size_t>(std::lround(duration / kPeriod));
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.fault);
+        sim::PipelineOptions o = processOptions(duration);
+        o.fault = sim::parseRendererFault(c.fault, "--inject-renderer-fault");
+        o.renderTimeout = 0.25;
+        const PipelineRun run = runPipeline(world, o, kGentleScript);
+        ASSERT_TRUE(run.result.ok()) << run.result.error;
+        // Every field, each at its own instant: none missing, none late.
+        ASSERT_EQ(run.seen.size(), expected);
+        for (std::size_t n = 0; n < expected; ++n) {
+            ASSERT_EQ(run.seen[n].index, n);
+            ASSERT_NEAR(run.seen[n].time, world.start.time + static_cast<double>(n) * kPeriod,
+                        1e-9);
+        }
+        EXPECT_EQ(run.result.stats.missedDeadlines, 0u);
+        // One restart, its cause and its gap reported.
+        ASSERT_EQ(run.result.stats.restarts.size(), 1u);
+        const sim::RendererRestart& r = run.result.stats.restarts[0];
+        EXPECT_NE(r.cause.find(c.cause), std::string::npos) << r.cause;
+        EXPECT_NEAR(r.detected - world.start.time, 1.0, 0.2);
+        // The lost frame, the modelled restart and the next render: 0.1 + 0.25 + 0.1 s.
+        EXPECT_GT(r.gapSeconds, 0.3);
+        EXPECT_LT(r.gapSeconds, 0.6);
+        EXPECT_GT(r.recoverySeconds, 0.0);
+        EXPECT_GT(r.fieldsExtrapolated + r.fieldsHeld, 15u);
+        // Fresh frames again after the restart, to the end of the run.
+        EXPECT_GT(run.frameTimes.back(), world.start.time + duration - 0.25);
+    }
+}
+
+TEST(RendererProcess, FaultSpecificationsAreCheckedAndDescribed) {
+    const sim::RendererFault f = sim::parseRendererFault("stall@2.5:500", "--f");
+    EXPECT_EQ(f.kind, sim::RendererFault::Kind::Stall);
+    EXPECT_EQ(f.at, 2.5);
+    EXPECT_EQ(f.stallSeconds, 0.5);
+    EXPECT_EQ(sim::describeRendererFault(f), "stall@2.5:500");
+    EXPECT_EQ(sim::parseRendererFault("hang@0", "--f").kind, sim::RendererFault::Kind::Hang);
+    for (const char* bad : {"", "crash", "crash@", "crash@-1", "crash@nan", "boom@1", "stall@1",
+                            "stall@1:x", "segv@1e20"}) {
+        try {
+            sim::parseRendererFault(bad, "--inject-renderer-fault");
+            ADD_FAILURE() << "accepted " << bad;
+        } catch (const ig::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("--inject-renderer-fault"), std::string::npos);
+        }
+    }
+}
+
+}  // namespace renderer_process

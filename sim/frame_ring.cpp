@@ -1,0 +1,291 @@
+#include "sim/frame_ring.hpp"
+
+#include "base/check.hpp"
+
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <type_traits>
+
+namespace sim {
+
+static_assert(std::is_trivially_copyable_v<ig::Pose>);
+static_assert(std::is_trivially_copyable_v<ig::Intrinsics>);
+static_assert(std::is_trivially_copyable_v<ig::ControlPoint>);
+static_assert(std::is_trivially_copyable_v<ig::RenderStats>);
+static_assert(std::atomic<std::uint64_t>::is_always_lock_free);
+static_assert(std::atomic<std::uint32_t>::is_always_lock_free);
+
+namespace {
+
+constexpr std::uint32_t kFresh = 4;
+constexpr std::uint32_t kIndexMask = 3;
+constexpr std::size_t kAlign = 64;
+constexpr std::size_t kErrorBytes = 256;
+constexpr int kRequestWords = 8;
+
+std::size_t roundUp(std::size_t n) {
+    return (n + kAlign - 1) / kAlign * kAlign;
+}
+
+std::uint64_t bits(double v) {
+    return std::bit_cast<std::uint64_t>(v);
+}
+double real(std::uint64_t v) {
+    return std::bit_cast<double>(v);
+}
+
+bool finite(const glm::dvec2& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y);
+}
+bool finite(const glm::dvec4& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && std::isfinite(v.w);
+}
+
+}  // namespace
+
+// Lives at the start of the mapping; both processes see the same bytes. Every field two
+// processes touch at once is atomic.
+struct FrameRing::Header {
+    alignas(kAlign) std::atomic<std::uint32_t> middle;
+    alignas(kAlign) std::atomic<std::uint32_t> back;  // the writer's slot
+    std::atomic<std::uint64_t> published;
+    std::atomic<std::int64_t> lastPublishNs;
+    alignas(kAlign) std::atomic<std::uint64_t> requestLock;  // odd while a post is written
+    std::atomic<std::uint64_t> request[kRequestWords];
+    alignas(kAlign) std::atomic<std::uint32_t> stop;
+    std::atomic<std::uint32_t> faultClaimed;
+    std::atomic<std::uint32_t> errorLength;
+    char errorText[kErrorBytes];
+};
+
+struct FrameRing::SlotMeta {
+    std::uint64_t sequence;
+    double time;
+    ig::Pose pose;
+    ig::Intrinsics intrinsics;
+    ig::ControlPoint controlPoints[ig::kControlPointCount];
+    ig::RenderStats stats;
+    std::uint64_t pixels;
+    std::int64_t publishNs;
+};
+
+FrameRing::FrameRing(std::size_t maxPixels) : maxPixels_(maxPixels) {
+    CHECK_GT(maxPixels, 0u);
+    slotBytes_ = roundUp(sizeof(SlotMeta)) + roundUp(maxPixels * sizeof(ig::Rgb8)) +
+                 roundUp(maxPixels * sizeof(float));
+    mapBytes_ = roundUp(sizeof(Header)) + 3 * slotBytes_;
+    const int fd = memfd_create("vig-frames", MFD_CLOEXEC);
+    if (fd < 0) throw std::runtime_error(std::string("memfd_create: ") + std::strerror(errno));
+    if (ftruncate(fd, static_cast<off_t>(mapBytes_)) != 0) {
+        const int e = errno;
+        close(fd);
+        throw std::runtime_error("ftruncate of the frame ring (" + std::to_string(mapBytes_) +
+                                 " bytes): " + std::strerror(e));
+    }
+    void* p = mmap(nullptr, mapBytes_, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    const int e = errno;
+    close(fd);
+    if (p == MAP_FAILED) throw std::runtime_error(std::string("mmap: ") + std::strerror(e));
+    base_ = static_cast<unsigned char*>(p);
+    Header* h = new (base_) Header{};
+    h->middle.store(1);
+    h->back.store(0);
+    for (std::uint32_t s = 0; s < 3; ++s)
+        new (base_ + roundUp(sizeof(Header)) + s * slotBytes_) SlotMeta{};
+}
+
+FrameRing::~FrameRing() {
+    if (base_) munmap(base_, mapBytes_);
+}
+
+FrameRing::Header& FrameRing::header() const {
+    return *std::launder(reinterpret_cast<Header*>(base_));
+}
+
+FrameRing::SlotMeta& FrameRing::meta(std::uint32_t slot) const {
+    DCHECK_LT(slot, 3u);
+    return *std::launder(
+        reinterpret_cast<SlotMeta*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_));
+}
+
+ig::Rgb8* FrameRing::color(std::uint32_t slot) const {
+    return reinterpret_cast<ig::Rgb8*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_ +
+                                       roundUp(sizeof(SlotMeta)));
+}
+
+float* FrameRing::depth(std::uint32_t slot) const {
+    return reinterpret_cast<float*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_ +
+                                    roundUp(sizeof(SlotMeta)) +
+                                    roundUp(maxPixels_ * sizeof(ig::Rgb8)));
+}
+
+bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
+    const std::size_t n = frame.color.size();
+    if (n > maxPixels_ || frame.depth.size() != n) return false;
+    Header& h = header();
+    const std::uint32_t back = h.back.load(std::memory_order_relaxed);
+    SlotMeta& m = meta(back);
+    m.sequence = frame.sequence;
+    m.time = frame.time;
+    m.pose = frame.pose;
+    m.intrinsics = frame.intrinsics;
+    std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
+    m.stats = frame.stats;
+    m.pixels = n;
+    m.publishNs = clockNs;
+    std::memcpy(color(back), frame.color.data(), n * sizeof(ig::Rgb8));
+    std::memcpy(depth(back), frame.depth.data(), n * sizeof(float));
+    const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
+    h.back.store(old & kIndexMask, std::memory_order_relaxed);
+    h.lastPublishNs.store(clockNs, std::memory_order_relaxed);
+    h.published.fetch_add(1, std::memory_order_release);
+    return true;
+}
+
+void FrameRing::publishRaw(const ig::RenderedFrame& frame, std::uint64_t claimedPixels) {
+    Header& h = header();
+    const std::uint32_t back = h.back.load(std::memory_order_relaxed);
+    SlotMeta& m = meta(back);
+    m.sequence = frame.sequence;
+    m.time = frame.time;
+    m.pose = frame.pose;
+    m.intrinsics = frame.intrinsics;
+    std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
+    m.stats = frame.stats;
+    m.pixels = claimedPixels;
+    m.publishNs = 0;
+    const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
+    h.back.store(old & kIndexMask, std::memory_order_relaxed);
+    h.published.fetch_add(1, std::memory_order_release);
+}
+
+FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
+    Header& h = header();
+    if ((h.middle.load(std::memory_order_acquire) & kFresh) == 0) return Fetch::None;
+    front_ = h.middle.exchange(front_, std::memory_order_acq_rel) & kIndexMask;
+    const SlotMeta& m = meta(front_);
+    const ig::Intrinsics& in = m.intrinsics;
+    const auto bad = [&](const std::string& what) {
+        if (why) *why = "frame " + std::to_string(m.sequence) + ": " + what;
+        return Fetch::Bad;
+    };
+    if (in.width < 2 || in.height < 2 || in.margin < 0 || in.windowWidth() < 1 ||
+        in.windowHeight() < 1 || !(in.focal > 0.0) || !std::isfinite(in.focal)) {
+        return bad("unusable size " + std::to_string(in.width) + "x" + std::to_string(in.height) +
+                   " margin " + std::to_string(in.margin));
+    }
+    const std::uint64_t n = static_cast<std::uint64_t>(in.width) * in.height;
+    if (n > maxPixels_ || m.pixels != n) {
+        return bad(std::to_string(m.pixels) + " pixels for " + std::to_string(in.width) + "x" +
+                   std::to_string(in.height) + " (a slot holds " + std::to_string(maxPixels_) +
+                   ")");
+    }
+    if (!m.pose.isFinite() || !std::isfinite(m.time)) return bad("pose or time not finite");
+    for (const ig::ControlPoint& c : m.controlPoints) {
+        if (!finite(c.pixel) || !finite(c.world)) return bad("a control point is not finite");
+    }
+    // A frame no newer than the one shown (a restarted renderer answering a request the
+    // last one already had) is not shown.
+    if (fetchedAny_ && m.sequence <= lastSequence_) return Fetch::None;
+    fetchedAny_ = true;
+    lastSequence_ = m.sequence;
+    into.sequence = m.sequence;
+    into.time = m.time;
+    into.pose = m.pose;
+    into.intrinsics = in;
+    std::copy(std::begin(m.controlPoints), std::end(m.controlPoints), into.controlPoints.begin());
+    into.stats = m.stats;
+    into.color.resize(n);
+    into.depth.resize(n);
+    std::memcpy(into.color.data(), color(front_), n * sizeof(ig::Rgb8));
+    std::memcpy(into.depth.data(), depth(front_), n * sizeof(float));
+    return Fetch::New;
+}
+
+void FrameRing::resetWriter() {
+    Header& h = header();
+    const std::uint32_t middle = h.middle.load(std::memory_order_acquire) & kIndexMask;
+    h.back.store(3 - front_ - middle, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+}
+
+void FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
+    Header& h = header();
+    const std::uint64_t lock = h.requestLock.load(std::memory_order_relaxed);
+    h.requestLock.store(lock + 1, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+    const std::uint64_t words[kRequestWords] = {
+        bits(time),     bits(pose.position.x), bits(pose.position.y), bits(pose.position.z),
+        bits(pose.yaw), bits(pose.pitch),      bits(pose.roll),       sequence};
+    for (int k = 0; k < kRequestWords; ++k)
+        h.request[k].store(words[k], std::memory_order_relaxed);
+    h.requestLock.store(lock + 2, std::memory_order_release);
+}
+
+RenderRequest FrameRing::latestRequest() const {
+    const Header& h = header();
+    for (;;) {
+        const std::uint64_t before = h.requestLock.load(std::memory_order_acquire);
+        if (before % 2 != 0) continue;  // a post is being written (a few stores long)
+        std::uint64_t w[kRequestWords];
+        for (int k = 0; k < kRequestWords; ++k)
+            w[k] = h.request[k].load(std::memory_order_relaxed);
+        std::atomic_thread_fence(std::memory_order_acquire);
+        if (h.requestLock.load(std::memory_order_relaxed) != before) continue;
+        RenderRequest r;
+        r.time = real(w[0]);
+        r.pose.position = {real(w[1]), real(w[2]), real(w[3])};
+        r.pose.yaw = real(w[4]);
+        r.pose.pitch = real(w[5]);
+        r.pose.roll = real(w[6]);
+        r.sequence = w[7];
+        r.generation = before / 2;
+        return r;
+    }
+}
+
+std::uint64_t FrameRing::published() const {
+    return header().published.load(std::memory_order_acquire);
+}
+
+std::int64_t FrameRing::lastPublishNs() const {
+    return header().lastPublishNs.load(std::memory_order_relaxed);
+}
+
+void FrameRing::requestStop() {
+    header().stop.store(1, std::memory_order_release);
+}
+
+bool FrameRing::stopRequested() const {
+    return header().stop.load(std::memory_order_acquire) != 0;
+}
+
+bool FrameRing::claimFault() {
+    return header().faultClaimed.exchange(1, std::memory_order_acq_rel) == 0;
+}
+
+void FrameRing::setError(const std::string& text) {
+    Header& h = header();
+    const std::size_t n = std::min(text.size(), kErrorBytes - 1);
+    std::memcpy(h.errorText, text.data(), n);
+    h.errorLength.store(static_cast<std::uint32_t>(n), std::memory_order_release);
+}
+
+std::string FrameRing::error() const {
+    const Header& h = header();
+    const std::uint32_t n = h.errorLength.load(std::memory_order_acquire);
+    return std::string(h.errorText, std::min<std::size_t>(n, kErrorBytes - 1));
+}
+
+void FrameRing::clearError() {
+    header().errorLength.store(0, std::memory_order_release);
+}
+
+}  // namespace sim

@@ -1,0 +1,95 @@
+// Frames between processes: the latest-frame mailbox of the pipeline, in shared memory.
+//
+// One anonymous shared-memory file (memfd) holds a header and three frame slots. The renderer
+// process writes its back slot and publishes it with one atomic exchange of the "middle" word
+// (slot index + fresh bit); the field process exchanges its front slot for the middle one when
+// the fresh bit is set. Neither side waits and the field process never sees a slot being
+// written. Every slot is checked on the way in (sizes, finite pose and control points): a
+// renderer that writes garbage is caught there, not in the warp.
+//
+// Render requests go the other way through a sequence lock: the field process posts the pose it
+// wants rendered and the time it is for; the renderer reads the newest one.
+#pragma once
+
+#include "ig/frame.hpp"
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace sim {
+
+// What the field process asks the renderer for. `generation` counts posts (0: none yet).
+struct RenderRequest {
+    double time = 0.0;  // simulation time of the pose
+    ig::Pose pose;      // the full predicted pose, roll included
+    std::uint64_t sequence = 0;
+    std::uint64_t generation = 0;
+};
+
+class FrameRing {
+  public:
+    // A new shared mapping with three slots of up to `maxPixels` pixels. Throws
+    // std::runtime_error naming the system call when the system refuses.
+    explicit FrameRing(std::size_t maxPixels);
+    ~FrameRing();
+    FrameRing(const FrameRing&) = delete;
+    FrameRing& operator=(const FrameRing&) = delete;
+
+    std::size_t maxPixels() const { return maxPixels_; }
+
+    // Renderer side: copies `frame` into the back slot and publishes it. False (nothing
+    // published) when it holds more pixels than a slot or its colour and depth sizes disagree.
+    bool publish(const ig::RenderedFrame& frame, std::int64_t clockNs);
+    // Renderer side, for fault injection and tests: publishes the back slot with `meta` as
+    // it is (sizes and values unchecked) and no pixels copied.
+    void publishRaw(const ig::RenderedFrame& meta, std::uint64_t claimedPixels);
+
+    enum class Fetch { None, New, Bad };
+    // Field side: when a frame newer than the last fetched was published, copies it into
+    // `into` (reusing its buffers: no allocation once they have grown to the slot size) and
+    // returns New; Bad (and `why`) when the slot does not hold a usable frame; None otherwise
+    // (also for a frame whose sequence is not above the last one fetched).
+    Fetch fetch(ig::RenderedFrame& into, std::string* why);
+
+    // Field side: the next writer (a restarted renderer) writes the slot that is neither the
+    // field side's nor the published one, whatever the last writer was doing when it died.
+    void resetWriter();
+
+    // Requests (field side posts, renderer side reads; any number of posts, one reader).
+    void postRequest(const ig::Pose& pose, double time, std::uint64_t sequence);
+    RenderRequest latestRequest() const;
+
+    // Published frames so far; clock (ns, CLOCK_MONOTONIC) of the last publish, 0 before any.
+    std::uint64_t published() const;
+    std::int64_t lastPublishNs() const;
+
+    // Flags shared by both sides.
+    void requestStop();
+    bool stopRequested() const;
+    // A fault to inject fires once per run, whichever renderer process reaches it.
+    bool claimFault();
+    // The renderer's last words before it exits on an error (at most 255 bytes kept).
+    void setError(const std::string& text);
+    std::string error() const;
+    void clearError();
+
+  private:
+    struct Header;
+    struct SlotMeta;
+    Header& header() const;
+    SlotMeta& meta(std::uint32_t slot) const;
+    ig::Rgb8* color(std::uint32_t slot) const;
+    float* depth(std::uint32_t slot) const;
+
+    std::size_t maxPixels_ = 0;
+    std::size_t slotBytes_ = 0;
+    std::size_t mapBytes_ = 0;
+    unsigned char* base_ = nullptr;
+    std::uint32_t front_ = 2;  // field side's slot (process-local: only the field side reads it)
+    std::uint64_t lastSequence_ = 0;
+    bool fetchedAny_ = false;
+};
+
+}  // namespace sim
