@@ -104,7 +104,7 @@ void encode(const EntityControl& p, Bytes& b) {
                                       field(raw(p.groundClamp), 5)));
     b.u8(5, static_cast<std::uint8_t>(
                 flag(p.animationBackward, 0) | flag(p.animationContinuous, 1) |
-                field(raw(p.animationState), 2) | flag(p.extrapolationEnable, 5)));
+                field(raw(p.animationState), 2) | flag(p.extrapolationEnable, 4)));
     b.u8(6, p.alpha);
     b.u16(8, p.entityType);
     b.u16(10, p.parentId);
@@ -126,8 +126,8 @@ void decode(const Bytes& b, EntityControl& p) {
     const std::uint8_t g = b.u8(5);
     p.animationBackward = bit(g, 0);
     p.animationContinuous = bit(g, 1);
-    p.animationState = static_cast<AnimationState>((g >> 2) & 0x07);
-    p.extrapolationEnable = bit(g, 5);
+    p.animationState = static_cast<AnimationState>((g >> 2) & 0x03);
+    p.extrapolationEnable = bit(g, 4);
     p.alpha = b.u8(6);
     p.entityType = b.u16(8);
     p.parentId = b.u16(10);
