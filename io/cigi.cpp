@@ -1,6 +1,6 @@
 // CIGI 3.3 codec. Layouts, sizes and sources: docs/design/cigi.md.
 //
-// Every packet is read and written through one Bytes view of its fixed-size span: offsets are
+// Every packet is read and written through one view of its fixed-size span: offsets are
 // the standard's byte offsets from the packet's first byte (its id), multi-byte fields in the
 // datagram's byte order. Decoding checks the size byte before it reads, so a field read is
 // always inside the datagram; values are checked after, by the same validate() that encoding
@@ -19,11 +19,13 @@ namespace io::cigi {
 namespace {
 
 // --- Bytes in either order
-// -------------------------------------------------------------------------
 
-class Bytes {
+// A packet's bytes in the datagram's byte order: Reader over const bytes, Writer over the
+// output. Offsets count from the packet's first byte (its id).
+template <typename Byte>
+class PacketBytes {
   public:
-    Bytes(std::uint8_t* p, ByteOrder order) : p_(p), little_(order == ByteOrder::Little) {}
+    PacketBytes(Byte* p, ByteOrder order) : p_(p), little_(order == ByteOrder::Little) {}
 
     std::uint8_t u8(std::size_t at) const { return p_[at]; }
     std::uint16_t u16(std::size_t at) const { return static_cast<std::uint16_t>(get(at, 2)); }
@@ -38,24 +40,23 @@ class Bytes {
     void f64(std::size_t at, double v) { put(at, 8, std::bit_cast<std::uint64_t>(v)); }
 
   private:
+    int shift(int i, int n) const { return little_ ? 8 * i : 8 * (n - 1 - i); }
     std::uint64_t get(std::size_t at, int n) const {
         std::uint64_t v = 0;
-        for (int i = 0; i < n; ++i) {
-            const int shift = little_ ? 8 * i : 8 * (n - 1 - i);
-            v |= static_cast<std::uint64_t>(p_[at + static_cast<std::size_t>(i)]) << shift;
-        }
+        for (int i = 0; i < n; ++i)
+            v |= static_cast<std::uint64_t>(p_[at + static_cast<std::size_t>(i)]) << shift(i, n);
         return v;
     }
     void put(std::size_t at, int n, std::uint64_t v) {
-        for (int i = 0; i < n; ++i) {
-            const int shift = little_ ? 8 * i : 8 * (n - 1 - i);
-            p_[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> shift);
-        }
+        for (int i = 0; i < n; ++i)
+            p_[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> shift(i, n));
     }
 
-    std::uint8_t* p_;
+    Byte* p_;
     bool little_;
 };
+using Reader = PacketBytes<const std::uint8_t>;
+using Writer = PacketBytes<std::uint8_t>;
 
 constexpr bool bit(std::uint8_t byte, int n) {
     return (byte >> n) & 1u;
@@ -72,11 +73,10 @@ constexpr unsigned raw(E e) {
 }
 
 // --- Field layouts
-// ----------------------------------------------------------------------------------- encode(p, b)
-// writes everything after the id and size bytes (the buffer is zeroed, so reserved bytes stay 0);
-// decode(b, p) reads the same bytes.
+// encode(p, b) writes everything after the id and size bytes (the buffer is zeroed, so reserved
+// bytes stay 0); decode(b, p) reads the same bytes.
 
-void encode(const IgControl& p, Bytes& b) {
+void encode(const IgControl& p, Writer& b) {
     b.u8(2, kMajorVersion);
     b.u8(3, static_cast<std::uint8_t>(p.databaseNumber));
     b.u8(4, static_cast<std::uint8_t>(field(raw(p.igMode), 0) | flag(p.timestampValid, 2) |
@@ -86,7 +86,7 @@ void encode(const IgControl& p, Bytes& b) {
     b.u32(12, p.timestamp);
     b.u32(16, p.lastIgFrameNumber);
 }
-void decode(const Bytes& b, IgControl& p) {
+void decode(const Reader& b, IgControl& p) {
     p.databaseNumber = static_cast<std::int8_t>(b.u8(3));
     const std::uint8_t f = b.u8(4);
     p.igMode = static_cast<IgMode>(f & 0x03);
@@ -97,7 +97,7 @@ void decode(const Bytes& b, IgControl& p) {
     p.lastIgFrameNumber = b.u32(16);
 }
 
-void encode(const EntityControl& p, Bytes& b) {
+void encode(const EntityControl& p, Writer& b) {
     b.u16(2, p.entityId);
     b.u8(4, static_cast<std::uint8_t>(field(raw(p.entityState), 0) | flag(p.attached, 2) |
                                       flag(p.collisionDetection, 3) | flag(p.inheritAlpha, 4) |
@@ -115,7 +115,7 @@ void encode(const EntityControl& p, Bytes& b) {
     b.f64(32, p.lonOrY);
     b.f64(40, p.altOrZ);
 }
-void decode(const Bytes& b, EntityControl& p) {
+void decode(const Reader& b, EntityControl& p) {
     p.entityId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.entityState = static_cast<EntityState>(f & 0x03);
@@ -139,7 +139,7 @@ void decode(const Bytes& b, EntityControl& p) {
     p.altOrZ = b.f64(40);
 }
 
-void encode(const RateControl& p, Bytes& b) {
+void encode(const RateControl& p, Writer& b) {
     b.u16(2, p.entityId);
     b.u8(4, p.partId);
     b.u8(5, static_cast<std::uint8_t>(flag(p.applyToPart, 0) | flag(p.localCoordinates, 1)));
@@ -150,7 +150,7 @@ void encode(const RateControl& p, Bytes& b) {
     b.f32(24, p.pitchRateDeg);
     b.f32(28, p.yawRateDeg);
 }
-void decode(const Bytes& b, RateControl& p) {
+void decode(const Reader& b, RateControl& p) {
     p.entityId = b.u16(2);
     p.partId = b.u8(4);
     p.applyToPart = bit(b.u8(5), 0);
@@ -163,7 +163,7 @@ void decode(const Bytes& b, RateControl& p) {
     p.yawRateDeg = b.f32(28);
 }
 
-void encode(const ViewControl& p, Bytes& b) {
+void encode(const ViewControl& p, Writer& b) {
     b.u16(2, p.viewId);
     b.u8(4, p.groupId);
     b.u8(5, static_cast<std::uint8_t>(flag(p.xEnable, 0) | flag(p.yEnable, 1) | flag(p.zEnable, 2) |
@@ -177,7 +177,7 @@ void encode(const ViewControl& p, Bytes& b) {
     b.f32(24, p.pitchDeg);
     b.f32(28, p.yawDeg);
 }
-void decode(const Bytes& b, ViewControl& p) {
+void decode(const Reader& b, ViewControl& p) {
     p.viewId = b.u16(2);
     p.groupId = b.u8(4);
     const std::uint8_t f = b.u8(5);
@@ -196,7 +196,7 @@ void decode(const Bytes& b, ViewControl& p) {
     p.yawDeg = b.f32(28);
 }
 
-void encode(const ViewDefinition& p, Bytes& b) {
+void encode(const ViewDefinition& p, Writer& b) {
     b.u16(2, p.viewId);
     b.u8(4, p.groupId);
     b.u8(5, static_cast<std::uint8_t>(flag(p.nearEnable, 0) | flag(p.farEnable, 1) |
@@ -212,7 +212,7 @@ void encode(const ViewDefinition& p, Bytes& b) {
     b.f32(24, p.topDeg);
     b.f32(28, p.bottomDeg);
 }
-void decode(const Bytes& b, ViewDefinition& p) {
+void decode(const Reader& b, ViewDefinition& p) {
     p.viewId = b.u16(2);
     p.groupId = b.u8(4);
     const std::uint8_t f = b.u8(5);
@@ -236,7 +236,7 @@ void decode(const Bytes& b, ViewDefinition& p) {
     p.bottomDeg = b.f32(28);
 }
 
-void encode(const HatHotRequest& p, Bytes& b) {
+void encode(const HatHotRequest& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(field(raw(p.type), 0) | flag(p.entityCoordinates, 2)));
     b.u8(5, p.updatePeriod);
@@ -245,7 +245,7 @@ void encode(const HatHotRequest& p, Bytes& b) {
     b.f64(16, p.lonOrY);
     b.f64(24, p.altOrZ);
 }
-void decode(const Bytes& b, HatHotRequest& p) {
+void decode(const Reader& b, HatHotRequest& p) {
     p.requestId = b.u16(2);
     p.type = static_cast<HatHotType>(b.u8(4) & 0x03);
     p.entityCoordinates = bit(b.u8(4), 2);
@@ -256,7 +256,7 @@ void decode(const Bytes& b, HatHotRequest& p) {
     p.altOrZ = b.f64(24);
 }
 
-void encode(const LosSegmentRequest& p, Bytes& b) {
+void encode(const LosSegmentRequest& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(flag(p.extended, 0) | flag(p.sourceEntityCoordinates, 1) |
                                       flag(p.destinationEntityCoordinates, 2) |
@@ -274,7 +274,7 @@ void encode(const LosSegmentRequest& p, Bytes& b) {
     b.u8(60, p.updatePeriod);
     b.u16(62, p.destinationEntityId);
 }
-void decode(const Bytes& b, LosSegmentRequest& p) {
+void decode(const Reader& b, LosSegmentRequest& p) {
     p.requestId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.extended = bit(f, 0);
@@ -295,7 +295,7 @@ void decode(const Bytes& b, LosSegmentRequest& p) {
     p.destinationEntityId = b.u16(62);
 }
 
-void encode(const LosVectorRequest& p, Bytes& b) {
+void encode(const LosVectorRequest& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(flag(p.extended, 0) | flag(p.sourceEntityCoordinates, 1) |
                                       flag(p.responseEntityCoordinates, 2)));
@@ -311,7 +311,7 @@ void encode(const LosVectorRequest& p, Bytes& b) {
     b.u32(48, p.materialMask);
     b.u8(52, p.updatePeriod);
 }
-void decode(const Bytes& b, LosVectorRequest& p) {
+void decode(const Reader& b, LosVectorRequest& p) {
     p.requestId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.extended = bit(f, 0);
@@ -330,7 +330,7 @@ void decode(const Bytes& b, LosVectorRequest& p) {
     p.updatePeriod = b.u8(52);
 }
 
-void encode(const StartOfFrame& p, Bytes& b) {
+void encode(const StartOfFrame& p, Writer& b) {
     b.u8(2, kMajorVersion);
     b.u8(3, static_cast<std::uint8_t>(p.databaseNumber));
     b.u8(4, p.igStatus);
@@ -341,7 +341,7 @@ void encode(const StartOfFrame& p, Bytes& b) {
     b.u32(12, p.timestamp);
     b.u32(16, p.lastHostFrameNumber);
 }
-void decode(const Bytes& b, StartOfFrame& p) {
+void decode(const Reader& b, StartOfFrame& p) {
     p.databaseNumber = static_cast<std::int8_t>(b.u8(3));
     p.igStatus = b.u8(4);
     const std::uint8_t f = b.u8(5);
@@ -353,13 +353,13 @@ void decode(const Bytes& b, StartOfFrame& p) {
     p.lastHostFrameNumber = b.u32(16);
 }
 
-void encode(const HatHotResponse& p, Bytes& b) {
+void encode(const HatHotResponse& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4,
          static_cast<std::uint8_t>(flag(p.valid, 0) | flag(p.isHot, 1) | field(p.hostFrameLsn, 4)));
     b.f64(8, p.heightM);
 }
-void decode(const Bytes& b, HatHotResponse& p) {
+void decode(const Reader& b, HatHotResponse& p) {
     p.requestId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.valid = bit(f, 0);
@@ -368,7 +368,7 @@ void decode(const Bytes& b, HatHotResponse& p) {
     p.heightM = b.f64(8);
 }
 
-void encode(const HatHotExtendedResponse& p, Bytes& b) {
+void encode(const HatHotExtendedResponse& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(flag(p.valid, 0) | field(p.hostFrameLsn, 4)));
     b.f64(8, p.hatM);
@@ -377,7 +377,7 @@ void encode(const HatHotExtendedResponse& p, Bytes& b) {
     b.f32(28, p.normalAzimuthDeg);
     b.f32(32, p.normalElevationDeg);
 }
-void decode(const Bytes& b, HatHotExtendedResponse& p) {
+void decode(const Reader& b, HatHotExtendedResponse& p) {
     p.requestId = b.u16(2);
     p.valid = bit(b.u8(4), 0);
     p.hostFrameLsn = b.u8(4) >> 4;
@@ -388,7 +388,7 @@ void decode(const Bytes& b, HatHotExtendedResponse& p) {
     p.normalElevationDeg = b.f32(32);
 }
 
-void encode(const LosResponse& p, Bytes& b) {
+void encode(const LosResponse& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(flag(p.valid, 0) | flag(p.entityIdValid, 1) |
                                       flag(p.visible, 2) | field(p.hostFrameLsn, 4)));
@@ -396,7 +396,7 @@ void encode(const LosResponse& p, Bytes& b) {
     b.u16(6, p.entityId);
     b.f64(8, p.rangeM);
 }
-void decode(const Bytes& b, LosResponse& p) {
+void decode(const Reader& b, LosResponse& p) {
     p.requestId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.valid = bit(f, 0);
@@ -408,7 +408,7 @@ void decode(const Bytes& b, LosResponse& p) {
     p.rangeM = b.f64(8);
 }
 
-void encode(const LosExtendedResponse& p, Bytes& b) {
+void encode(const LosExtendedResponse& p, Writer& b) {
     b.u16(2, p.requestId);
     b.u8(4, static_cast<std::uint8_t>(flag(p.valid, 0) | flag(p.entityIdValid, 1) |
                                       flag(p.rangeValid, 2) | flag(p.visible, 3) |
@@ -427,7 +427,7 @@ void encode(const LosExtendedResponse& p, Bytes& b) {
     b.f32(48, p.normalAzimuthDeg);
     b.f32(52, p.normalElevationDeg);
 }
-void decode(const Bytes& b, LosExtendedResponse& p) {
+void decode(const Reader& b, LosExtendedResponse& p) {
     p.requestId = b.u16(2);
     const std::uint8_t f = b.u8(4);
     p.valid = bit(f, 0);
@@ -451,7 +451,6 @@ void decode(const Bytes& b, LosExtendedResponse& p) {
 }
 
 // --- Field checks
-// -----------------------------------------------------------------------------------
 
 // Collects the first problem; later checks do nothing once one is found. Builds no string
 // unless there is a problem, so checking a good packet allocates nothing.
@@ -627,7 +626,6 @@ template <>
 constexpr std::string_view kName<LosExtendedResponse> = "Line of Sight Extended Response (id 105)";
 
 // --- Decoding a datagram
-// ---------------------------------------------------------------------------
 
 class Decoder {
   public:
@@ -713,8 +711,7 @@ bool Decoder::packet(std::size_t offset, std::size_t size) {
         if (offset != 0) return fail(at(kName<T>, offset) + ": only one per message, first");
     }
     T& p = std::get<T>(m_.packets.emplace_back(std::in_place_type<T>));
-    // The decoder reads only; Bytes is shared with encoding and takes a mutable pointer.
-    const Bytes b(const_cast<std::uint8_t*>(d_.data() + offset), m_.byteOrder);
+    const Reader b(d_.data() + offset, m_.byteOrder);
     decode(b, p);
     Checker c;
     check(p, c);
@@ -824,7 +821,7 @@ void encodePacket(const Packet& packet, ByteOrder order, std::vector<std::uint8_
             using T = std::decay_t<decltype(p)>;
             const std::size_t at = out.size();
             out.resize(at + T::kSize, 0);
-            Bytes b(out.data() + at, order);
+            Writer b(out.data() + at, order);
             b.u8(0, T::kId);
             b.u8(1, T::kSize);
             encode(p, b);

@@ -22,7 +22,7 @@ inline constexpr std::uint16_t kByteSwapMagic = 0x8000;
 inline constexpr std::uint8_t kMajorVersion = 3;
 inline constexpr std::uint8_t kMinorVersion = 3;
 
-// --- Host to image generator ---------------------------------------------------------------------
+// --- Host to image generator
 
 enum class IgMode : std::uint8_t { Reset = 0, Operate = 1, Debug = 2, OfflineMaintenance = 3 };
 
@@ -153,7 +153,7 @@ struct LosVectorRequest {  // id 26, 56 bytes
     bool operator==(const LosVectorRequest&) const = default;
 };
 
-// --- Image generator to host ---------------------------------------------------------------------
+// --- Image generator to host
 
 struct StartOfFrame {  // id 101, 24 bytes; the first packet of every image generator message
     static constexpr std::uint8_t kId = 101, kSize = 24;
@@ -228,7 +228,7 @@ using Packet =
 // "Entity Control (id 2)".
 std::string_view packetName(const Packet& packet);
 
-// --- Messages ------------------------------------------------------------------------------------
+// --- Messages
 
 enum class Sender : std::uint8_t { Host, ImageGenerator };
 

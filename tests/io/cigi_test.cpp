@@ -43,7 +43,7 @@ Bytes hostMessage(const Packet& p, ByteOrder order = ByteOrder::Big) {
     return encodeMessage(v, order);
 }
 
-// --- Round trips ---------------------------------------------------------------------------------
+// --- Round trips
 
 TEST(CigiCodec, EveryPacketRoundTripsInBothByteOrders) {
     for (const ByteOrder order : kOrders) {
@@ -110,7 +110,7 @@ TEST(CigiCodec, ByteOrdersMirrorEachField) {
     EXPECT_EQ(littleMessage[7], 0x80);
 }
 
-// --- Byte images written by hand from the standard's layouts ------------------------------------
+// --- Byte images written by hand from the standard's layouts
 
 const Bytes kIgControlBig = {
     0x01, 0x18, 0x03, 0x05,  // id 1, 24 bytes, major version 3, database 5
@@ -239,7 +239,7 @@ TEST(CigiCodec, HandWrittenStartOfFrameAndHatHotResponseLittleEndian) {
     EXPECT_EQ(h.heightM, 100.0);
 }
 
-// --- Refusals ------------------------------------------------------------------------------------
+// --- Refusals
 
 TEST(CigiCodec, EmptyAndTinyDatagramsAreRefused) {
     EXPECT_NE(decodeError({}, Sender::Host).find("too short"), std::string::npos);
