@@ -3,7 +3,8 @@
 set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config libeigen3-dev libglm-dev libgpiod-dev
           libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev libpng-dev libjpeg-dev libgdal-dev
-          nlohmann-json3-dev libcli11-dev)
+          nlohmann-json3-dev libcli11-dev
+          tshark)  # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
