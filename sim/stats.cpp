@@ -19,6 +19,7 @@ Percentiles percentiles(std::vector<double> values) {
     };
     p.p50 = rank(0.50);
     p.p99 = rank(0.99);
+    p.p999 = rank(0.999);
     p.max = values.back();
     return p;
 }
@@ -79,7 +80,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
 
 namespace {
 nlohmann::json toJson(const Percentiles& p) {
-    return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}};
+    return {{"p50", p.p50}, {"p99", p.p99}, {"p99.9", p.p999}, {"max", p.max}};
 }
 nlohmann::json restartsJson(const std::vector<RendererRestart>& restarts) {
     nlohmann::json list = nlohmann::json::array();
@@ -127,7 +128,8 @@ std::string formatSummary(const StatsSummary& s) {
     char buf[1024];
     std::snprintf(buf, sizeof buf,
                   "fields          %llu in %.2f s (%s clock), missed deadlines %llu\n"
-                  "field interval  p50 %.3f  p99 %.3f  max %.3f ms (jitter p99 %.3f  max %.3f ms)\n"
+                  "field interval  p50 %.3f  p99 %.3f  max %.3f ms (jitter p99 %.3f  p99.9 %.3f  "
+                  "max %.3f ms)\n"
                   "frame age       p50 %.1f  p99 %.1f  max %.1f ms\n"
                   "renderer        %.1f fps, %.1f ms per frame, %llu frames (%llu shown)\n"
                   "warp            p50 %.2f  p99 %.2f  max %.2f ms, fallbacks %llu "
@@ -135,9 +137,9 @@ std::string formatSummary(const StatsSummary& s) {
                   static_cast<unsigned long long>(s.fields), s.elapsedSeconds,
                   s.simulatedClock ? "simulated" : "wall",
                   static_cast<unsigned long long>(s.missedDeadlines), s.fieldIntervalMs.p50,
-                  s.fieldIntervalMs.p99, s.fieldIntervalMs.max, s.jitterMs.p99, s.jitterMs.max,
-                  s.frameAgeMs.p50, s.frameAgeMs.p99, s.frameAgeMs.max, s.renderFps, s.renderMsMean,
-                  static_cast<unsigned long long>(s.framesRendered),
+                  s.fieldIntervalMs.p99, s.fieldIntervalMs.max, s.jitterMs.p99, s.jitterMs.p999,
+                  s.jitterMs.max, s.frameAgeMs.p50, s.frameAgeMs.p99, s.frameAgeMs.max, s.renderFps,
+                  s.renderMsMean, static_cast<unsigned long long>(s.framesRendered),
                   static_cast<unsigned long long>(s.framesShown), s.warpMs.p50, s.warpMs.p99,
                   s.warpMs.max, static_cast<unsigned long long>(s.fallbacks),
                   static_cast<unsigned long long>(s.fallbacksByKind[1]),

@@ -16,6 +16,7 @@ namespace sim {
 struct Percentiles {
     double p50 = 0.0;
     double p99 = 0.0;
+    double p999 = 0.0;
     double max = 0.0;
 };
 // Nearest-rank percentiles of `values` (all zero when empty).

@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
     int margin = 48;
     int renderThreads = 0;
     std::string rendererText = "process";
-    double renderTimeoutMs = 0.0, holdAfterMs = 300.0;
+    double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     std::string faultText;
     std::string levelsText = "auto";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;

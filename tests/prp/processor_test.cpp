@@ -100,6 +100,39 @@ double fieldError(const Field& field, const ig::RenderedFrame& truth) {
     return sum / (3.0 * field.width * field.lines);
 }
 
+// Past `holdAfter` of frame age a field holds the frame: the Hold model's field, to the byte.
+TEST(Processor, HoldsAFrameOlderThanHoldAfter) {
+    const ig::Pose pose = test::lookingDown(-40.0, 300.0);
+    ig::RenderedFrame f = test::renderPlane(pose, kIn);
+    f.time = 10.0;
+    ig::Pose at = pose;
+    at.position += glm::dvec3{6.0, 16.0, -4.0};
+    at.yaw += 0.016;
+    at.roll = 0.04;
+    for (const WarpModel m : {WarpModel::Poly, WarpModel::Depth}) {
+        PrpOptions withHold = options(PixelFormat::Rgb8, m);
+        withHold.holdAfter = 0.5;
+        PostRenderingProcessor limited(withHold), motion(options(PixelFormat::Rgb8, m)),
+            held(options(PixelFormat::Rgb8, WarpModel::Hold));
+        Field a, b, c;
+        // Within the horizon: the model itself.
+        limited.process(f, at, 10.4, 0, a);
+        motion.process(f, at, 10.4, 0, b);
+        EXPECT_EQ(a.pixels, b.pixels) << warpModelName(m);
+        EXPECT_EQ(a.warp.model, m);
+        // Past it: the Hold model's field.
+        limited.process(f, at, 10.6, 1, a);
+        held.process(f, at, 10.6, 1, c);
+        EXPECT_EQ(a.pixels, c.pixels) << warpModelName(m);
+        EXPECT_EQ(a.warp.model, WarpModel::Hold);
+        motion.process(f, at, 10.6, 1, b);
+        EXPECT_NE(a.pixels, b.pixels);
+    }
+    PrpOptions bad = options();
+    bad.holdAfter = std::nan("");
+    EXPECT_THROW(PostRenderingProcessor{bad}, ig::InputError);
+}
+
 TEST(Processor, MotionCompensationBeatsHoldOnAMovingCamera) {
     const ig::Pose pose = test::lookingDown(-40.0, 300.0);
     const ig::RenderedFrame f = test::renderPlane(pose, kIn);

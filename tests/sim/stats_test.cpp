@@ -19,7 +19,9 @@ TEST(Percentiles, NearestRankOnKnownSets) {
         EXPECT_EQ(p.max, n);
         EXPECT_EQ(p.p50, std::ceil(0.5 * n));
         EXPECT_EQ(p.p99, std::ceil(0.99 * n));
+        EXPECT_EQ(p.p999, std::ceil(0.999 * n));
         EXPECT_LE(p.p50, p.p99);
+        EXPECT_LE(p.p99, p.p999);
     }
     const sim::Percentiles empty = sim::percentiles({});
     EXPECT_EQ(empty.max, 0.0);
@@ -61,8 +63,9 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
     }
     EXPECT_EQ(j["fields"].get<int>(), n);
     EXPECT_EQ(j["missed_deadlines"].get<int>(), n / 50);
-    for (const char* key : {"p50", "p99", "max"})
+    for (const char* key : {"p50", "p99", "p99.9", "max"})
         EXPECT_TRUE(j["field_interval_ms"].contains(key));
+    EXPECT_TRUE(j["renderer_restarts"].is_array());
     for (const char* key : {"p50", "p99"})
         EXPECT_TRUE(j["frame_age_ms"].contains(key));
     EXPECT_FALSE(sim::formatSummary(s).empty());
