@@ -2,7 +2,10 @@
 
 #include "base/check.hpp"
 
+#include <linux/futex.h>
 #include <sys/mman.h>
+#include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,6 +24,7 @@ static_assert(std::is_trivially_copyable_v<ig::ControlPoint>);
 static_assert(std::is_trivially_copyable_v<ig::RenderStats>);
 static_assert(std::atomic<std::uint64_t>::is_always_lock_free);
 static_assert(std::atomic<std::uint32_t>::is_always_lock_free);
+static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t));
 
 namespace {
 
@@ -56,6 +60,7 @@ struct FrameRing::Header {
     alignas(kAlign) std::atomic<std::uint32_t> middle;
     alignas(kAlign) std::atomic<std::uint32_t> back;  // the writer's slot
     std::atomic<std::uint64_t> published;
+    std::atomic<std::uint32_t> publishWord;  // low bits of `published`, for futex waits
     std::atomic<std::int64_t> lastPublishNs;
     alignas(kAlign) std::atomic<std::uint64_t> requestLock;  // odd while a post is written
     std::atomic<std::uint64_t> request[kRequestWords];
@@ -75,6 +80,24 @@ struct FrameRing::SlotMeta {
     std::uint64_t pixels;
     std::int64_t publishNs;
 };
+
+void FrameRing::wake(Header& h) {
+    h.publishWord.fetch_add(1, std::memory_order_release);
+    syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&h.publishWord), FUTEX_WAKE, 1, nullptr,
+            nullptr, 0);
+}
+
+void FrameRing::waitForPublish(std::uint64_t seen, double seconds) const {
+    Header& h = header();
+    const std::uint32_t word = h.publishWord.load(std::memory_order_acquire);
+    if (h.published.load(std::memory_order_acquire) != seen || !(seconds > 0.0)) return;
+    timespec timeout{};
+    timeout.tv_sec = static_cast<time_t>(seconds);
+    timeout.tv_nsec = static_cast<long>((seconds - static_cast<double>(timeout.tv_sec)) * 1e9);
+    // Returns at once if a publish moved the word since it was read (no lost wake-up).
+    syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&h.publishWord), FUTEX_WAIT, word, &timeout,
+            nullptr, 0);
+}
 
 FrameRing::FrameRing(std::size_t maxPixels) : maxPixels_(maxPixels) {
     CHECK_GT(maxPixels, 0u);
@@ -146,6 +169,7 @@ bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
     h.back.store(old & kIndexMask, std::memory_order_relaxed);
     h.lastPublishNs.store(clockNs, std::memory_order_relaxed);
     h.published.fetch_add(1, std::memory_order_release);
+    wake(h);
     return true;
 }
 
@@ -164,6 +188,7 @@ void FrameRing::publishRaw(const ig::RenderedFrame& frame, std::uint64_t claimed
     const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
     h.back.store(old & kIndexMask, std::memory_order_relaxed);
     h.published.fetch_add(1, std::memory_order_release);
+    wake(h);
 }
 
 FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {

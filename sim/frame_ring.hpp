@@ -63,6 +63,9 @@ class FrameRing {
 
     // Published frames so far; clock (ns, CLOCK_MONOTONIC) of the last publish, 0 before any.
     std::uint64_t published() const;
+    // Sleeps until a frame is published after `published()` returned `seen`, or `seconds`
+    // pass (a futex on the shared word: the publishing process wakes the waiter).
+    void waitForPublish(std::uint64_t seen, double seconds) const;
     std::int64_t lastPublishNs() const;
 
     // Flags shared by both sides.
@@ -79,6 +82,7 @@ class FrameRing {
     struct Header;
     struct SlotMeta;
     Header& header() const;
+    static void wake(Header& h);
     SlotMeta& meta(std::uint32_t slot) const;
     ig::Rgb8* color(std::uint32_t slot) const;
     float* depth(std::uint32_t slot) const;

@@ -339,17 +339,30 @@ void Pipeline::restartProcess(const std::string& cause) {
 }
 
 void Pipeline::superviseLoop() {
-    // Wall clock: every 2 ms, whatever the field loop is doing. A fork costs milliseconds,
-    // so it is done here, never on the field thread.
+    // Wall clock: this thread takes each new frame out of the ring as soon as it is published
+    // (the copy never runs on the field thread, which takes frames from the in-process mailbox
+    // as from a renderer thread), and looks after the renderer process at least every 2 ms.
+    // A fork costs milliseconds, so restarts happen here too, never on the field thread.
     try {
+        std::string why;
         while (!stop_.load(std::memory_order_acquire)) {
+            ring_->waitForPublish(ring_->published(), 0.002);
             std::string cause;
-            if (std::optional<std::string> ended = process_->checkEnded()) {
-                cause = *ended;
-            } else if (badFrame_.load(std::memory_order_acquire)) {
-                std::lock_guard lock(restartMutex_);
-                cause = "sent a bad frame (" + badFrameWhy_ + ")";
-            } else {
+            const FrameRing::Fetch got = ring_->fetch(frames_.back(), &why);
+            if (got == FrameRing::Fetch::New) {
+                const double took = frames_.back().stats.renderMs * 1e-3;
+                stats_.addFrame(frames_.back().stats.renderMs);
+                renderSeconds_.store(
+                    0.75 * renderSeconds_.load(std::memory_order_relaxed) + 0.25 * took,
+                    std::memory_order_relaxed);
+                frames_.publish();
+            } else if (got == FrameRing::Fetch::Bad) {
+                cause = "sent a bad frame (" + why + ")";
+            }
+            if (cause.empty()) {
+                if (std::optional<std::string> ended = process_->checkEnded()) cause = *ended;
+            }
+            if (cause.empty()) {
                 timespec now{};
                 clock_gettime(CLOCK_MONOTONIC, &now);
                 const std::int64_t nowNs =
@@ -365,10 +378,7 @@ void Pipeline::superviseLoop() {
                 timespec now{};
                 clock_gettime(CLOCK_MONOTONIC, &now);
                 processStartNs_ = static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
-                badFrame_.store(false, std::memory_order_release);
             }
-            const timespec pause{0, 2000000};
-            nanosleep(&pause, nullptr);
         }
     } catch (...) {
         renderError_ = std::current_exception();
@@ -416,12 +426,12 @@ PipelineResult Pipeline::run() {
         processStartNs_ = ring_->lastPublishNs();
         ring_->postRequest(poses_.predict(t0_), t0_, 0);
         std::string why;
-        ig::RenderedFrame& first = simulated ? frames_.back() : shown_;
+        ig::RenderedFrame& first = frames_.back();
         // The first frame also pays for the renderer's start: allow it ten timeouts.
         if (awaitFrame(first, 10.0 * renderTimeout(), why) != Await::Frame) {
             throw std::runtime_error("the renderer process gave no first frame: it " + why);
         }
-        if (simulated) frames_.publish();
+        frames_.publish();
         renderSeconds_.store(first.stats.renderMs * 1e-3, std::memory_order_relaxed);
     } else {
         publish(renderAt(t0_, 0));
@@ -462,7 +472,6 @@ PipelineResult Pipeline::run() {
     double nextProgress = c0_;
     std::uint64_t missed = 0;
     std::uint64_t requestSequence = 1;
-    std::string badWhy;
     for (std::uint64_t n = 0; n < fieldCount_; ++n) {
         const double deadline = pacer.wait(n).deadline;
         if (renderFailed_.load(std::memory_order_acquire)) break;
@@ -473,7 +482,6 @@ PipelineResult Pipeline::run() {
         const double t = prp::fieldTime(t0_, n);
         if (simulated) renderSimulatedUntil(t);
         const ig::Pose pose = poses_.advanceTo(t);
-        const ig::RenderedFrame* frame = nullptr;
         if (process && !simulated) {
             // Ask for the pose the next frame should show: when it will be ready, half a field
             // after this request on average.
@@ -481,23 +489,9 @@ PipelineResult Pipeline::run() {
                 t + renderSeconds_.load(std::memory_order_relaxed) + 0.5 * prp::kFieldPeriod;
             ring_->postRequest(poses_.predict(aim), aim, requestSequence);
             requested_.store(requestSequence++, std::memory_order_relaxed);
-            const FrameRing::Fetch got = ring_->fetch(shown_, &badWhy);
-            if (got == FrameRing::Fetch::New) {
-                stats_.addFrame(shown_.stats.renderMs);
-                const double took = shown_.stats.renderMs * 1e-3;
-                renderSeconds_.store(
-                    0.75 * renderSeconds_.load(std::memory_order_relaxed) + 0.25 * took,
-                    std::memory_order_relaxed);
-            } else if (got == FrameRing::Fetch::Bad && !badFrame_.load()) {
-                std::lock_guard lock(restartMutex_);
-                badFrameWhy_ = badWhy;
-                badFrame_.store(true, std::memory_order_release);
-            }
-            frame = &shown_;
-        } else {
-            frames_.fetch();
-            frame = &frames_.front();
         }
+        frames_.fetch();
+        const ig::RenderedFrame* frame = &frames_.front();
         noteFrameShown(*frame, clock_.now());
         processor.process(*frame, pose, t, n, field);
         noteField(field.frameAge);

@@ -155,15 +155,12 @@ class Pipeline {
     // Renderer process.
     std::unique_ptr<FrameRing> ring_;
     std::unique_ptr<RendererProcess> process_;
-    ig::RenderedFrame shown_;                     // wall clock: the frame the fields warp
     std::mutex restartMutex_;                     // guards stats_.restarts()
     std::atomic<std::uint64_t> restarts_{0};      // restarts so far
     std::uint64_t restartsClosed_ = 0;            // field thread: restarts whose gap is accounted
     std::atomic<std::uint64_t> requested_{0};     // the newest sequence asked of the renderer
     std::atomic<std::uint64_t> restartAfter_{0};  // at the last restart: frames after it are newer
-    std::atomic<bool> badFrame_{false};
     std::int64_t processStartNs_ = 0;         // supervisor: when the running renderer was started
-    std::string badFrameWhy_;                 // under restartMutex_
     std::atomic<double> renderSeconds_{0.0};  // running render time (for the timeout)
     std::uint64_t lastShownSequence_ = ~std::uint64_t{0};
     double lastNewFrameClock_ = 0.0;
