@@ -2,6 +2,8 @@
 // timing figures), a live stick readout, and a list of the V4L2 and GPIO devices present.
 #include <fcntl.h>
 #include <linux/videodev2.h>
+#include <pthread.h>
+#include <sched.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
 
@@ -27,7 +29,7 @@
 namespace {
 
 struct Percentiles {
-    double p50 = 0, p99 = 0, max = 0;
+    double p50 = 0, p99 = 0, p999 = 0, max = 0;
 };
 
 Percentiles percentiles(std::vector<double> v) {
@@ -39,6 +41,7 @@ Percentiles percentiles(std::vector<double> v) {
     };
     p.p50 = at(0.50);
     p.p99 = at(0.99);
+    p.p999 = at(0.999);
     p.max = v.back();
     return p;
 }
@@ -80,7 +83,7 @@ void drawField(const io::VideoFormat& format, io::FieldParity parity, double tim
 
 int runPattern(const std::string& outSpec, double duration, const std::string& sizeText,
                const std::string& formatText, const std::string& clockText,
-               const std::string& jsonPath, bool overwrite) {
+               const std::string& jsonPath, bool overwrite, bool realtime) {
     int width = 0, height = 0;
     char x = 0;
     if (std::sscanf(sizeText.c_str(), "%d%c%d", &width, &x, &height) != 3 || x != 'x') {
@@ -130,6 +133,13 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
     auto clock = clockText == "wall" ? io::makeWallClock() : io::makeSimulatedClock();
     const std::uint64_t fields =
         static_cast<std::uint64_t>(std::llround(duration / io::kFieldPeriod));
+    // As the pipeline's field loop: real-time priority when the system grants it.
+    bool granted = false;
+    if (realtime) {
+        sched_param param{};
+        param.sched_priority = std::min(20, sched_get_priority_max(SCHED_FIFO));
+        granted = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+    }
     const double t0 = clock->now() + 0.05;
     io::FieldPacer pacer(*clock, t0);
     std::vector<double> lateness, intervals, workMs;
@@ -178,15 +188,17 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
         std::fprintf(stderr, "io-check: --out %s: the first refused field: %s\n", outSpec.c_str(),
                      std::strerror(-firstError));
     }
-    std::fprintf(report, "  wake lateness ms  p50 %.3f  p99 %.3f  max %.3f\n", late.p50, late.p99,
-                 late.max);
+    std::fprintf(report, "  wake lateness ms  p50 %.3f  p99 %.3f  p99.9 %.3f  max %.3f%s\n",
+                 late.p50, late.p99, late.p999, late.max,
+                 realtime ? (granted ? " (SCHED_FIFO)" : " (SCHED_FIFO refused)") : "");
     std::fprintf(report, "  field interval ms p50 %.3f  p99 %.3f  max %.3f\n", interval.p50,
                  interval.p99, interval.max);
     std::fprintf(report, "  sink write ms     p50 %.3f  p99 %.3f  max %.3f\n", work.p50, work.p99,
                  work.max);
     if (!jsonPath.empty()) {
         auto pj = [](const Percentiles& p) {
-            return nlohmann::json{{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}};
+            return nlohmann::json{
+                {"p50", p.p50}, {"p99", p.p99}, {"p99.9", p.p999}, {"max", p.max}};
         };
         const nlohmann::json j = {{"fields", written},
                                   {"fields_planned", fields},
@@ -197,6 +209,7 @@ int runPattern(const std::string& outSpec, double duration, const std::string& s
                                   {"field_interval_ms", pj(interval)},
                                   {"sink_write_ms", pj(work)},
                                   {"output", outSpec},
+                                  {"realtime", granted},
                                   {"clock", clockText}};
         if (io::writeTextFile(jsonPath, j.dump(2) + "\n", &error) != 0) {
             std::fprintf(stderr, "io-check: --json %s\n", error.c_str());
@@ -273,7 +286,7 @@ int main(int argc, char** argv) {
     std::string outSpec = "null", sizeText = "720x486", formatText = "uyvy", clockText = "wall",
                 jsonPath;
     double duration = 5.0;
-    bool overwrite = false;
+    bool overwrite = false, realtime = false;
     auto* pattern =
         app.add_subcommand("pattern", "A moving test pattern to an output, on the field clock");
     pattern->add_option("--out", outSpec, "y4m:PATH | v4l2:/dev/videoN | png:DIR[:EVERY_N] | null")
@@ -283,6 +296,9 @@ int main(int argc, char** argv) {
     pattern->add_option("--format", formatText, "uyvy | y8 | rgb8")->capture_default_str();
     pattern->add_option("--clock", clockText, "wall | simulated")->capture_default_str();
     pattern->add_option("--json", jsonPath, "Write timing figures as JSON");
+    pattern->add_flag("--realtime", realtime,
+                      "Run the field loop at SCHED_FIFO, as flythrough does, where the system "
+                      "allows it (the field clock's own lateness, with no renderer)");
 
     std::string stickSpec;
     double stickDuration = 10.0, rate = 10.0;
@@ -298,7 +314,8 @@ int main(int argc, char** argv) {
                       "png:DIR may be a folder that is not empty (its frames are replaced)");
     CLI11_PARSE(app, argc, argv);
     if (*pattern) {
-        return runPattern(outSpec, duration, sizeText, formatText, clockText, jsonPath, overwrite);
+        return runPattern(outSpec, duration, sizeText, formatText, clockText, jsonPath, overwrite,
+                          realtime);
     }
     if (*stick) {
         if (!(rate >= 0.1 && rate <= 1000.0)) {
