@@ -326,16 +326,21 @@ Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, st
 
 void Pipeline::restartProcess(const std::string& cause) {
     process_->kill();
+    RendererRestart r;
+    r.detected = clock_.now();
+    r.cause = cause;
+    restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
+    timespec before{}, after{};
+    clock_gettime(CLOCK_MONOTONIC, &before);
+    process_->start();
+    clock_gettime(CLOCK_MONOTONIC, &after);
+    r.startSeconds = static_cast<double>(after.tv_sec - before.tv_sec) +
+                     static_cast<double>(after.tv_nsec - before.tv_nsec) * 1e-9;
     {
         std::lock_guard lock(restartMutex_);
-        RendererRestart r;
-        r.detected = clock_.now();
-        r.cause = cause;
         stats_.restarts().push_back(std::move(r));
     }
-    restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
     restarts_.fetch_add(1, std::memory_order_release);
-    process_->start();
 }
 
 void Pipeline::superviseLoop() {
