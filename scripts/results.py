@@ -25,8 +25,9 @@ MET, NOT_MET, NO_TARGET = "met", "**not met**", "no target"
 class Page:
     def __init__(self, data_dir):
         self.data_dir = data_dir
-        self.rows = []        # (what, target, value, status, command)
-        self.sections = []    # extra markdown blocks (detail tables)
+        self.rows = []        # (group, (what, target, value, status, command))
+        self.group = ""
+        self.sections = []    # (group, title, text, table): detail tables under a group
         self.commands = {}  # name -> command line as run
         self.loads = {}     # name -> load average when it started
         path = os.path.join(data_dir, "commands.tsv")
@@ -66,8 +67,11 @@ class Page:
                 i += 1
         return "`" + " ".join(shown) + "`" if shown else "(see `scripts/results.sh`)"
 
+    def section(self, title, text, table):
+        self.sections.append((self.group, title, text, table))
+
     def row(self, what, target, value, status, command):
-        self.rows.append((what, target, value, status, command))
+        self.rows.append((self.group, (what, target, value, status, command)))
 
 
 # --- numbers -----------------------------------------------------------------------------------
@@ -116,6 +120,7 @@ def gbench_find(doc, name):
 # --- claims --------------------------------------------------------------------------------------
 
 def casters(p):
+    p.group = "Ray casters"
     doc = p.load("caster_bench.json")
     if not doc:
         return
@@ -147,6 +152,7 @@ def casters(p):
 
 
 def renderer(p):
+    p.group = "Renderer at full speed"
     doc = p.load("render_bench.json")
     if not doc:
         return
@@ -250,7 +256,7 @@ def renderer(p):
                     lines.append(f"| levels {levels} | {ss} | {spread(r['ms_runs'], 1)} | "
                                  f"{fmt(r['ns_per_pixel'], 1)} | "
                                  f"{fmt(r['mae_pct_vs_reference'], 3)} |")
-        p.sections.append((
+        p.section(*(
             "Speed against error: rays per pixel (`--supersample`)",
             f"Time at {s['image'].replace('x', '×')} (one thread, frame times in ms: median, range, runs), error at "
             f"{s['error_image'].replace('x', '×')} against a 4×4 supersampled reference "
@@ -283,6 +289,7 @@ def renderer(p):
 
 
 def callgrind(p):
+    p.group = "Renderer at full speed"
     doc = p.load("caster_callgrind.json")
     if not doc or not doc.get("runs"):
         return
@@ -304,6 +311,7 @@ def callgrind(p):
 
 
 def warp(p):
+    p.group = "Post-rendering processor"
     doc = p.load("warp_bench.json")
     if not doc:
         return
@@ -336,6 +344,7 @@ def warp(p):
 
 
 def warp_eval(p):
+    p.group = "Post-rendering processor"
     doc = p.load("warp_eval.json")
     if not doc:
         return
@@ -373,7 +382,7 @@ def warp_eval(p):
         lines.append(f"| {m} | " + " | ".join(
             f"{fmt(by[(m, k)]['psnr_db'], 1)} / {fmt(by[(m, k)]['mae_pct'], 2)}" for k in shown)
             + f" | {fmt(ns, 2)} | {fb} |")
-    p.sections.append((
+    p.section(*(
         "Warp models against the horizon",
         f"Each model warps a frame rendered at t to t + k fields and is compared with a true "
         f"render there ({doc['size'][0]}×{doc['size'][1]}, margin {doc['margin']} px, levels "
@@ -393,6 +402,7 @@ STEREO_WIDE = (("stereo_puget_720x486_agl0.1", "Puget Sound", "720×486, 5× sep
 
 
 def stereo(p):
+    p.group = "Stereo"
     found, wide = [], []
     for group, names in ((found, STEREO), (wide, STEREO_WIDE)):
         for name, terrain, size in names:
@@ -427,8 +437,8 @@ def stereo(p):
     p.row("Stereo: right eye colour error against its full ray cast, same runs", "≤ 2 %",
           f"{fmt(min(maes), 3)}–{fmt(max(maes), 3)} % mean absolute error",
           status(max(maes) <= 2), "the table below")
-    p.sections.append((
-        "Stereo: right eye by reprojection",
+    p.section(*(
+        "Per terrain, size and configuration",
         "For each pose of the 12-pose sweep the left eye is cast by the fast caster and the right "
         "eye both reprojected from it (each configuration) and cast in full (the reference); "
         "times are one thread's CPU time, the least of the repeats; right/left is the sum of "
@@ -440,6 +450,7 @@ def stereo(p):
 
 
 def pipeline(p):
+    p.group = "Real-time pipeline and output"
     auto = [p.load(f"flythrough_auto_{i}.json") for i in range(1, 10)]
     auto = [d for d in auto if d]
     single = [p.load(f"flythrough_levels0_{i}.json") for i in range(1, 10)]
@@ -450,10 +461,15 @@ def pipeline(p):
     missed = [d["missed_deadlines"] for d in auto + single]
     seconds = sum(d["elapsed_s"] for d in auto + single)
     fields = sum(d["fields"] for d in auto + single)
+    names = [f"flythrough_auto_{i}" for i in range(1, len(auto) + 1)] + \
+        [f"flythrough_levels0_{i}" for i in range(1, len(single) + 1)]
+    loads = [p.loads[n] for n in names if n in p.loads]
+    load = f"; load average {fmt(min(loads), 1)}–{fmt(max(loads), 1)} as they started" if loads else ""
     p.row("Pipeline on the wall clock, default scenario, 720×486 fields, renderer unthrottled: "
           "missed field deadlines", "0",
-          f"{sum(missed)} of {fields} fields in {len(missed)} runs ({fmt(seconds, 0)} s); field "
-          f"interval max {fmt(max(d['field_interval_ms']['max'] for d in auto + single), 1)} ms",
+          f"{sum(missed)} of {fields} fields in {len(missed)} runs, {fmt(seconds, 0)} s (per run: "
+          f"{', '.join(str(m) for m in missed)}{load}); field interval max "
+          f"{fmt(max(d['field_interval_ms']['max'] for d in auto + single), 1)} ms",
           status(sum(missed) == 0), cmd)
     value = (f"levels auto {spread([d['render_fps'] for d in auto], 1, ' fps')}")
     if single:
@@ -476,6 +492,7 @@ def pipeline(p):
 
 
 def io_layer(p):
+    p.group = "Real-time pipeline and output"
     doc = p.load("io_check.json")
     if not doc:
         return
@@ -525,12 +542,24 @@ def render(data_dir):
                 f"The machine is shared (load average {load_range(p, m)} as the commands "
                 "started), so single times are noisy: values are medians with their range over "
                 "the runs, and ratios pair runs taken in turn where the program does.", ""]
-    out += ["| what | target | value | status | command |", "| --- | --- | --- | --- | --- |"]
-    for r in p.rows:
-        out.append("| " + " | ".join(r) + " |")
-    out.append("")
-    for title, text, table in p.sections:
-        out += [f"## {title}", "", text, "", table, ""]
+    met = sum(1 for _, r in p.rows if r[3] == MET)
+    missed = [r[0] for _, r in p.rows if r[3] == NOT_MET]
+    out += [f"{len(p.rows)} claims: {met} targets met, {len(missed)} not met (**not met** below), "
+            f"{len(p.rows) - met - len(missed)} without a target.", ""]
+    groups = []
+    for group, _ in p.rows:
+        if group not in groups:
+            groups.append(group)
+    for group in groups:
+        out += [f"## {group}", "", "| what | target | value | status | command |",
+                "| --- | --- | --- | --- | --- |"]
+        for g, r in p.rows:
+            if g == group:
+                out.append("| " + " | ".join(r) + " |")
+        out.append("")
+        for g, title, text, table in p.sections:
+            if g == group:
+                out += [f"### {title}", "", text, "", table, ""]
     out += ["## Elsewhere", "",
             "Experiments that were measured and not kept are in the design notes' "
             "\"Alternatives considered\" sections (`docs/design/`); how each part works is in "

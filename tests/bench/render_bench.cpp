@@ -329,27 +329,47 @@ void pitches(const Config& c) {
               [](const ig::TerrainMap& map, double deg) { return issuePose(map, deg); });
 }
 
+// The frames of the four cases (two maps, two casters) are taken in turn, so that a change in
+// the core's speed during the run weighs on all of them alike.
 void sensitivity(const Config& c) {
     const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
     const double pixels = static_cast<double>(c.width) * c.height;
-    std::printf("\n## output sensitivity: %dx%d, issue camera, one thread\n", c.width, c.height);
+    std::printf("\n## output sensitivity: %dx%d, issue camera, one thread, best of %d in turn\n",
+                c.width, c.height, c.repeat);
+    struct Case {
+        int size, levels;
+        const ig::TerrainMap* map;
+        std::unique_ptr<ig::Caster> caster;
+        Timed best;
+    };
+    std::vector<Case> cases;
+    for (int size : {4096, c.size}) {
+        const ig::TerrainMap& map = syntheticMap(size);
+        for (int levels : {0, ig::kLevelsAuto})
+            cases.push_back({size, levels, &map, caster(ig::CasterKind::Fast, map, levels, 1), {}});
+    }
+    for (int i = 0; i < c.repeat; ++i) {
+        for (Case& k : cases) {
+            const Timed t = timeFrames(*k.caster, *k.map, issuePose(*k.map), in, 1);
+            k.best.runs.push_back(t.ms);
+            if (i == 0 || t.ms < k.best.ms) {
+                k.best.ms = t.ms;
+                k.best.frame = t.frame;
+            }
+        }
+    }
     header(false);
     std::map<std::pair<int, int>, double> ms;
     nlohmann::json j = sectionJson(c, c.size), rows = nlohmann::json::array();
-    for (int size : {4096, c.size}) {
-        const ig::TerrainMap& map = syntheticMap(size);
-        for (int levels : {0, ig::kLevelsAuto}) {
-            const auto fast = caster(ig::CasterKind::Fast, map, levels, 1);
-            const Timed t = timeFrames(*fast, map, issuePose(map), in, c.repeat);
-            const std::string name = std::to_string(size) + "^2, levels " +
-                                     (levels == 0 ? std::string("0") : std::string("auto"));
-            printRow(name.c_str(), t, pixels);
-            ms[{size, levels}] = t.ms;
-            nlohmann::json row = timedJson(name, t, pixels);
-            row["map_size"] = size;
-            row["levels"] = levels == 0 ? "0" : "auto";
-            rows.push_back(row);
-        }
+    for (const Case& k : cases) {
+        const std::string name = std::to_string(k.size) + "^2, levels " +
+                                 (k.levels == 0 ? std::string("0") : std::string("auto"));
+        printRow(name.c_str(), k.best, pixels);
+        ms[{k.size, k.levels}] = k.best.ms;
+        nlohmann::json row = timedJson(name, k.best, pixels);
+        row["map_size"] = k.size;
+        row["levels"] = k.levels == 0 ? "0" : "auto";
+        rows.push_back(row);
     }
     std::printf("frame time %d^2 / 4096^2: levels 0 %.2fx, levels auto %.2fx\n", c.size,
                 ms[{c.size, 0}] / ms[{4096, 0}],
