@@ -18,7 +18,13 @@ only=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --skip-build) build=0 ;;
-        --only) shift; only+=("$1") ;;
+        --only)
+            shift
+            case "${1:-}" in
+                machine|caster|render|warp|warp-eval|stereo|flythrough|io) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, warp, warp-eval, stereo, flythrough or io" >&2
+                   exit 2 ;;
+            esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
     esac
     shift
