@@ -33,9 +33,12 @@ class Page:
         path = os.path.join(data_dir, "commands.tsv")
         if os.path.exists(path):
             for line in open(path, encoding="utf-8"):
-                name, load, command = line.rstrip("\n").split("\t")
-                self.commands[name] = command
-                self.loads[name] = float(load)
+                fields = line.rstrip("\n").split("\t")
+                if len(fields) == 3:  # name, load average, command
+                    self.commands[fields[0]] = fields[2]
+                    self.loads[fields[0]] = float(fields[1])
+                elif len(fields) == 2:  # name, command
+                    self.commands[fields[0]] = fields[1]
 
     def load(self, name):
         path = os.path.join(self.data_dir, name)
@@ -289,25 +292,43 @@ def renderer(p):
 
 
 def callgrind(p):
+    """Instructions per pixel before and after a reorganisation of the caster, from
+    caster_callgrind.json when it exists: {"machine", "camera", "map", "runs": [{"levels",
+    "kernel", "revision": "before"|"after", "instructions", "pixels", "instructions_per_pixel"}]}
+    (an optional "command" says how it was measured)."""
     p.group = "Renderer at full speed"
     doc = p.load("caster_callgrind.json")
     if not doc or not doc.get("runs"):
         return
+    keys = []
+    for r in doc["runs"]:
+        key = (str(r.get("levels", "?")), r.get("kernel", ""))
+        if key not in keys:
+            keys.append(key)
     parts = []
-    for levels in ("auto", "0"):
-        runs = {r["revision"]: r for r in doc["runs"] if str(r.get("levels")) == levels}
+    for levels, kernel in keys:
+        runs = {r.get("revision"): r["instructions_per_pixel"] for r in doc["runs"]
+                if (str(r.get("levels", "?")), r.get("kernel", "")) == (levels, kernel)}
+        name = f"levels {levels}" + (f" ({kernel})" if kernel else "")
         if "before" in runs and "after" in runs:
-            b, a = runs["before"], runs["after"]
-            parts.append(f"levels {levels}: {fmt(b['instructions_per_pixel'], 0)} → "
-                         f"{fmt(a['instructions_per_pixel'], 0)} ({a.get('kernel', '')})".replace(
-                             " ()", ""))
-    if not parts:
-        return
+            change = 100.0 * (runs["after"] / runs["before"] - 1.0)
+            parts.append(f"{name}: {fmt(runs['before'], 0)} → {fmt(runs['after'], 0)} "
+                         f"({'+' if change >= 0 else ''}{fmt(change, 0)} %)")
+        else:
+            parts += [f"{name}, {rev}: {fmt(v, 0)}" for rev, v in runs.items()]
+    camera, where = doc.get("camera", "1920x1080"), doc.get("map", "synthetic 16384")
+    if doc.get("command"):
+        command = f"`{doc['command']}`"
+    elif "caster_callgrind" in p.commands:
+        command = p.command("caster_callgrind")
+    else:
+        command = ("`valgrind --tool=callgrind --collect-atstart=no "
+                   "--toggle-collect='ig::renderFrame*' build/release/bin/bench-render frame "
+                   f"--size {where.split()[-1]} --image {camera} --cache /tmp/cache "
+                   "--caster fast --levels auto|0 --repeat 1` (instructions of `ig::renderFrame` "
+                   "over the image's pixels)")
     p.row(f"Caster instructions per pixel, before/after reorganisation (callgrind), "
-          f"{doc.get('camera', '')}, {doc.get('map', '')}", "—", "; ".join(parts), NO_TARGET,
-          p.command("caster_callgrind") if "caster_callgrind" in p.commands
-          else "`valgrind --tool=callgrind --collect-atstart=no "
-               "--toggle-collect='ig::renderFrame*' build/release/bin/bench-render frame ...`")
+          f"{camera.replace('x', '×')}, {where}", "—", "; ".join(parts), NO_TARGET, command)
 
 
 def warp(p):

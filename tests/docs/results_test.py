@@ -74,8 +74,8 @@ class ResultsPage(unittest.TestCase):
         page = self.write_page()
         row = [l for l in page.splitlines() if "before/after reorganisation (callgrind)" in l]
         self.assertEqual(len(row), 1, page)
-        self.assertIn("levels auto: 252 → 193", row[0])
-        self.assertIn("levels 0: 482 → 434", row[0])
+        self.assertIn("levels auto (eight lanes): 252 → 193 (−23 %)", row[0])
+        self.assertIn("levels 0 (four columns): 482 → 434 (−10 %)", row[0])
 
     def test_check_sees_a_page_that_drifted_from_the_data(self):
         self.write_page()
