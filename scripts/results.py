@@ -249,6 +249,11 @@ def renderer(p):
               f"pitch {fmt(s['pitch_deg'], 0)}°)", "—",
               f"levels auto {fmt(a['mae_pct_vs_reference'], 3)} %, levels 0 "
               f"{fmt(z['mae_pct_vs_reference'], 3)} %", NO_TARGET, cmd)
+        plot = ""
+        if os.path.exists(os.path.join(os.path.dirname(p.data_dir), "speed_error.png")):
+            plot = ("\n\n![speed against error](results/speed_error.png)\n\n(plot: "
+                    "`scripts/plot-speed-error.sh docs/results/data/render_bench.json "
+                    "docs/results/speed_error.png`)")
         lines = [f"| caster | rays per pixel | frame ms, {s['image'].replace('x', '×')} | ns/px | "
                  "MAE % vs 4×4 reference |",
                  "| --- | ---: | ---: | ---: | ---: |"]
@@ -266,7 +271,7 @@ def renderer(p):
             f"(synthetic {s['map'].split()[-1]}², pitch {fmt(s['pitch_deg'], 0)}°). "
             "`--supersample N` is a manual setting of `ig-render` and the benchmark: N rays per "
             "pixel stacked vertically, averaged. Command: " + cmd + ".",
-            "\n".join(lines)))
+            "\n".join(lines) + plot))
     s = doc.get("stream")
     if s:
         p.row(f"Consecutive frames overlapped (`FrameStream`) vs one at a time, {s['threads']} "

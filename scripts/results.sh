@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Measures every figure of docs/results.md on this machine and regenerates the page:
 # builds the release programs and benchmarks, runs them writing JSON into docs/results/data/,
-# plots warp-eval's CSV (docs/warp_eval_prp.png), then runs scripts/results.py.
+# plots warp-eval's CSV (docs/warp_eval_prp.png) and the speed against error of the casters
+# (docs/results/speed_error.png), then runs scripts/results.py.
 # Takes about ten minutes on a 2-core machine (the synthetic 16384^2 map takes about 40 s to
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
@@ -112,6 +113,7 @@ if wanted render; then
     run render_bench "$bin/bench-render" speed packets sensitivity threads headings pitches \
         quality flight stream --size 16384 --repeat 3 --cache "$cache" \
         --json "$data/render_bench.json"
+    scripts/plot-speed-error.sh "$data/render_bench.json" docs/results/speed_error.png
 fi
 
 if wanted warp; then
