@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages the build needs, when any is missing (needs root or sudo).
+# Installs the Debian 12 packages the build and the tests need (python3 checks the results page,
+# gnuplot-nox draws the plots), when any is missing (needs root or sudo).
 set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config libeigen3-dev libglm-dev libgpiod-dev
           libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev libpng-dev libjpeg-dev libgdal-dev
           nlohmann-json3-dev libcli11-dev
+          python3 gnuplot-nox
           tshark)  # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
 missing=()
 for p in "${packages[@]}"; do

@@ -2,11 +2,9 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
-#include "io/image_file.hpp"
 #include "io/output_file.hpp"
 #include "io/stop_signals.hpp"
 #include "prp/evaluation.hpp"
-#include "sim/plot.hpp"
 #include "sim/trajectory.hpp"
 #include "sim/trajectory_poses.hpp"
 
@@ -32,7 +30,8 @@ and compared with a true render at that pose (the reference caster where the pos
 PSNR and mean absolute error (% of full scale) over the field's lines, averaged over base frames.
 Without --trajectory every CSV in the shipped data/trajectories folder is evaluated; over a map
 other than the shipped one each is laid over it: moved to its centre, scaled to fit, heights taken
-above the highest ground under the path.)";
+above the highest ground under the path.
+Plot the CSV with scripts/plot-warp-eval.sh (gnuplot).)";
 
 std::vector<int> parseHorizons(const std::string& text) {
     std::vector<int> ks;
@@ -134,7 +133,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> trajectories;
     std::string sizeText = "320x240", horizonsText = "1..8",
                 modelsText = "poly,affine,homography,depth,hold";
-    std::string jsonPath, csvPath, plotPath, levelsText = "auto";
+    std::string jsonPath, csvPath, levelsText = "auto";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
     bool noSky = false;
@@ -154,7 +153,6 @@ int main(int argc, char** argv) {
     app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
     app.add_option("--json", jsonPath, "Results as JSON");
     app.add_option("--csv", csvPath, "Results as CSV");
-    app.add_option("--plot", plotPath, "Plot of error against horizon (PNG)");
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("warp-eval", [&]() -> int {
@@ -164,8 +162,7 @@ int main(int argc, char** argv) {
         std::vector<io::PathUse> paths = {{"--height", terrain.height, io::PathRole::Input},
                                           {"--color", terrain.color, io::PathRole::Input},
                                           {"--json", jsonPath, io::PathRole::Output},
-                                          {"--csv", csvPath, io::PathRole::Output},
-                                          {"--plot", plotPath, io::PathRole::Output}};
+                                          {"--csv", csvPath, io::PathRole::Output}};
         for (const std::string& t : trajectories)
             paths.push_back({"--trajectory", t, io::PathRole::Input});
         io::checkRunPaths(paths);
@@ -266,37 +263,6 @@ int main(int argc, char** argv) {
                 rows(trajectories[i], parts[i]);
             rows("all", all);
             io::writeTextOutput("--csv", csvPath, out.str());
-        }
-        if (!plotPath.empty()) {
-            std::vector<sim::PlotSeries> series;
-            for (const prp::WarpModel m : config.models) {
-                sim::PlotSeries s;
-                double ns = 0;
-                int n = 0;
-                for (const prp::EvalCell& c : all.cells) {
-                    if (c.model != m) continue;
-                    s.x.push_back(c.horizon);
-                    s.y.push_back(c.maePct);
-                    ns += c.nsPerPixel;
-                    ++n;
-                }
-                char label[64];
-                std::snprintf(label, sizeof label, "%s  %.2f ns/px",
-                              std::string(prp::warpModelName(m)).c_str(), n ? ns / n : 0.0);
-                s.label = label;
-                series.push_back(std::move(s));
-            }
-            sim::PlotOptions po;
-            po.title = "Warp error against horizon, " + std::to_string(config.width) + "x" +
-                       std::to_string(config.height) + ", " + std::to_string(loaded.size()) +
-                       " trajectories";
-            po.xLabel = "horizon k (fields of 1001/60000 s)";
-            po.yLabel = "mean abs error %";
-            const auto px = sim::renderPlot(series, po);
-            std::string error;
-            if (io::writePng8(plotPath, po.width, po.height, 3, px, &error) != 0) {
-                throw ig::InputError("--plot " + error);
-            }
         }
         return 0;
     });

@@ -3,17 +3,20 @@
 // supersampling, huge pages, and the frame-to-frame difference along a slow flight.
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
-//                [--cache DIR] [--caster K] [--levels auto|N]
-//   sections: speed sensitivity headings pitches threads supersample flight quality frame
-//             stream
+//                [--cache DIR] [--caster K] [--levels auto|N] [--json FILE]
+//   sections: speed packets sensitivity headings pitches threads supersample flight quality
+//             frame stream
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
-// frames in turn); the machine's load affects them (state it).
+// frames in turn); the machine's load affects them (state it). --json writes every section's
+// figures, with each frame time taken (not only the best), for scripts/results.py.
 #include "ig/caster.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/synthetic.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <sched.h>
 
@@ -22,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <memory>
@@ -53,6 +57,7 @@ bool gPackets = true;
 int gLanes = 0;             // RenderOptions::lanes; --lanes 4 keeps the row batches to four lanes
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 double gPitchDeg = -10.0;   // its pitch; --pitch changes it (frame section)
+nlohmann::json gJson = nlohmann::json::object();  // each section's figures, for --json
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -108,7 +113,8 @@ ig::Pose issuePose(const ig::TerrainMap& map, double pitchDeg = -10.0) {
 }
 
 struct Timed {
-    double ms = 0.0;
+    double ms = 0.0;           // the best frame
+    std::vector<double> runs;  // every frame's time, in the order taken
     ig::RenderedFrame frame;
 };
 
@@ -123,6 +129,7 @@ std::vector<Timed> timeInTurn(const std::vector<const ig::Caster*>& casters,
     for (int i = 0; i < repeat; ++i) {
         for (std::size_t k = 0; k < casters.size(); ++k) {
             ig::RenderedFrame f = ig::renderFrame(*casters[k], map, pose, in);
+            best[k].runs.push_back(f.stats.renderMs);
             if (f.stats.renderMs < best[k].ms) {
                 best[k].ms = f.stats.renderMs;
                 best[k].frame = std::move(f);
@@ -152,6 +159,23 @@ std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& ma
         std::printf("# pyramid built in %.2f s\n", secondsSince(start));
     }
     return c;
+}
+
+// One timed frame as JSON: the best time, every time, and the best frame's counts per pixel.
+nlohmann::json timedJson(const std::string& name, const Timed& t, double pixels) {
+    return {{"name", name},
+            {"ms", t.ms},
+            {"ms_runs", t.runs},
+            {"ns_per_pixel", t.ms * 1e6 / pixels},
+            {"steps_per_pixel", static_cast<double>(t.frame.stats.steps) / pixels},
+            {"restarts_per_pixel", static_cast<double>(t.frame.stats.restarts) / pixels}};
+}
+
+// A section's common facts.
+nlohmann::json sectionJson(const Config& c, int mapSize) {
+    return {{"map", "synthetic " + std::to_string(mapSize)},
+            {"image", std::to_string(c.width) + "x" + std::to_string(c.height)},
+            {"repeat", c.repeat}};
 }
 
 void printRow(const char* name, const Timed& t, double pixels, double baselineMs = 0.0) {
@@ -197,6 +221,51 @@ void speed(const Config& c) {
         ig::meanAbsErrorPct(m.frame.color, s.frame.color),
         m.frame.color == m4.frame.color && m.frame.depth == m4.frame.depth ? "identical"
                                                                            : "DIFFER");
+    nlohmann::json j = sectionJson(c, c.size);
+    j["rows"] = {timedJson("naive", n, pixels), timedJson("levels 0", s, pixels),
+                 timedJson("levels auto", m, pixels),
+                 timedJson("levels auto, 4 lanes", m4, pixels)};
+    j["mae_pct_levels0_vs_naive"] = ig::meanAbsErrorPct(s.frame.color, n.frame.color);
+    j["mae_pct_auto_vs_levels0"] = ig::meanAbsErrorPct(m.frame.color, s.frame.color);
+    j["lanes_identical"] = m.frame.color == m4.frame.color && m.frame.depth == m4.frame.depth;
+    gJson["speed"] = j;
+}
+
+// Vector lanes against none: each caster with its lanes (the single level four columns at a
+// time, the multiresolution caster's rows in batches) and one column / one row at a time, the
+// four frames taken in turn.
+void packets(const Config& c) {
+    const ig::TerrainMap& map = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## packets: %dx%d, synthetic %d^2, issue camera, one thread, best of %d in turn\n",
+        c.width, c.height, c.size, c.repeat);
+    auto make = [&](int levels, bool lanes) {
+        ig::RenderOptions o;
+        o.levels = levels;
+        o.threads = 1;
+        o.packets = lanes;
+        o.lanes = gLanes;
+        return ig::makeCaster(ig::CasterKind::Fast, map, o);
+    };
+    const auto single = make(0, true), singleOne = make(0, false);
+    const auto multi = make(ig::kLevelsAuto, true), multiOne = make(ig::kLevelsAuto, false);
+    const std::vector<Timed> t =
+        timeInTurn({single.get(), singleOne.get(), multi.get(), multiOne.get()}, map,
+                   issuePose(map), in, c.repeat);
+    const char* names[] = {"levels 0", "levels 0, one column at a time", "levels auto",
+                           "levels auto, rows one by one"};
+    header(false);
+    nlohmann::json j = sectionJson(c, c.size), rows = nlohmann::json::array();
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        printRow(names[i], t[i], pixels);
+        rows.push_back(timedJson(names[i], t[i], pixels));
+    }
+    std::printf("lanes vs none: levels 0 %.2fx, levels auto %.2fx\n", t[1].ms / t[0].ms,
+                t[3].ms / t[2].ms);
+    j["rows"] = rows;
+    gJson["packets"] = j;
 }
 
 // The issue camera moved through a set of views (`what` says how, `column` and `columns` name
@@ -217,6 +286,7 @@ void viewTable(const Config& c, const char* what, const char* column, const char
         "MAE auto vs 0 |\n|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         column);
     double worst = 1e300, best = 0.0;
+    nlohmann::json j = sectionJson(c, c.size), rows = nlohmann::json::array();
     for (const double value : values) {
         const std::vector<Timed> t =
             timeInTurn({single.get(), multi.get()}, map, poseAt(map, value), in, c.repeat);
@@ -227,8 +297,15 @@ void viewTable(const Config& c, const char* what, const char* column, const char
                     t[0].ms, static_cast<double>(t[0].frame.stats.steps) / pixels, t[1].ms,
                     t[1].ms * 1e6 / pixels, static_cast<double>(t[1].frame.stats.steps) / pixels,
                     ratio, ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color));
+        rows.push_back(
+            {{column, value},
+             {"levels0", timedJson("levels 0", t[0], pixels)},
+             {"auto", timedJson("levels auto", t[1], pixels)},
+             {"mae_pct_auto_vs_levels0", ig::meanAbsErrorPct(t[1].frame.color, t[0].frame.color)}});
     }
     std::printf("multires vs single-level over the %s: %.2fx to %.2fx\n", columns, worst, best);
+    j["rows"] = rows;
+    gJson[columns] = j;
 }
 
 // The issue camera turned to the eight compass headings: how much the multiresolution caster
@@ -252,26 +329,53 @@ void pitches(const Config& c) {
               [](const ig::TerrainMap& map, double deg) { return issuePose(map, deg); });
 }
 
+// The frames of the four cases (two maps, two casters) are taken in turn, so that a change in
+// the core's speed during the run weighs on all of them alike.
 void sensitivity(const Config& c) {
     const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
     const double pixels = static_cast<double>(c.width) * c.height;
-    std::printf("\n## output sensitivity: %dx%d, issue camera, one thread\n", c.width, c.height);
-    header(false);
-    std::map<std::pair<int, int>, double> ms;
+    std::printf("\n## output sensitivity: %dx%d, issue camera, one thread, best of %d in turn\n",
+                c.width, c.height, c.repeat);
+    struct Case {
+        int size, levels;
+        const ig::TerrainMap* map;
+        std::unique_ptr<ig::Caster> caster;
+        Timed best;
+    };
+    std::vector<Case> cases;
     for (int size : {4096, c.size}) {
         const ig::TerrainMap& map = syntheticMap(size);
-        for (int levels : {0, ig::kLevelsAuto}) {
-            const auto fast = caster(ig::CasterKind::Fast, map, levels, 1);
-            const Timed t = timeFrames(*fast, map, issuePose(map), in, c.repeat);
-            const std::string name = std::to_string(size) + "^2, levels " +
-                                     (levels == 0 ? std::string("0") : std::string("auto"));
-            printRow(name.c_str(), t, pixels);
-            ms[{size, levels}] = t.ms;
+        for (int levels : {0, ig::kLevelsAuto})
+            cases.push_back({size, levels, &map, caster(ig::CasterKind::Fast, map, levels, 1), {}});
+    }
+    for (int i = 0; i < c.repeat; ++i) {
+        for (Case& k : cases) {
+            const Timed t = timeFrames(*k.caster, *k.map, issuePose(*k.map), in, 1);
+            k.best.runs.push_back(t.ms);
+            if (i == 0 || t.ms < k.best.ms) {
+                k.best.ms = t.ms;
+                k.best.frame = t.frame;
+            }
         }
+    }
+    header(false);
+    std::map<std::pair<int, int>, double> ms;
+    nlohmann::json j = sectionJson(c, c.size), rows = nlohmann::json::array();
+    for (const Case& k : cases) {
+        const std::string name = std::to_string(k.size) + "^2, levels " +
+                                 (k.levels == 0 ? std::string("0") : std::string("auto"));
+        printRow(name.c_str(), k.best, pixels);
+        ms[{k.size, k.levels}] = k.best.ms;
+        nlohmann::json row = timedJson(name, k.best, pixels);
+        row["map_size"] = k.size;
+        row["levels"] = k.levels == 0 ? "0" : "auto";
+        rows.push_back(row);
     }
     std::printf("frame time %d^2 / 4096^2: levels 0 %.2fx, levels auto %.2fx\n", c.size,
                 ms[{c.size, 0}] / ms[{4096, 0}],
                 ms[{c.size, ig::kLevelsAuto}] / ms[{4096, ig::kLevelsAuto}]);
+    j["rows"] = rows;
+    gJson["sensitivity"] = j;
 }
 
 // The processors this process may run on (none when they cannot be read).
@@ -309,21 +413,28 @@ void threads(const Config& c) {
     // the two-thread frame is also compared with what the two cores can do together.
     const std::vector<int> all = allowedCpus();
     std::vector<double> oneMs;
+    nlohmann::json j = sectionJson(c, c.size), rows = nlohmann::json::array();
     for (std::size_t i = 0; i < std::min<std::size_t>(all.size(), 2); ++i) {
         runOn({all[i]});
         const Timed t = timeFrames(*single, map, issuePose(map), in, c.repeat + 2);
         oneMs.push_back(t.ms);
         printRow(("1 thread, cpu " + std::to_string(all[i])).c_str(), t, pixels, t.ms);
+        rows.push_back(timedJson("1 thread, cpu " + std::to_string(all[i]), t, pixels));
     }
     runOn(all);
     if (oneMs.empty()) {
         const Timed t = timeFrames(*single, map, issuePose(map), in, c.repeat + 2);
         oneMs.push_back(t.ms);
         printRow("1 thread", t, pixels, t.ms);
+        rows.push_back(timedJson("1 thread", t, pixels));
     }
     const Timed t = timeFrames(*pair, map, issuePose(map), in, c.repeat + 2);
     const double fastest = *std::min_element(oneMs.begin(), oneMs.end());
     printRow("2 threads", t, pixels, fastest);
+    rows.push_back(timedJson("2 threads", t, pixels));
+    j["rows"] = rows;
+    j["repeat"] = c.repeat + 2;
+    gJson["threads"] = j;
     if (oneMs.size() == 2) {
         const double together = 1.0 / (1.0 / oneMs[0] + 1.0 / oneMs[1]);
         std::printf(
@@ -359,6 +470,9 @@ void quality(const Config& c, double pitchDeg, const char* title) {
     std::printf("| %-22s | %9s | %8s | %8s | %8s |\n", "variant", "frame ms", "ns/px", "steps/px",
                 "MAE %");
     std::printf("|------------------------|-----------|----------|----------|----------|\n");
+    nlohmann::json j = sectionJson(c, size), rows = nlohmann::json::array();
+    j["pitch_deg"] = pitchDeg;
+    j["error_image"] = std::to_string(qw) + "x" + std::to_string(qh);
     for (int levels : {0, ig::kLevelsAuto}) {
         for (int ss : {1, 2, 4}) {
             const auto fast = caster(ig::CasterKind::Fast, map, levels, 1, ss);
@@ -369,8 +483,15 @@ void quality(const Config& c, double pitchDeg, const char* title) {
             std::printf("| %-22s | %9.1f | %8.2f | %8.2f | %8.3f |\n", name.c_str(), t.ms,
                         t.ms * 1e6 / pixels, static_cast<double>(t.frame.stats.steps) / pixels,
                         ig::meanAbsErrorPct(q.color, ref));
+            nlohmann::json row = timedJson(name, t, pixels);
+            row["levels"] = levels == 0 ? "0" : "auto";
+            row["supersample"] = ss;
+            row["mae_pct_vs_reference"] = ig::meanAbsErrorPct(q.color, ref);
+            rows.push_back(row);
         }
     }
+    j["rows"] = rows;
+    gJson[title] = j;
 }
 
 // The best of --repeat frames of --caster at --levels, one thread: for profiles, and for
@@ -445,6 +566,13 @@ void stream(const Config& c) {
                 1e3 * overlapped / frames);
     std::printf("overlap speed-up %.3fx; images %s\n", sequential / overlapped,
                 same ? "identical" : "DIFFER");
+    gJson["stream"] = {{"map", "synthetic " + std::to_string(map.width())},
+                       {"image", std::to_string(c.width) + "x" + std::to_string(c.height)},
+                       {"frames", frames},
+                       {"threads", 2},
+                       {"ms_per_frame_one_at_a_time", 1e3 * sequential / frames},
+                       {"ms_per_frame_overlapped", 1e3 * overlapped / frames},
+                       {"identical", same}};
 }
 
 void flight(const Config& c) {
@@ -458,6 +586,7 @@ void flight(const Config& c) {
     const auto single = caster(ig::CasterKind::Fast, map, 0, 0);
     const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 0);
     std::vector<ig::Rgb8> prevS, prevM;
+    std::vector<double> diffS, diffM;
     std::printf("| frame | levels 0 | levels auto |\n|---|---|---|\n");
     const double z = map.surfaceHeight(20000.0, 20000.0) + 300.0;
     for (int i = 0; i <= 60; ++i) {
@@ -468,18 +597,25 @@ void flight(const Config& c) {
         const auto s = ig::renderFrame(*single, map, pose, in);
         const auto m = ig::renderFrame(*multi, map, pose, in);
         if (i > 0) {
-            std::printf("| %d | %.3f | %.3f |\n", i, ig::meanAbsErrorPct(s.color, prevS),
-                        ig::meanAbsErrorPct(m.color, prevM));
+            diffS.push_back(ig::meanAbsErrorPct(s.color, prevS));
+            diffM.push_back(ig::meanAbsErrorPct(m.color, prevM));
+            std::printf("| %d | %.3f | %.3f |\n", i, diffS.back(), diffM.back());
         }
         prevS = s.color;
         prevM = m.color;
     }
+    gJson["flight"] = {{"map", "synthetic " + std::to_string(map.width())},
+                       {"image", std::to_string(w) + "x" + std::to_string(h)},
+                       {"frames", diffS.size()},
+                       {"mae_pct_frame_to_frame_levels0", diffS},
+                       {"mae_pct_frame_to_frame_auto", diffM}};
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
     Config c;
+    std::string jsonPath;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -502,6 +638,8 @@ int main(int argc, char** argv) {
             c.repeat = std::max(1, std::atoi(next().c_str()));
         } else if (a == "--cache") {
             c.cache = next();
+        } else if (a == "--json") {
+            jsonPath = next();
         } else if (a == "--caster") {
             c.caster = next();
         } else if (a == "--levels") {
@@ -531,18 +669,19 @@ int main(int argc, char** argv) {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
-                   a == "headings" || a == "pitches") {
+                   a == "headings" || a == "pitches" || a == "packets") {
             c.sections.push_back(a);
         } else {
-            std::fprintf(stderr,
-                         "bench-render: unknown argument '%s'\nusage: bench-render [speed] "
-                         "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                         "[stream] [headings] [pitches] [--size N] "
-                         "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
-                         "[--heading "
-                         "DEG] [--pitch DEG] [--cache DIR] "
-                         "[--caster fast|naive|reference] [--levels auto|N]\n",
-                         a.c_str());
+            std::fprintf(
+                stderr,
+                "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
+                "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
+                "[stream] [headings] [pitches] [--size N] "
+                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
+                "[--heading "
+                "DEG] [--pitch DEG] [--cache DIR] "
+                "[--caster fast|naive|reference] [--levels auto|N] [--json FILE]\n",
+                a.c_str());
             return 2;
         }
     }
@@ -558,12 +697,13 @@ int main(int argc, char** argv) {
             const bool parallel = s == "threads" || s == "stream";
             if (!all.empty()) runOn(parallel ? all : std::vector<int>{all.front()});
             if (s == "speed") speed(c);
+            if (s == "packets") packets(c);
             if (s == "sensitivity") sensitivity(c);
             if (s == "headings") headings(c);
             if (s == "pitches") pitches(c);
             if (s == "threads") threads(c);
             if (s == "quality") quality(c, -10.0, "quality");
-            if (s == "supersample") quality(c, -1.0, "supersampling at shallow pitch");
+            if (s == "supersample") quality(c, -1.0, "supersample");
             if (s == "flight") flight(c);
             if (s == "stream") stream(c);
             if (s == "frame") frame(c);
@@ -571,6 +711,14 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());
         return 1;
+    }
+    if (!jsonPath.empty()) {
+        std::ofstream out(jsonPath);
+        out << gJson.dump(1) << "\n";
+        if (!out) {
+            std::fprintf(stderr, "bench-render: --json %s: cannot write\n", jsonPath.c_str());
+            return 1;
+        }
     }
     return 0;
 }

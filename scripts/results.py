@@ -1,0 +1,629 @@
+#!/usr/bin/env python3
+"""Writes docs/results.md from the measurements in docs/results/data/ (standard library only).
+
+  scripts/results.py            write the page
+  scripts/results.py --check    exit 1 if the committed page differs from what the data give
+
+The data come from scripts/results.sh, which runs the benchmarks and evaluation programs; each
+row of the page is one claim: what, target, value (median, spread, runs), status, command.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import statistics
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DATA = os.path.join(ROOT, "docs", "results", "data")
+PAGE = os.path.join(ROOT, "docs", "results.md")
+
+MET, NOT_MET, NO_TARGET = "met", "**not met**", "no target"
+
+
+class Page:
+    def __init__(self, data_dir):
+        self.data_dir = data_dir
+        self.rows = []        # (group, (what, target, value, status, command))
+        self.group = ""
+        self.sections = []    # (group, title, text, table): detail tables under a group
+        self.commands = {}  # name -> command line as run
+        self.loads = {}     # name -> load average when it started
+        path = os.path.join(data_dir, "commands.tsv")
+        if os.path.exists(path):
+            for line in open(path, encoding="utf-8"):
+                fields = line.rstrip("\n").split("\t")
+                if len(fields) == 3:  # name, load average, command
+                    self.commands[fields[0]] = fields[2]
+                    self.loads[fields[0]] = float(fields[1])
+                elif len(fields) == 2:  # name, command
+                    self.commands[fields[0]] = fields[1]
+
+    def load(self, name):
+        path = os.path.join(self.data_dir, name)
+        if not os.path.exists(path):
+            return None
+        with open(path, encoding="utf-8") as f:
+            try:
+                return json.load(f)
+            except json.JSONDecodeError as e:
+                sys.exit(f"results.py: {path}: not valid JSON ({e})")
+
+    def command(self, name, sections=None):
+        """The command as a user types it to see the figure; the options that write the data
+        files (which scripts/results.sh adds) are left out, and for bench-render only the named
+        sections are kept (results.sh runs them all in one process)."""
+        words = self.commands.get(name, "").split()
+        if sections and words and words[0].endswith("bench-render"):
+            rest = [w for w in words[1:] if not w.isalpha()]
+            words = [words[0]] + sections.split() + rest
+        shown, i = [], 0
+        while i < len(words):
+            if words[i].startswith("--benchmark_out"):
+                i += 1
+            elif (words[i] in ("--json", "--csv") and i + 1 < len(words)
+                  and words[i + 1].startswith("docs/results/data/")):
+                i += 2
+            else:
+                shown.append(words[i])
+                i += 1
+        return "`" + " ".join(shown) + "`" if shown else "(see `scripts/results.sh`)"
+
+    def section(self, title, text, table):
+        self.sections.append((self.group, title, text, table))
+
+    def row(self, what, target, value, status, command):
+        self.rows.append((self.group, (what, target, value, status, command)))
+
+
+# --- numbers -----------------------------------------------------------------------------------
+
+def fmt(x, digits):
+    return f"{x:.{digits}f}".replace("-", "−")
+
+
+def spread(values, digits=2, unit="", scale=1.0):
+    """'median (min-max, n runs)' of a list of numbers."""
+    v = sorted(x * scale for x in values)
+    med = statistics.median(v)
+    if len(v) == 1:
+        return f"{fmt(med, digits)}{unit} (1 run)"
+    return f"{fmt(med, digits)}{unit} ({fmt(v[0], digits)}–{fmt(v[-1], digits)}, {len(v)} runs)"
+
+
+def ratios(a_runs, b_runs):
+    """Ratios a/b: paired run by run where both lists are as long (frames taken in turn), else
+    every a against every b."""
+    if len(a_runs) == len(b_runs) and len(a_runs) > 1:
+        return [a / b for a, b in zip(a_runs, b_runs)]
+    return [a / b for a in a_runs for b in b_runs]
+
+
+def status(ok):
+    return MET if ok else NOT_MET
+
+
+def gbench_runs(doc, run_name, field):
+    """Every repetition's value of one Google Benchmark run (iterations, not aggregates)."""
+    return [b[field] for b in doc["benchmarks"]
+            if b.get("run_type", "iteration") == "iteration"
+            and b.get("run_name", b["name"]) == run_name]
+
+
+def gbench_find(doc, name):
+    """The run name of benchmark `name` (exactly, or with arguments: name/...), if it ran."""
+    for b in doc["benchmarks"]:
+        run = b.get("run_name", b["name"])
+        if run == name or run.startswith(name + "/"):
+            return run
+    return None
+
+
+# --- claims --------------------------------------------------------------------------------------
+
+def casters(p):
+    p.group = "Ray casters"
+    doc = p.load("caster_bench.json")
+    if not doc:
+        return
+    cmd = p.command("caster_bench")
+    for size in ("1920/1080", "720/486"):
+        naive = gbench_find(doc, f"BM_Caster/naive/{size}")
+        fast = gbench_find(doc, f"BM_Caster/fast/{size}")
+        if not (naive and fast):
+            continue
+        n = gbench_runs(doc, naive, "s_per_pixel")
+        f = gbench_runs(doc, fast, "s_per_pixel")
+        w, h = size.split("/")
+        p.row(f"Fast caster (single level) vs naive: Puget Sound flight view, {w}×{h}, 1 thread",
+              "≥ 10×",
+              f"{spread(ratios(n, f), 1, '×')}; {spread(f, 1, ' ns/px', 1e9)} vs "
+              f"{fmt(statistics.median(n) * 1e9, 0)} ns/px",
+              status(statistics.median(ratios(n, f)) >= 10), cmd)
+        if size == "1920/1080":
+            mae = gbench_runs(doc, fast, "mae_pct_vs_reference")
+            p.row(f"Fast caster error against the reference caster, same view, {w}×{h}",
+                  "—", f"{fmt(max(mae), 3)} % mean absolute colour error", NO_TARGET, cmd)
+    naive = gbench_find(doc, "BM_CasterSweep/naive")
+    fast = gbench_find(doc, "BM_CasterSweep/fast")
+    if naive and fast:
+        n = gbench_runs(doc, naive, "s_per_pixel")
+        f = gbench_runs(doc, fast, "s_per_pixel")
+        p.row("Fast vs naive over the 50-pose sweep (5 m to 20 km up, pitch +10° to −85°), 720×486",
+              "—", f"{spread(ratios(n, f), 1, '×')}; {spread(f, 1, ' ns/px', 1e9)}", NO_TARGET, cmd)
+
+
+def renderer(p):
+    p.group = "Renderer at full speed"
+    doc = p.load("render_bench.json")
+    if not doc:
+        return
+    s = doc.get("speed")
+    if s:
+        cmd = p.command("render_bench", "speed")
+        rows = {r["name"]: r for r in s["rows"]}
+        naive, single, auto, auto4 = (rows[k] for k in
+                                      ("naive", "levels 0", "levels auto", "levels auto, 4 lanes"))
+        where = f"synthetic {s['map'].split()[-1]}², {s['image'].replace('x', '×')}, 1 thread"
+        r = ratios(naive["ms_runs"], auto["ms_runs"])
+        p.row(f"Multiresolution caster (levels auto) vs naive, {where}", "≥ 50×",
+              f"{spread(r, 1, '×')}; {fmt(auto['ns_per_pixel'], 1)} vs "
+              f"{fmt(naive['ns_per_pixel'], 0)} ns/px (best frames)",
+              status(statistics.median(r) >= 50), cmd)
+        r = ratios(naive["ms_runs"], auto4["ms_runs"])
+        p.row(f"The same with four lanes (a processor without AVX-512), {where}", "≥ 50×",
+              f"{spread(r, 1, '×')}", status(statistics.median(r) >= 50), cmd)
+        r = ratios(single["ms_runs"], auto["ms_runs"])
+        p.row(f"Multiresolution vs single level (levels 0), {where}", "≥ 3×",
+              f"{spread(r, 2, '×')}, frames taken in turn; four lanes "
+              f"{spread(ratios(single['ms_runs'], auto4['ms_runs']), 2, '×')}",
+              status(statistics.median(r) >= 3), cmd)
+        r = ratios(naive["ms_runs"], single["ms_runs"])
+        p.row(f"Single level vs naive, {where}", "—",
+              f"{spread(r, 1, '×')}; colour difference {fmt(s['mae_pct_levels0_vs_naive'], 3)} %",
+              NO_TARGET, cmd)
+        ns = [ms * 1e6 / (int(s["image"].split("x")[0]) * int(s["image"].split("x")[1]))
+              for ms in auto["ms_runs"]]
+        p.row(f"Multiresolution caster, time per pixel per thread, {where}", "≤ 4 ns/px (stretch)",
+              spread(ns, 1, " ns/px"), status(statistics.median(ns) <= 4), cmd)
+    s = doc.get("packets")
+    if s:
+        rows = {r["name"]: r for r in s["rows"]}
+        r0 = ratios(rows["levels 0, one column at a time"]["ms_runs"], rows["levels 0"]["ms_runs"])
+        ra = ratios(rows["levels auto, rows one by one"]["ms_runs"], rows["levels auto"]["ms_runs"])
+        p.row(f"Vector lanes: levels 0 four columns at a time vs one, levels auto rows in batches "
+              f"vs one by one, synthetic {s['map'].split()[-1]}², {s['image'].replace('x', '×')}, "
+              "1 thread", "—", f"levels 0 {spread(r0, 2, '×')}; levels auto {spread(ra, 2, '×')}; "
+              "frames taken in turn", NO_TARGET, p.command("render_bench", "packets"))
+    s = doc.get("sensitivity")
+    if s:
+        cmd = p.command("render_bench", "sensitivity")
+        by = {(r["map_size"], r["levels"]): r for r in s["rows"]}
+        sizes = sorted({r["map_size"] for r in s["rows"]})
+        small, big = sizes[0], sizes[-1]
+        for levels in ("0", "auto"):
+            r = ratios(by[(big, levels)]["ms_runs"], by[(small, levels)]["ms_runs"])
+            p.row(f"Output sensitivity: frame time over the {big}² map / its {small}² crop, "
+                  f"levels {levels}, {s['image'].replace('x', '×')}", "≤ 1.3×",
+                  spread(r, 2, "×"), status(statistics.median(r) <= 1.3), cmd)
+    s = doc.get("threads")
+    if s:
+        cmd = p.command("render_bench", "threads")
+        rows = s["rows"]
+        one = [r for r in rows if r["name"].startswith("1 thread")]
+        two = [r for r in rows if r["name"] == "2 threads"][0]
+        fastest = min(one, key=lambda r: r["ms"])
+        r = ratios(fastest["ms_runs"], two["ms_runs"])
+        value = f"{spread(r, 2, '×')} the faster core alone"
+        if len(one) == 2:
+            together = 1.0 / (1.0 / one[0]["ms"] + 1.0 / one[1]["ms"])
+            value += (f"; {fmt(100 * together / two['ms'], 0)} % of the two cores' capacity "
+                      f"(one thread {fmt(one[0]['ms'], 1)} / {fmt(one[1]['ms'], 1)} ms on each "
+                      f"core, best frames)")
+        load = p.loads.get("render_bench")
+        if load is not None:
+            value += f"; load average {fmt(load, 1)} when the benchmark started"
+        p.row(f"Two threads vs one, levels auto, synthetic {s['map'].split()[-1]}², "
+              f"{s['image'].replace('x', '×')}", "≥ 1.85×", value,
+              status(statistics.median(r) >= 1.85), cmd)
+    for key, label in (("headings", "turned to the eight compass headings"),
+                       ("pitches", "tilted down from −5° to −60°")):
+        s = doc.get(key)
+        if not s:
+            continue
+        cmd = p.command("render_bench", key)
+        r = [row["levels0"]["ms"] / row["auto"]["ms"] for row in s["rows"]]
+        mae = [row["mae_pct_auto_vs_levels0"] for row in s["rows"]]
+        p.row(f"Multiresolution vs single level, the camera {label} "
+              f"(best of {s['repeat']} each, in turn)", "—",
+              f"{fmt(min(r), 2)}–{fmt(max(r), 2)}× over {len(r)} views; colour difference "
+              f"{fmt(min(mae), 3)}–{fmt(max(mae), 3)} %", NO_TARGET, cmd)
+    s = doc.get("quality")
+    if s:
+        cmd = p.command("render_bench", "quality")
+        by = {(r["levels"], r["supersample"]): r for r in s["rows"]}
+        a, z = by[("auto", 1)], by[("0", 1)]
+        p.row(f"Colour error against a 4×4 supersampled reference, one ray per pixel "
+              f"({s['error_image'].replace('x', '×')}, synthetic {s['map'].split()[-1]}², "
+              f"pitch {fmt(s['pitch_deg'], 0)}°)", "—",
+              f"levels auto {fmt(a['mae_pct_vs_reference'], 3)} %, levels 0 "
+              f"{fmt(z['mae_pct_vs_reference'], 3)} %", NO_TARGET, cmd)
+        plot = ""
+        if os.path.exists(os.path.join(os.path.dirname(p.data_dir), "speed_error.png")):
+            plot = ("\n\n![speed against error](results/speed_error.png)\n\n(plot: "
+                    "`scripts/plot-speed-error.sh docs/results/data/render_bench.json "
+                    "docs/results/speed_error.png`)")
+        lines = [f"| caster | rays per pixel | frame ms, {s['image'].replace('x', '×')} | ns/px | "
+                 "MAE % vs 4×4 reference |",
+                 "| --- | ---: | ---: | ---: | ---: |"]
+        for levels in ("0", "auto"):
+            for ss in (1, 2, 4):
+                r = by.get((levels, ss))
+                if r:
+                    lines.append(f"| levels {levels} | {ss} | {spread(r['ms_runs'], 1)} | "
+                                 f"{fmt(r['ns_per_pixel'], 1)} | "
+                                 f"{fmt(r['mae_pct_vs_reference'], 3)} |")
+        p.section(*(
+            "Speed against error: rays per pixel (`--supersample`)",
+            f"Time at {s['image'].replace('x', '×')} (one thread, frame times in ms: median, range, runs), error at "
+            f"{s['error_image'].replace('x', '×')} against a 4×4 supersampled reference "
+            f"(synthetic {s['map'].split()[-1]}², pitch {fmt(s['pitch_deg'], 0)}°). "
+            "`--supersample N` is a manual setting of `ig-render` and the benchmark: N rays per "
+            "pixel stacked vertically, averaged. Command: " + cmd + ".",
+            "\n".join(lines) + plot))
+    s = doc.get("stream")
+    if s:
+        p.row(f"Consecutive frames overlapped (`FrameStream`) vs one at a time, {s['threads']} "
+              f"threads, {s['frames']} frames of a flight, synthetic {s['map'].split()[-1]}², "
+              f"{s['image'].replace('x', '×')}", "—",
+              f"{fmt(s['ms_per_frame_one_at_a_time'] / s['ms_per_frame_overlapped'], 2)}× "
+              f"({fmt(s['ms_per_frame_one_at_a_time'], 1)} vs "
+              f"{fmt(s['ms_per_frame_overlapped'], 1)} ms a frame, 1 run); images "
+              f"{'identical' if s['identical'] else 'DIFFER'}", NO_TARGET,
+              p.command("render_bench", "stream"))
+    s = doc.get("flight")
+    if s:
+        cmd = p.command("render_bench", "flight")
+        ratios_ = []
+        for key in ("mae_pct_frame_to_frame_levels0", "mae_pct_frame_to_frame_auto"):
+            v = s[key]
+            ratios_.append((max(v) / statistics.median(v), statistics.median(v)))
+        p.row(f"Temporal stability along a slow straight flight ({s['frames']} frames of 5 m, "
+              f"{s['image'].replace('x', '×')}): worst / median frame-to-frame difference", "—",
+              f"levels auto {fmt(ratios_[1][0], 2)} (median {fmt(ratios_[1][1], 3)} %), "
+              f"levels 0 {fmt(ratios_[0][0], 2)} (median {fmt(ratios_[0][1], 3)} %)",
+              NO_TARGET, cmd)
+
+
+def callgrind(p):
+    """Instructions per pixel before and after a reorganisation of the caster, from
+    caster_callgrind.json when it exists: {"machine", "camera", "map", "runs": [{"levels",
+    "kernel", "revision": "before"|"after", "instructions", "pixels", "instructions_per_pixel"}]}
+    (an optional "command" says how it was measured)."""
+    p.group = "Renderer at full speed"
+    doc = p.load("caster_callgrind.json")
+    if not doc or not doc.get("runs"):
+        return
+    keys = []
+    for r in doc["runs"]:
+        key = (str(r.get("levels", "?")), r.get("kernel", ""))
+        if key not in keys:
+            keys.append(key)
+    parts = []
+    for levels, kernel in keys:
+        runs = {r.get("revision"): r["instructions_per_pixel"] for r in doc["runs"]
+                if (str(r.get("levels", "?")), r.get("kernel", "")) == (levels, kernel)}
+        name = f"levels {levels}" + (f" ({kernel})" if kernel else "")
+        if "before" in runs and "after" in runs:
+            change = 100.0 * (runs["after"] / runs["before"] - 1.0)
+            parts.append(f"{name}: {fmt(runs['before'], 0)} → {fmt(runs['after'], 0)} "
+                         f"({'+' if change >= 0 else ''}{fmt(change, 0)} %)")
+        else:
+            parts += [f"{name}, {rev}: {fmt(v, 0)}" for rev, v in runs.items()]
+    camera, where = doc.get("camera", "1920x1080"), doc.get("map", "synthetic 16384")
+    if doc.get("command"):
+        command = f"`{doc['command']}`"
+    elif "caster_callgrind" in p.commands:
+        command = p.command("caster_callgrind")
+    else:
+        command = ("`valgrind --tool=callgrind --collect-atstart=no "
+                   "--toggle-collect='ig::renderFrame*' build/release/bin/bench-render frame "
+                   f"--size {where.split()[-1]} --image {camera} --cache /tmp/cache "
+                   "--caster fast --levels auto|0 --repeat 1` (instructions of `ig::renderFrame` "
+                   "over the image's pixels)")
+    p.row(f"Caster instructions per pixel, before/after reorganisation (callgrind), "
+          f"{camera.replace('x', '×')}, {where}", "—", "; ".join(parts), NO_TARGET, command)
+
+
+def warp(p):
+    p.group = "Post-rendering processor"
+    doc = p.load("warp_bench.json")
+    if not doc:
+        return
+    cmd = p.command("warp_bench")
+    auto = gbench_find(doc, "BM_PrpWarpUyvyField")
+    avx2 = gbench_find(doc, "BM_PrpWarpUyvyFieldAvx2")
+    remap = gbench_find(doc, "BM_OpenCvRemapField")
+    t_auto = gbench_runs(doc, auto, "cpu_time") if auto else []
+    if remap and t_auto:
+        t_remap = gbench_runs(doc, remap, "cpu_time")
+        r = ratios(t_remap, t_auto)
+        p.row("PRP warp + UYVY of one 720×243 field, 1 thread, kernel picked at run time, "
+              "vs OpenCV cv::remap (RGB only)", "≥ 2×",
+              f"{spread(r, 2, '×')}; {spread(t_auto, 0, ' µs')} vs "
+              f"{fmt(statistics.median(t_remap), 0)} µs", status(statistics.median(r) >= 2), cmd)
+        if avx2:
+            t2 = gbench_runs(doc, avx2, "cpu_time")
+            r = ratios(t_remap, t2)
+            p.row("The same with the AVX2 kernel (a processor without AVX-512)", "≥ 2×",
+                  f"{spread(r, 2, '×')}; {spread(t2, 0, ' µs')}",
+                  status(statistics.median(r) >= 2), cmd)
+    elif t_auto:
+        p.row("PRP warp + UYVY of one 720×243 field vs OpenCV cv::remap", "≥ 2×",
+              f"not measured: bench-warp was built without OpenCV (libopencv-dev); "
+              f"warp alone {spread(t_auto, 0, ' µs')}", "not measured", cmd)
+    if t_auto:
+        share = [t * 1e-6 * 60000 / 1001 * 100 for t in t_auto]
+        p.row("Share of one core for the warp at 59.94 fields/s", "—", spread(share, 1, " %"),
+              NO_TARGET, cmd)
+
+
+def warp_eval(p):
+    p.group = "Post-rendering processor"
+    doc = p.load("warp_eval.json")
+    if not doc:
+        return
+    cmd = p.command("warp_eval")
+    cells = doc["results"]
+    by = {(c["model"], c["horizon"]): c for c in cells}
+    models = []
+    for c in cells:
+        if c["model"] not in models:
+            models.append(c["model"])
+    horizons = sorted({c["horizon"] for c in cells})
+    kmax = horizons[-1]
+    poly1, polyk = by[("poly", 1)], by[("poly", kmax)]
+    frames = poly1.get("base_frames", "?")
+    p.row(f"PRP quadratic warp error against a true render, {len(doc['trajectories'])} shipped "
+          f"trajectories over Puget Sound, {doc['size'][0]}×{doc['size'][1]}",
+          "—", f"k = 1 field: {fmt(poly1['psnr_db'], 1)} dB / {fmt(poly1['mae_pct'], 2)} %; "
+          f"k = {kmax}: {fmt(polyk['psnr_db'], 1)} dB / {fmt(polyk['mae_pct'], 2)} % "
+          f"(mean of {frames} base frames)", NO_TARGET, cmd)
+    zero = p.load("warp_eval_levels0.json")
+    if zero:
+        other = {(c["model"], c["horizon"]): c for c in zero["results"]}
+        keys = [k for k in by if k in other]
+        db = max(abs(by[k]["psnr_db"] - other[k]["psnr_db"]) for k in keys)
+        mae = max(abs(by[k]["mae_pct"] - other[k]["mae_pct"]) for k in keys)
+        p.row("The same with frames and truths by the exact single level (`--levels 0`): largest "
+              "difference from levels auto over every model and horizon", "—",
+              f"{fmt(db, 2)} dB, {fmt(mae, 3)} % MAE", NO_TARGET, p.command("warp_eval_levels0"))
+    shown = [k for k in (1, 2, 4, 8) if k in horizons]
+    head = "| model | " + " | ".join(f"k = {k}: dB / MAE %" for k in shown) + " | ns/px | fallbacks |"
+    lines = [head, "| --- |" + " ---: |" * (len(shown) + 2)]
+    for m in models:
+        ns = statistics.mean(by[(m, k)]["ns_per_pixel"] for k in horizons)
+        fb = sum(by[(m, k)]["fallbacks"] for k in horizons)
+        lines.append(f"| {m} | " + " | ".join(
+            f"{fmt(by[(m, k)]['psnr_db'], 1)} / {fmt(by[(m, k)]['mae_pct'], 2)}" for k in shown)
+            + f" | {fmt(ns, 2)} | {fb} |")
+    p.section(*(
+        "Warp models against the horizon",
+        f"Each model warps a frame rendered at t to t + k fields and is compared with a true "
+        f"render there ({doc['size'][0]}×{doc['size'][1]}, margin {doc['margin']} px, levels "
+        f"{doc['levels']}; cells: PSNR / mean absolute error in % of full scale, mean over the "
+        f"trajectories' base frames). Command: {cmd}; plot: "
+        "`scripts/plot-warp-eval.sh docs/results/data/warp_eval.csv docs/warp_eval_prp.png`.",
+        "\n".join(lines) + "\n\n![warp error against horizon](warp_eval_prp.png)"))
+
+
+STEREO = (("stereo_puget_720x486", "Puget Sound", "720×486"),
+          ("stereo_puget_1920x1080", "Puget Sound", "1920×1080"),
+          ("stereo_goleta_720x486", "Goleta", "720×486"),
+          ("stereo_goleta_1920x1080", "Goleta", "1920×1080"),
+          ("stereo_goleta_500x400", "Goleta", "500×400 (the papers' setting)"))
+STEREO_WIDE = (("stereo_puget_720x486_agl0.1", "Puget Sound", "720×486, 5× separation"),
+               ("stereo_goleta_720x486_agl0.1", "Goleta", "720×486, 5× separation"))
+
+
+def stereo(p):
+    p.group = "Stereo"
+    found, wide = [], []
+    for group, names in ((found, STEREO), (wide, STEREO_WIDE)):
+        for name, terrain, size in names:
+            doc = p.load(name + ".json")
+            if doc:
+                group.append((name, terrain, size, doc))
+    if not found:
+        return
+    lines = ["| terrain, size | left eye ms | A-buffer right/left | MAE % | integer right/left | "
+             "MAE % | Adelson–Hodges right/left | MAE % | command |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
+    ratios_, maes = [], []
+    for name, terrain, size, doc in found + wide:
+        res = {r["config"]: r for r in doc["results"]}
+        a = res["abuffer"]
+        if (name, terrain, size, doc) in found:
+            ratios_.append((a["right_over_left"], f"{terrain} {size}"))
+            maes.append(a["mae_pct"])
+        cells = []
+        for c in ("abuffer", "integer", "adelson-hodges"):
+            r = res.get(c)
+            cells += [fmt(r["right_over_left"], 3), fmt(r["mae_pct"], 3)] if r else ["—", "—"]
+        lines.append(f"| {terrain} {size} | {fmt(doc['left_ms_mean'], 1)} | " + " | ".join(cells)
+                     + f" | {p.command(name)} |")
+    worst = max(ratios_)
+    cmds = ", ".join(p.command(n) for n, *_ in found[:1])
+    repeat = found[0][3].get("repeat", "?")
+    p.row(f"Stereo: right eye by reprojection (A-buffer) / left eye, CPU time, 12-pose sweep, "
+          f"{len(found)} terrains and sizes", "≤ 0.15",
+          f"{fmt(min(r for r, _ in ratios_), 3)}–{fmt(worst[0], 3)} (highest: {worst[1]}; "
+          f"best of {repeat} per pose)", status(worst[0] <= 0.15), cmds + " and the table below")
+    p.row("Stereo: right eye colour error against its full ray cast, same runs", "≤ 2 %",
+          f"{fmt(min(maes), 3)}–{fmt(max(maes), 3)} % mean absolute error",
+          status(max(maes) <= 2), "the table below")
+    p.section(*(
+        "Per terrain, size and configuration",
+        "For each pose of the 12-pose sweep the left eye is cast by the fast caster and the right "
+        "eye both reprojected from it (each configuration) and cast in full (the reference); "
+        "times are one thread's CPU time, the least of the repeats; right/left is the sum of "
+        "right-eye times over the sum of left-eye times. Eye separation 0.02 × height above "
+        "the terrain (`--stereo-agl 0.1`: five times as much, so a wider strip at the right edge "
+        "is seen only by the right eye and cast). Goleta is `--height data/goleta-512/sba_elev32_wgs84_512x512.tif --color "
+        "data/goleta-512/sba_rgb_wgs84_512x512.tif`.",
+        "\n".join(lines)))
+
+
+def pipeline(p):
+    p.group = "Real-time pipeline and output"
+    auto = [p.load(f"flythrough_auto_{i}.json") for i in range(1, 10)]
+    auto = [d for d in auto if d]
+    single = [p.load(f"flythrough_levels0_{i}.json") for i in range(1, 10)]
+    single = [d for d in single if d]
+    if not auto:
+        return
+    cmd = p.command("flythrough_auto_1")
+    missed = [d["missed_deadlines"] for d in auto + single]
+    seconds = sum(d["elapsed_s"] for d in auto + single)
+    fields = sum(d["fields"] for d in auto + single)
+    names = [f"flythrough_auto_{i}" for i in range(1, len(auto) + 1)] + \
+        [f"flythrough_levels0_{i}" for i in range(1, len(single) + 1)]
+    loads = [p.loads[n] for n in names if n in p.loads]
+    load = f"; load average {fmt(min(loads), 1)}–{fmt(max(loads), 1)} as they started" if loads else ""
+    p.row("Pipeline on the wall clock, default scenario, 720×486 fields, renderer unthrottled: "
+          "missed field deadlines", "0",
+          f"{sum(missed)} of {fields} fields in {len(missed)} runs, {fmt(seconds, 0)} s (per run: "
+          f"{', '.join(str(m) for m in missed)}{load}); field interval max "
+          f"{fmt(max(d['field_interval_ms']['max'] for d in auto + single), 1)} ms",
+          status(sum(missed) == 0), cmd)
+    value = (f"levels auto {spread([d['render_fps'] for d in auto], 1, ' fps')}")
+    if single:
+        value += f"; levels 0 {spread([d['render_fps'] for d in single], 1, ' fps')}"
+    frame = f"{auto[0].get('render_width_level', '?')}×{auto[0].get('render_height_level', '?')}"
+    p.row(f"Renderer frame rate in the pipeline (all cores but one, Puget Sound, {frame} level "
+          "frames)", "—", value, NO_TARGET,
+          cmd + (" and the same with `--levels 0`" if single else ""))
+    p.row("Frame age at output, p50 / p99, levels auto", "—",
+          f"p50 {spread([d['frame_age_ms']['p50'] for d in auto], 1, ' ms')}; p99 "
+          f"{spread([d['frame_age_ms']['p99'] for d in auto], 1, ' ms')}", NO_TARGET, cmd)
+    sim = p.load("flythrough_simulated.json")
+    if sim:
+        age = sim["frame_age_ms"]
+        p.row("Simulated clock (every render modelled as 1/12 s): frame age p50 / p99 / max, "
+              "reproducible run to run", "below 1/12 s (83.3 ms)",
+              f"{fmt(age['p50'], 1)} / {fmt(age['p99'], 1)} / {fmt(age['max'], 1)} ms; "
+              f"{sim['fields']} fields, interval max {fmt(sim['field_interval_ms']['max'], 3)} ms",
+              status(age["max"] < 1000.0 / 12), p.command("flythrough_simulated"))
+
+
+def io_layer(p):
+    p.group = "Real-time pipeline and output"
+    doc = p.load("io_check.json")
+    if not doc:
+        return
+    iv = doc["field_interval_ms"]
+    p.row("Field clock alone (test pattern, null sink): missed deadlines", "0",
+          f"{doc['missed_deadlines']} of {doc['fields']} fields; interval p50 / p99 / max "
+          f"{fmt(iv['p50'], 3)} / {fmt(iv['p99'], 3)} / {fmt(iv['max'], 3)} ms",
+          status(doc["missed_deadlines"] == 0), p.command("io_check"))
+    doc = p.load("io_check_y4m.json")
+    if doc:
+        w = doc["sink_write_ms"]
+        p.row("Y4M sink at 720×486 UYVY: time to write a field, p50 / p99 / max; missed deadlines",
+              "0 missed", f"{fmt(w['p50'], 3)} / {fmt(w['p99'], 3)} / {fmt(w['max'], 3)} ms; "
+              f"{doc['missed_deadlines']} of {doc['fields']} fields missed",
+              status(doc["missed_deadlines"] == 0), p.command("io_check_y4m"))
+
+
+# --- the page ------------------------------------------------------------------------------------
+
+def render(data_dir):
+    p = Page(data_dir)
+    casters(p)
+    renderer(p)
+    callgrind(p)
+    warp(p)
+    warp_eval(p)
+    stereo(p)
+    pipeline(p)
+    io_layer(p)
+    m = p.load("machine.json") or {}
+    out = ["# Measured results", "",
+           "<!-- Generated by scripts/results.py from docs/results/data/; do not edit by hand. -->",
+           "",
+           "One row per claim: what is measured, the target where there is one, the value, "
+           "whether the target is met, and the command that measured it (programs in "
+           "`build/release/bin/`, built by `cmake --preset release && cmake --build --preset "
+           "release`). `scripts/results.sh` runs every command below on this machine (adding the "
+           "options that write each program's JSON) and regenerates this page and its data "
+           "(`docs/results/data/`); `scripts/results.py` "
+           "regenerates the page from the data, and a test (`results.page_matches_data`) fails "
+           "when the two disagree.", ""]
+    if m:
+        out += [f"**Machine:** {m.get('cpu', '?')}, {m.get('cores', '?')} cores "
+                f"({m.get('simd', '?')}), {m.get('memory_gib', '?')} GiB, {m.get('os', '?')}, "
+                f"{m.get('compiler', '?')}; Release build, no `-march` (vector kernels are "
+                f"picked at run time); revision {m.get('revision', '?')}, {m.get('date', '?')}. "
+                f"The machine is shared (load average {load_range(p, m)} as the commands "
+                "started), so single times are noisy: values are medians with their range over "
+                "the runs, and ratios pair runs taken in turn where the program does.", ""]
+    met = sum(1 for _, r in p.rows if r[3] == MET)
+    missed = [r[0] for _, r in p.rows if r[3] == NOT_MET]
+    out += [f"{len(p.rows)} claims: {met} targets met, {len(missed)} not met (**not met** below), "
+            f"{len(p.rows) - met - len(missed)} without a target.", ""]
+    groups = []
+    for group, _ in p.rows:
+        if group not in groups:
+            groups.append(group)
+    for group in groups:
+        out += [f"## {group}", "", "| what | target | value | status | command |",
+                "| --- | --- | --- | --- | --- |"]
+        for g, r in p.rows:
+            if g == group:
+                out.append("| " + " | ".join(r) + " |")
+        out.append("")
+        for g, title, text, table in p.sections:
+            if g == group:
+                out += [f"### {title}", "", text, "", table, ""]
+    out += ["## Elsewhere", "",
+            "Experiments that were measured and not kept are in the design notes' "
+            "\"Alternatives considered\" sections (`docs/design/`); how each part works is in "
+            "its design note. Earlier figures are in this page's history.", ""]
+    return "\n".join(out), len(p.rows)
+
+
+def load_range(p, m):
+    loads = list(p.loads.values()) or [m.get("load_average_at_start", 0)]
+    return f"{fmt(min(loads), 1)}–{fmt(max(loads), 1)}" if len(loads) > 1 else fmt(loads[0], 1)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--check", action="store_true",
+                    help="compare the page with what the data give; exit 1 if they differ")
+    ap.add_argument("--data", default=DATA, help="data folder (default docs/results/data)")
+    ap.add_argument("--out", default=PAGE, help="page to write or check (default docs/results.md)")
+    args = ap.parse_args()
+    page, claims = render(args.data)
+    if args.check:
+        try:
+            with open(args.out, encoding="utf-8") as f:
+                current = f.read()
+        except OSError as e:
+            print(f"results.py: {args.out}: {e.strerror}", file=sys.stderr)
+            return 1
+        if current != page:
+            print(f"results.py: {args.out} does not match docs/results/data/; run "
+                  "scripts/results.py to regenerate it", file=sys.stderr)
+            return 1
+        print(f"results.py: {args.out} matches the data")
+        return 0
+    with open(args.out, "w", encoding="utf-8") as f:
+        f.write(page)
+    print(f"results.py: wrote {args.out} ({claims} claims)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
