@@ -501,8 +501,10 @@ def pipeline(p):
     if single:
         value += f"; levels 0 {spread([d['render_fps'] for d in single], 1, ' fps')}"
     frame = f"{auto[0].get('render_width_level', '?')}×{auto[0].get('render_height_level', '?')}"
-    p.row(f"Renderer frame rate in the pipeline (all cores but one, Puget Sound, {frame} level "
-          "frames)", "—", value, NO_TARGET,
+    mode = auto[0].get("renderer", "thread")
+    cores = "every core" if mode == "process" else "all cores but one"
+    p.row(f"Renderer frame rate in the pipeline (renderer {mode}, {cores}, Puget Sound, {frame} "
+          "level frames)", "—", value, NO_TARGET,
           cmd + (" and the same with `--levels 0`" if single else ""))
     p.row("Frame age at output, p50 / p99, levels auto", "—",
           f"p50 {spread([d['frame_age_ms']['p50'] for d in auto], 1, ' ms')}; p99 "
@@ -515,6 +517,59 @@ def pipeline(p):
               f"{fmt(age['p50'], 1)} / {fmt(age['p99'], 1)} / {fmt(age['max'], 1)} ms; "
               f"{sim['fields']} fields, interval max {fmt(sim['field_interval_ms']['max'], 3)} ms",
               status(age["max"] < 1000.0 / 12), p.command("flythrough_simulated"))
+
+
+def renderer_process(p):
+    p.group = "Real-time pipeline and output"
+    doc = p.load("field_clock.json")
+    if doc:
+        runs = {r["name"]: r for r in doc["runs"]}
+        proc, thread = runs.get("process"), runs.get("thread")
+        cmd = "`" + doc["command"] + "`"
+        if proc:
+            s = proc["stats"]
+            j = s["field_jitter_ms"]
+            restarts = s["renderer_restarts"]
+            killed = (f"; renderer killed once halfway, back after {fmt(restarts[0]['recovery_ms'], 0)} ms"
+                      if restarts and restarts[0].get("recovery_ms") is not None else "")
+            p.row(f"Field clock over {fmt(doc['seconds'] / 60, 0)} min, renderer process on every "
+                  "core: missed fields and field-interval jitter p99.9 / max",
+                  "0 missed; p99.9 ≤ 0.5 ms, max ≤ 2 ms",
+                  f"{s['missed_deadlines']} of {s['fields']} missed; jitter p99 {fmt(j['p99'], 3)}, "
+                  f"p99.9 {fmt(j['p99.9'], 3)}, max {fmt(j['max'], 3)} ms{killed}",
+                  status(s["missed_deadlines"] == 0 and j["p99.9"] <= 0.5 and j["max"] <= 2.0), cmd)
+            p.row("Field process memory over the same run (resident, at 1 min and at the end)",
+                  "flat", f"{fmt(proc['rss_kb_at_60s'] / 1024, 1)} MiB → "
+                  f"{fmt(proc['rss_kb_at_end'] / 1024, 1)} MiB",
+                  status(proc["rss_kb_at_end"] <= proc["rss_kb_at_60s"] * 1.05 + 1024), cmd)
+        if proc and thread:
+            a, b = proc["stats"], thread["stats"]
+            p.row("Render rate: renderer process on every core against a renderer thread on all "
+                  "cores but one (same run length, no kill for the thread)", "—",
+                  f"{fmt(a['render_fps'], 1)} against {fmt(b['render_fps'], 1)} fps "
+                  f"({fmt(a['render_fps'] / b['render_fps'], 2)}×); thread: "
+                  f"{b['missed_deadlines']} missed, jitter max {fmt(b['field_jitter_ms']['max'], 1)} ms",
+                  NO_TARGET, cmd)
+    doc = p.load("renderer_restart.json")
+    if doc:
+        cmd = "`" + doc["command"] + "`"
+        for label, rows in doc["maps"].items():
+            rec = [r["recovery_ms"] for r in rows if r["recovery_ms"] is not None]
+            if not rec:
+                continue
+            missed = [r["missed_deadlines"] for r in rows]
+            p.row(f"Renderer process killed mid-run, {label}: from the death noticed to the first "
+                  "new frame shown; fields missed", "0 missed",
+                  f"{spread(rec, 0, ' ms')}; missed per run {', '.join(str(m) for m in missed)}",
+                  status(sum(missed) == 0), cmd)
+    doc = p.load("io_check_realtime.json")
+    if doc:
+        w = doc["wake_lateness_ms"]
+        p.row("Field clock alone at SCHED_FIFO, nothing else in the loop (what the machine "
+              "allows): wake lateness p99 / p99.9 / max; fields more than a period late", "—",
+              f"{fmt(w['p99'], 3)} / {fmt(w.get('p99.9', float('nan')), 3)} / {fmt(w['max'], 3)} ms; "
+              f"{doc['missed_deadlines']} of {doc['fields']}", NO_TARGET,
+              p.command("io_check_realtime"))
 
 
 def io_layer(p):
@@ -547,6 +602,7 @@ def render(data_dir):
     warp_eval(p)
     stereo(p)
     pipeline(p)
+    renderer_process(p)
     io_layer(p)
     m = p.load("machine.json") or {}
     out = ["# Measured results", "",

@@ -7,7 +7,8 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render warp warp-eval stereo flythrough io  (default: all)
+#   NAME: machine caster render warp warp-eval stereo flythrough io restart  (default: all)
+#   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root="$PWD"
@@ -22,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|warp|warp-eval|stereo|flythrough|io) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, warp, warp-eval, stereo, flythrough or io" >&2
+                machine|caster|render|warp|warp-eval|stereo|flythrough|io|restart|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, warp, warp-eval, stereo, flythrough, io, restart or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -168,9 +169,20 @@ fi
 
 if wanted io; then
     run io_check "$bin/io-check" pattern --out null --duration 20 --json "$data/io_check.json"
+    run io_check_realtime "$bin/io-check" pattern --out null --duration 60 --realtime \
+        --json "$data/io_check_realtime.json"
     run io_check_y4m "$bin/io-check" pattern --out y4m:/tmp/pattern.y4m \
         --duration 10 --json "$data/io_check_y4m.json"
     rm -f /tmp/pattern.y4m
+fi
+
+# The renderer process: restarts (about 2.5 minutes, most of it making the 16384^2 map), and the
+# field clock over ten minutes against the renderer thread (only when named: twenty minutes).
+if wanted restart; then
+    scripts/bench-renderer-restart.sh 5 "$data/renderer_restart.json"
+fi
+if [ ${#only[@]} -gt 0 ] && wanted field-clock; then
+    scripts/bench-field-clock.sh 600 "$data/field_clock.json"
 fi
 
 # Paths inside the data are written relative to the repository.
