@@ -18,6 +18,17 @@ must_refuse() {
     [ "$rc" -lt 124 ] || fail "exit $rc (crash or timeout) for: $*"
     grep -Eq -- "$pattern" <<<"$msg" || fail "message /$pattern/ not in: $msg"
 }
+# Waits (up to 60 s) until FILE (or FILE.part) holds at least BYTES bytes: the run is under way.
+wait_for_bytes() {
+    local file="$1" bytes="$2" i
+    for i in $(seq 1 600); do
+        for f in "$file" "$file.part"; do
+            [ -f "$f" ] && [ "$(stat -c %s "$f")" -ge "$bytes" ] && return 0
+        done
+        sleep 0.1
+    done
+    fail "$file: still under $bytes bytes after 60 s"
+}
 # Y4M size check: header line plus whole frames of W x H 4:2:2 (2 bytes a pixel) + "FRAME\n".
 whole_frames() {
     local file="$1" w="$2" h="$3"
@@ -110,7 +121,7 @@ signals_end_runs_cleanly)
         "$fly" "${fly_small[@]}" --duration 60 --out "y4m:$tmp/v.y4m" --json "$tmp/s.json" \
             --contact "$tmp/c.png" >/dev/null 2>&1 &
         pid=$!
-        sleep 2
+        wait_for_bytes "$tmp/v.y4m" 100000  # a few frames in, however loaded the machine
         kill -s "$sig" "$pid"
         wait "$pid"; rc=$?
         want=$([ "$sig" = INT ] && echo 130 || echo 143)
@@ -127,7 +138,7 @@ signals_end_runs_cleanly)
     "$fly" "${fly_small[@]}" --duration 60 --out "y4m:$tmp/v.y4m" --contact none \
         --render-hz 1 >/dev/null 2>&1 &
     pid=$!
-    sleep 2
+    wait_for_bytes "$tmp/v.y4m" 100000
     kill -s INT "$pid"; kill -s INT "$pid"
     wait "$pid"; rc=$?
     [ "$rc" -eq 130 ] || fail "two SIGINTs: exit $rc"
@@ -137,7 +148,7 @@ signals_end_runs_cleanly)
     "$check" pattern --out "y4m:$tmp/p.y4m" --size 160x120 --duration 60 --json "$tmp/p.json" \
         >/dev/null 2>&1 &
     pid=$!
-    sleep 1
+    wait_for_bytes "$tmp/p.y4m" 100000
     kill -s TERM "$pid"
     wait "$pid"; rc=$?
     [ "$rc" -eq 143 ] || fail "io-check pattern SIGTERM: exit $rc"
@@ -166,21 +177,21 @@ assert r[0]["gap_ms"] is not None and r[0]["gap_ms"] > 0, r
 PY
     done
     # Wall clock: the renderer process killed from outside mid-run.
-    "$fly" "${fly_small[@]}" --duration 4 --out "y4m:$tmp/w.y4m" --json "$tmp/w.json" \
+    "$fly" "${fly_small[@]}" --duration 8 --out "y4m:$tmp/w.y4m" --json "$tmp/w.json" \
         --contact none >/dev/null 2>"$tmp/err" &
     pid=$!
-    sleep 2
+    wait_for_bytes "$tmp/w.y4m" 100000  # under way, however loaded the machine
     child=$(pgrep -P "$pid" | head -n 1)
     [ -n "$child" ] || fail "no renderer process under flythrough $pid"
     kill -9 "$child"
     wait "$pid"; rc=$?
     [ "$rc" -eq 0 ] || fail "renderer killed: exit $rc: $(cat "$tmp/err")"
     frames=$(whole_frames "$tmp/w.y4m" 160 120)
-    [ "$frames" -eq 120 ] || fail "renderer killed: $frames frames, expected 120"
+    [ "$frames" -eq 240 ] || fail "renderer killed: $frames frames, expected 240"
     python3 - "$tmp/w.json" <<'PY' || fail "renderer killed: $(cat "$tmp/w.json")"
 import json, sys
 j = json.load(open(sys.argv[1]))
-assert j["fields"] == 240, j["fields"]
+assert j["fields"] == 480, j["fields"]
 r = j["renderer_restarts"]
 assert len(r) == 1 and "signal 9" in r[0]["cause"], r
 PY
