@@ -149,9 +149,8 @@ float* FrameRing::depth(std::uint32_t slot) const {
                                     roundUp(maxPixels_ * sizeof(ig::Rgb8)));
 }
 
-bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
-    const std::size_t n = frame.color.size();
-    if (n > maxPixels_ || frame.depth.size() != n) return false;
+void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels,
+                            std::int64_t clockNs, bool copyPixels) {
     Header& h = header();
     const std::uint32_t back = h.back.load(std::memory_order_relaxed);
     SlotMeta& m = meta(back);
@@ -161,34 +160,28 @@ bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
     m.intrinsics = frame.intrinsics;
     std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
     m.stats = frame.stats;
-    m.pixels = n;
+    m.pixels = pixels;
     m.publishNs = clockNs;
-    std::memcpy(color(back), frame.color.data(), n * sizeof(ig::Rgb8));
-    std::memcpy(depth(back), frame.depth.data(), n * sizeof(float));
+    if (copyPixels) {
+        std::memcpy(color(back), frame.color.data(), pixels * sizeof(ig::Rgb8));
+        std::memcpy(depth(back), frame.depth.data(), pixels * sizeof(float));
+    }
     const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
     h.back.store(old & kIndexMask, std::memory_order_relaxed);
-    h.lastPublishNs.store(clockNs, std::memory_order_relaxed);
+    if (clockNs != 0) h.lastPublishNs.store(clockNs, std::memory_order_relaxed);
     h.published.fetch_add(1, std::memory_order_release);
     wake(h);
+}
+
+bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
+    const std::size_t n = frame.color.size();
+    if (n > maxPixels_ || frame.depth.size() != n) return false;
+    publishBack(frame, n, clockNs, true);
     return true;
 }
 
 void FrameRing::publishRaw(const ig::RenderedFrame& frame, std::uint64_t claimedPixels) {
-    Header& h = header();
-    const std::uint32_t back = h.back.load(std::memory_order_relaxed);
-    SlotMeta& m = meta(back);
-    m.sequence = frame.sequence;
-    m.time = frame.time;
-    m.pose = frame.pose;
-    m.intrinsics = frame.intrinsics;
-    std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
-    m.stats = frame.stats;
-    m.pixels = claimedPixels;
-    m.publishNs = 0;
-    const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
-    h.back.store(old & kIndexMask, std::memory_order_relaxed);
-    h.published.fetch_add(1, std::memory_order_release);
-    wake(h);
+    publishBack(frame, claimedPixels, 0, false);
 }
 
 FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {

@@ -83,6 +83,10 @@ class FrameRing {
     struct SlotMeta;
     Header& header() const;
     static void wake(Header& h);
+    // Writes `frame`'s description (and, when `copyPixels`, its pixels) into the back slot and
+    // publishes it.
+    void publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels, std::int64_t clockNs,
+                     bool copyPixels);
     SlotMeta& meta(std::uint32_t slot) const;
     ig::Rgb8* color(std::uint32_t slot) const;
     float* depth(std::uint32_t slot) const;
