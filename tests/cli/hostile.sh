@@ -195,6 +195,27 @@ assert j["fields"] == 480, j["fields"]
 r = j["renderer_restarts"]
 assert len(r) == 1 and "signal 9" in r[0]["cause"], r
 PY
+    # A renderer hung for good does not hold up the end: SIGINT still ends the run at once with
+    # every output written.
+    rm -f "$tmp"/h.y4m "$tmp"/h.json
+    "$fly" "${fly_small[@]}" --duration 60 --out "y4m:$tmp/h.y4m" --json "$tmp/h.json" \
+        --contact none --render-timeout-ms 60000 --inject-renderer-fault hang@0.5 \
+        >/dev/null 2>"$tmp/err" &
+    pid=$!
+    wait_for_bytes "$tmp/h.y4m" 1000000  # well past the hang: fields go on without frames
+    renderer=$(pgrep -P "$pid" | head -n 1)
+    [ -n "$renderer" ] || fail "hung renderer: no renderer process under flythrough $pid"
+    start=$(date +%s%N)
+    kill -s INT "$pid"
+    wait "$pid"; rc=$?
+    ms=$((($(date +%s%N) - start) / 1000000))
+    [ "$rc" -eq 130 ] || fail "hung renderer, SIGINT: exit $rc: $(cat "$tmp/err")"
+    [ "$ms" -lt 5000 ] || fail "hung renderer, SIGINT: the run took $ms ms to end"
+    whole_frames "$tmp/h.y4m" 160 120 >/dev/null
+    python3 -c "import json,sys; json.load(open(sys.argv[1]))" "$tmp/h.json" ||
+        fail "hung renderer, SIGINT: no valid JSON"
+    sleep 0.2
+    kill -0 "$renderer" 2>/dev/null && fail "hung renderer, SIGINT: its process $renderer was left"
     ;;
 # SIGINT or SIGTERM at any instant of a run: the video is whole frames, the JSON is written.
 signals_at_random_instants)
