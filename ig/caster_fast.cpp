@@ -12,6 +12,8 @@
 // Multiresolution (RenderOptions::levels): up to the distance d0 where a level-0 voxel shrinks
 // to a pixel the march is exact on level 0; beyond it the ray steps over coarser display levels,
 // adjacent levels blended by distance. See docs/design/multires.md.
+#include "base/check.hpp"
+#include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
@@ -170,19 +172,17 @@ class FastCaster final : public Caster {
             throw InputError("supersample " + std::to_string(options_.supersample) +
                              ": expected 1..8 rays per pixel");
         }
-        if (options_.lanes != 0 && options_.lanes != 4) {
-            throw InputError("lanes " + std::to_string(options_.lanes) +
-                             ": expected 0 (the widest the processor has) or 4");
-        }
         if (options_.levels < kLevelsAuto) {
             throw InputError("levels " + std::to_string(options_.levels) +
                              ": expected auto or a count >= 0");
         }
+        chooseKernel();
         pyramid_ = std::make_unique<TerrainPyramid>(map, options_.levels);
         topLevel_ = pyramid_->levelCount() - 1;
         slopes_ = std::make_unique<SlopeBlocks>(map);
     }
     CasterKind kind() const override { return CasterKind::Fast; }
+    std::string_view kernelName() const override { return casterKernelName(kernel_); }
 
     void render(const Camera& camera, RenderedFrame& frame) const override {
         checkRoll(camera);
@@ -206,19 +206,17 @@ class FastCaster final : public Caster {
 
     int workUnits(const Camera& camera) const override {
         const int w = camera.intrinsics().width;
-        return usePackets() && !linear() ? (w + 3) / 4 : w;
+        return (w + columnsPerUnit_ - 1) / columnsPerUnit_;
     }
 
     std::pair<int, int> unitColumns(const Camera& camera, int unit) const override {
         const int w = camera.intrinsics().width;
-        if (usePackets() && !linear()) return {4 * unit, std::min(4 * unit + 4, w)};
-        return {unit, unit + 1};
+        return {columnsPerUnit_ * unit, std::min(columnsPerUnit_ * (unit + 1), w)};
     }
 
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
                     UnitCounters& counters) const override {
         checkRoll(camera);
-        const int w = camera.intrinsics().width;
         // Level 0 is used out to where a voxel spans one pixel across the view.
         const double d0 =
             topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
@@ -233,72 +231,80 @@ class FastCaster final : public Caster {
                          offset,
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
-        if (linear()) {
-            if (options_.supersample == 1) {
-                renderLinearColumn<false>(mv, camera, d0, unit, frame, counters);
-            } else {
-                renderLinearColumn<true>(mv, camera, d0, unit, frame, counters);
-            }
-            return;
-        }
-#if VIG_CASTER_PACKETS
-        if (usePackets()) {
-            const int x0 = 4 * unit;
-            if (x0 + 4 <= w) {
-                renderPacket(mv, camera, d0, x0, frame, counters);
-            } else {
-                for (int x = x0; x < w; ++x)
-                    renderColumn(mv, camera, d0, x, frame, counters);
-            }
-            return;
-        }
-#endif
-        renderColumn(mv, camera, d0, unit, frame, counters);
+        (this->*renderUnit_)(mv, camera, d0, unit, frame, counters);
     }
 
   private:
     static void checkRoll(const Camera& camera) {
-        if (camera.pose().roll != 0.0) {
-            throw std::invalid_argument(
-                "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
-        }
+        CHECK(camera.pose().roll == 0.0)
+            << "fast caster renders roll = 0 (the PRP applies roll); use naive or reference";
     }
 
-    // The multiresolution caster: coherent rays find their level-0 hit between the major grid
-    // lines where they pass from above to below the surface, by linear interpolation (the
-    // paper's discrete traversal, no exact solve); see linearRay.
-    bool linear() const {
-        return options_.levels != 0;
-    }
+    // Renders work unit `unit` (a column, or a group of four adjacent columns).
+    using UnitRenderer = void (FastCaster::*)(const MapView& mv, const Camera& camera, double d0,
+                                              int unit, RenderedFrame& frame,
+                                              UnitCounters& counters) const;
 
-    // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
-    bool usePackets() const {
-        return useVectors() && options_.supersample == 1;
-    }
-
-    // Four lanes with AVX2: four columns (single level, one ray per pixel) or four rows of a
-    // column (multiresolution, any number of rays per pixel).
-    bool useVectors() const {
-#if VIG_CASTER_PACKETS
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        // Vector gathers index colour bytes with 32-bit offsets.
+    // The kernel and the function that renders a work unit with it, chosen once. The
+    // multiresolution caster (levels != 0): coherent rays find their level-0 hit between the
+    // major grid lines where they pass from above to below the surface, by linear
+    // interpolation (the paper's discrete traversal, no exact solve; see linearRay), on rows
+    // batched over vector lanes where the kernel has them. The single level: columns, four at
+    // a time with AVX2 where the kernel has them and one ray per pixel.
+    void chooseKernel() {
+        CasterKernel k = options_.kernel;
+        // The vector gathers index colour bytes with 32-bit offsets.
         const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
-        return options_.packets && hasAvx2 && fits;
-#else
-        return false;
+        if (k == CasterKernel::Auto) {
+            const base::CpuFeatures& cpu = base::cpuFeatures();
+            k = !VIG_CASTER_PACKETS || !fits    ? CasterKernel::Scalar
+                : VIG_CASTER_WIDE && cpu.avx512 ? CasterKernel::Avx512
+                : cpu.avx2                      ? CasterKernel::Avx2
+                                                : CasterKernel::Scalar;
+        } else if (k != CasterKernel::Scalar) {
+            std::string missing = casterKernelMissing(k);
+            if (!VIG_CASTER_PACKETS) missing = "this build's vector code (x86-64 only)";
+            if (!missing.empty()) {
+                throw InputError("kernel " + std::string(casterKernelName(k)) +
+                                 ": the processor lacks " + missing);
+            }
+            if (!fits) {
+                throw InputError("kernel " + std::string(casterKernelName(k)) + ": the map (" +
+                                 std::to_string(map_.width()) + " x " +
+                                 std::to_string(map_.height()) +
+                                 ") is too large for the vector kernels' 32-bit offsets");
+            }
+        }
+        const bool super = options_.supersample > 1;
+        renderUnit_ = &FastCaster::renderColumnUnit;
+        kernel_ = CasterKernel::Scalar;
+        columnsPerUnit_ = 1;
+        if (options_.levels != 0) {
+            renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 0>
+                                : &FastCaster::renderLinearColumn<false, 0>;
+#if VIG_CASTER_PACKETS
+            if (k == CasterKernel::Avx2) {
+                kernel_ = k;
+                renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 4>
+                                    : &FastCaster::renderLinearColumn<false, 4>;
+            }
 #endif
-    }
-
-    // Eight lanes with AVX-512 for the multiresolution caster's row batches, where the
-    // processor has it and RenderOptions::lanes allows.
-    bool useWide() const {
 #if VIG_CASTER_WIDE
-        static const bool hasAvx512 =
-            __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
-            __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw");
-        return options_.lanes != 4 && hasAvx512;
-#else
-        return false;
+            if (k == CasterKernel::Avx512) {
+                kernel_ = k;
+                renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 8>
+                                    : &FastCaster::renderLinearColumn<false, 8>;
+            }
+#endif
+            return;
+        }
+#if VIG_CASTER_PACKETS
+        // The single level has four-column packets (AVX2) only, for one ray per pixel.
+        if (k != CasterKernel::Scalar && !super) {
+            kernel_ = CasterKernel::Avx2;
+            renderUnit_ = &FastCaster::renderPacketUnit;
+            columnsPerUnit_ = 4;
+        }
 #endif
     }
 
@@ -1265,11 +1271,12 @@ class FastCaster final : public Caster {
                              topLevel_ > 0};
     }
 
-    // One column of the multiresolution caster, bottom to top: four rays at a time with AVX2
-    // where they are coherent with the ray below them, else one by one. With kSuper, the
-    // supersample rays of each pixel are stacked in the column (as renderColumn casts them) and
-    // averaged, the depth the nearest.
-    template <bool kSuper>
+    // One column of the multiresolution caster, bottom to top: kLanes rays at a time (eight with
+    // AVX-512, with four where eight do not go; four with AVX2; 0: none) where they are
+    // coherent with the ray below them, else one by one. With kSuper, the supersample rays of
+    // each pixel are stacked in the column (as renderColumn casts them) and averaged, the depth
+    // the nearest.
+    template <bool kSuper, int kLanes>
     void renderLinearColumn(const MapView& mv, const Camera& camera, double d0, int x,
                             RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
@@ -1310,8 +1317,8 @@ class FastCaster final : public Caster {
             }
         };
 #if VIG_CASTER_PACKETS
-        const bool rows = useVectors();
-        const bool wide = rows && useWide();
+        constexpr bool rows = kLanes >= 4;
+        constexpr bool wide = kLanes == 8;
 #endif
         const int rays = h * sub;
         int single = 0;  // rays to cast one by one before trying a batch again
@@ -1388,6 +1395,26 @@ class FastCaster final : public Caster {
         counters.steps += st.steps;
         counters.restarts += st.restarts;
     }
+
+    void renderColumnUnit(const MapView& mv, const Camera& camera, double d0, int x,
+                          RenderedFrame& frame, UnitCounters& counters) const {
+        renderColumn(mv, camera, d0, x, frame, counters);
+    }
+
+#if VIG_CASTER_PACKETS
+    // Four adjacent columns with AVX2 (the image's last columns one at a time).
+    void renderPacketUnit(const MapView& mv, const Camera& camera, double d0, int unit,
+                          RenderedFrame& frame, UnitCounters& counters) const {
+        const int w = camera.intrinsics().width;
+        const int x0 = 4 * unit;
+        if (x0 + 4 <= w) {
+            renderPacket(mv, camera, d0, x0, frame, counters);
+        } else {
+            for (int x = x0; x < w; ++x)
+                renderColumn(mv, camera, d0, x, frame, counters);
+        }
+    }
+#endif
 
     // One column of the single-level caster, bottom to top, the supersample rays of a pixel
     // stacked inside it and averaged (depth: the nearest).
@@ -2262,6 +2289,9 @@ class FastCaster final : public Caster {
 
     const TerrainMap& map_;
     RenderOptions options_;
+    CasterKernel kernel_ = CasterKernel::Scalar;  // the kernel that runs (chooseKernel)
+    UnitRenderer renderUnit_ = nullptr;
+    int columnsPerUnit_ = 1;
     std::unique_ptr<TerrainPyramid> pyramid_;
     std::unique_ptr<SlopeBlocks> slopes_;
     int topLevel_ = 0;

@@ -7,6 +7,7 @@
 // Z = d f / L with d the Euclidean depth and L = |(x_l - cx, y_l - cy, f)|, so the disparity is
 // f e / Z = e L / d. Sky (d = +inf) has disparity 0.
 #include "ig/stereo.hpp"
+#include "base/cpu_features.hpp"
 
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
@@ -138,6 +139,7 @@ class RowReprojector {
           e_(options.eyeSeparation),
           gap_(options.gapThreshold),
           sweep_(options.referenceSweep),
+          avx2_(VIG_STEREO_VECTOR && base::cpuFeatures().avx2),
           pos_(static_cast<std::size_t>(w_)),
           depth_(static_cast<std::size_t>(w_)),
           acc_(static_cast<std::size_t>(w_) + 1),
@@ -171,7 +173,9 @@ class RowReprojector {
             } else {
                 overwriteRowDirect();
             }
-        } else if (sweep_ || !wanRowVector()) {
+        } else if (sweep_ || !avx2_) {
+            wanRow();
+        } else if (!wanRowVector()) {
             wanRow();
         }
     }
@@ -203,8 +207,7 @@ class RowReprojector {
 #if defined(__SSE__)
         int finiteMask = 0;
 #if VIG_STEREO_VECTOR
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        if (hasAvx2) i = project8(depth, base, e, cx, w_, pos, dr, finiteMask);
+        if (avx2_) i = project8(depth, base, e, cx, w_, pos, dr, finiteMask);
 #endif
         const __m128 vInf = _mm_set1_ps(kInf);
         const __m128 vBase = _mm_set1_ps(base), vE = _mm_set1_ps(e), vOne = _mm_set1_ps(1.0f);
@@ -539,9 +542,8 @@ class RowReprojector {
         std::memcpy(bytes + 8, &last, 4);
     }
 
+    // Needs AVX2 (the caller tests avx2_: this function is compiled for it).
     VIG_STEREO_AVX2 bool wanRowVector() {
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        if (!hasAvx2) return false;
         const float* __restrict__ posOf = pos_.data();
         const float* __restrict__ depthOf = depth_.data();
         const Rgb8* __restrict__ colorOf = in_;
@@ -812,6 +814,7 @@ class RowReprojector {
     long total_;
     double e_, gap_;
     bool sweep_;
+    bool avx2_;  // the processor has AVX2 (base::cpuFeatures): project8 and wanRowVector run
     const Rgb8* in_ = nullptr;  // the row's left colours
     Out out_{};
     std::vector<float> pos_;
@@ -951,17 +954,6 @@ class ColumnCaster {
     bool eyeOverMap_ = false;
     double backoff_ = 0.0;
 };
-
-void fillControlPoints(const TerrainMap& map, RenderedFrame& frame) {
-    const Camera camera(frame.pose, frame.intrinsics);
-    const auto pixels = controlPointPixels(frame.intrinsics);
-    for (int i = 0; i < kControlPointCount; ++i) {
-        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
-        const RayHit hit = intersectTerrain(map, frame.pose.position, dir);
-        frame.controlPoints[i].pixel = pixels[i];
-        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
-    }
-}
 
 }  // namespace
 
@@ -1118,7 +1110,7 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     right.stats.steps = cast.steps;
     right.stats.restarts = cast.restarts;
     right.stats.rays = stats.rayCast - cast.sky;
-    fillControlPoints(map, right);
+    castControlPoints(map, Camera(right.pose, right.intrinsics), right);
     return right;
 }
 

@@ -46,8 +46,7 @@ std::uint64_t frameHash(const ig::RenderedFrame& f) {
 const char* const kKernels[] = {"scalar", "avx2", "avx512"};
 
 void setKernel(ig::RenderOptions& o, const std::string& kernel) {
-    o.packets = kernel != "scalar";
-    o.lanes = kernel == "avx2" ? 4 : 0;
+    o.kernel = ig::parseCasterKernel(kernel);
 }
 
 }  // namespace
