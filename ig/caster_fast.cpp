@@ -15,6 +15,7 @@
 #include "base/check.hpp"
 #include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
+#include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
 #include "ig/multires_march.hpp"
@@ -104,11 +105,6 @@ struct MapView {
     double scale, offset, invScale;
     double maxRaw;  // the map's highest point in raw height units
 };
-
-inline Rgb8 quantize(const float c[3]) {
-    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
-    return Rgb8{q(c[0]), q(c[1]), q(c[2])};
-}
 
 // Exact solve of one march step (the ray between major grid lines m and m + sgn, in minor cells
 // ca..cb) on the level-0 bilinear surface, in the major-axis parameter s in [sBegin, sEnd].
@@ -353,15 +349,10 @@ class FastCaster final : public Caster {
         return haze(rgb, hit.t);
     }
 
+    // The shared haze and quantization (shading.hpp).
     Rgb8 haze(float rgb[3], double t) const {
-        const SkyModel& sky = options_.sky;
-        if (sky.hazeDistance > 0.0) {
-            const float k = static_cast<float>(1.0 - std::exp(-t / sky.hazeDistance));
-            rgb[0] += (sky.horizon.r - rgb[0]) * k;
-            rgb[1] += (sky.horizon.g - rgb[1]) * k;
-            rgb[2] += (sky.horizon.b - rgb[2]) * k;
-        }
-        return quantize(rgb);
+        applyHaze(options_.sky, rgb, t);
+        return quantizeColor(rgb);
     }
 
     // What every ray of one image column shares.
@@ -420,11 +411,11 @@ class FastCaster final : public Caster {
         const double sMajor = majorX ? cc.spacingX : cc.spacingY;
         const double sMinor = majorX ? cc.spacingY : cc.spacingX;
         const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
-        if (climb >= cc.maxSlope * sMinor * gap) return true;
+        if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
         // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
         const double reach =
             st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
-        return climb >= st.wedge.upTo(reach) * sMinor * gap;
+        return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
     }
 
     // One ray of a column, any case: coherent, restarted, past the level-0 distance, straight
@@ -1666,7 +1657,8 @@ class FastCaster final : public Caster {
         }
         const V4 dRn = rn - prevRn;
         const double sMinor = kMajorX ? cc[0].spacingY : cc[0].spacingX;
-        M4 coherent = rz - prevRz >= cc[0].maxSlope * sMinor * (dRn < 0.0 ? -dRn : dRn);
+        M4 coherent;
+        testClimb(V4(rz - prevRz), cc[0].maxSlope, sMinor, V4(dRn < 0.0 ? -dRn : dRn), coherent);
         if (vmask(coherent) != 15) {
             for (int l = 0; l < 4; ++l)
                 coherent[l] = climbsClear(cc[l], st[l], kMajorX, rn[l], rz[l]) ? -1 : 0;
@@ -1925,7 +1917,7 @@ class FastCaster final : public Caster {
         const int last = _mm_extract_epi32(rgb, 2);
         std::memcpy(reinterpret_cast<unsigned char*>(c) + 8, &last, 4);
     }
-    // quantize() on four lanes (no haze).
+    // quantizeColor() on four lanes (no haze).
     [[gnu::always_inline]] VIG_CASTER_AVX2 static void quantizeLanes(const V4 rgb[3], Rgb8* c) {
         __m128i q[3];
         for (int ch = 0; ch < 3; ++ch) {

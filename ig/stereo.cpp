@@ -10,6 +10,7 @@
 #include "base/cpu_features.hpp"
 
 #include "ig/caster_impl.hpp"
+#include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
 #include "ig/shading.hpp"
@@ -845,12 +846,14 @@ RayGeom rayGeom(const glm::dvec3& unitDir) {
     return g;
 }
 
-// The fast caster's safety test (docs/design/ray_casting.md): `upper` stays above the terrain
-// wherever `lower` was, because its climb over `lower` outruns the most the terrain can rise
-// across the gap between their tracks.
+// The fast caster's coherence proof (ig/coherence.hpp) per horizontal metre: `upper` stays
+// above the terrain wherever `lower` was, because its climb over `lower` outruns the most the
+// terrain can rise across the gap between their unit tracks (both leave the eye; tracks less
+// than a right angle apart).
 bool coherent(const RayGeom& lower, const RayGeom& upper, double maxSlope) {
     return lower.horiz > 1e-9 && upper.horiz > 1e-9 && glm::dot(upper.track, lower.track) > 0.0 &&
-           upper.slope - lower.slope >= maxSlope * glm::length(upper.track - lower.track);
+           climbsClearOf(upper.slope - lower.slope, maxSlope, 1.0,
+                         glm::length(upper.track - lower.track));
 }
 
 struct CastCounters {
