@@ -45,6 +45,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -212,39 +213,45 @@ class FastCaster final : public Caster {
 #endif
     }
 
+    // A fresh cast: its hit, if any, and where the ray stopped (the hit, or where it left the
+    // map box; 0 when it misses the box).
+    struct FreshCast {
+        std::optional<LevelHit> hit;
+        double tStop = 0.0;
+    };
+
     // The fresh (t-parameterised) path: box clip, hierarchical skip where worthwhile, exact
-    // level-0 march out to tNear, multiresolution march beyond. Returns the hit (t < 0: none)
-    // and sets tStop to where the ray stopped (its hit, or where it left the map box).
+    // level-0 march out to tNear, multiresolution march beyond.
     // The bottom ray always descends the max-height pyramid (hierarchical first hit); a restart
     // only when its way through the map box is long (near the nadir a march is cheaper).
-    LevelHit castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom, double& tStop,
-                       std::uint64_t& steps) const {
-        LevelHit hit;
+    FreshCast castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom,
+                        std::uint64_t& steps) const {
+        FreshCast r;
         double t0, t1;
-        tStop = 0.0;
-        if (!clipToMapBox(map_, ray, t0, t1)) return hit;
+        if (!clipToMapBox(map_, ray, t0, t1)) return r;
         double tStart = t0;
         if (bottom || std::max(std::abs(ray.gdx), std::abs(ray.gdy)) * (t1 - t0) > kSkipMinCells) {
             tStart = skipEmptySpace(*pyramid_, ray, t0, t1, steps);
         }
-        if (tStart >= 0.0) hit = castFrom(ray, horiz, d0, tStart, t1, steps);
-        tStop = hit.t >= 0.0 ? hit.t : t1;
-        return hit;
+        if (tStart >= 0.0) r.hit = castFrom(ray, horiz, d0, tStart, t1, steps);
+        r.tStop = r.hit ? r.hit->t : t1;
+        return r;
     }
 
-    LevelHit castFrom(const TerrainRay& ray, double horiz, double d0, double tStart, double t1,
-                      std::uint64_t& steps) const {
-        LevelHit hit;
+    // The hit from tStart on: exact on level 0 out to tNear, the multiresolution march beyond.
+    std::optional<LevelHit> castFrom(const TerrainRay& ray, double horiz, double d0, double tStart,
+                                     double t1, std::uint64_t& steps) const {
         const double tNear = horiz > 0.0 ? d0 / horiz : t1;
         if (tStart < tNear) {
-            hit.t = marchRay(map_, ray, tStart, std::min(tNear, t1), steps);
-            hit.level = -1;  // level 0, colour from the map
+            const double t = marchRay(map_, ray, tStart, std::min(tNear, t1), steps);
+            if (t >= 0.0) return LevelHit{t, -1, 0.0};  // level 0, colour from the map
         }
-        if (hit.t < 0.0 && tNear < t1) {
-            hit = marchLevels(*pyramid_, ray, horiz, d0, topLevel_, std::max(tStart, tNear), t1,
-                              steps);
+        if (tNear < t1) {
+            const LevelHit hit = marchLevels(*pyramid_, ray, horiz, d0, topLevel_,
+                                             std::max(tStart, tNear), t1, steps);
+            if (hit.t >= 0.0) return hit;
         }
-        return hit;
+        return std::nullopt;
     }
 
     Rgb8 shadeLevelHit(const LevelHit& hit, const glm::dvec3& p) const {
@@ -351,11 +358,10 @@ class FastCaster final : public Caster {
         if (!(std::abs(gm) > 1e-9 * len)) {
             // Straight down or up: no major axis.
             const TerrainRay ray(map_, cc.eye, d);
-            double tStop = 0.0;
-            const LevelHit hit = castFresh(ray, 0.0, cc.d0, !st.havePrev, tStop, st.steps);
-            if (hit.t >= 0.0) {
-                tHit = hit.t;
-                c = shadeLevelHit(hit, ray.at(hit.t));
+            const FreshCast f = castFresh(ray, 0.0, cc.d0, !st.havePrev, st.steps);
+            if (f.hit) {
+                tHit = f.hit->t;
+                c = shadeLevelHit(*f.hit, ray.at(f.hit->t));
             } else {
                 c = skyColor(sky, ray.dir.z);
             }
@@ -399,15 +405,14 @@ class FastCaster final : public Caster {
             // Bottom ray, restart, or a coherent start outside the map.
             const TerrainRay ray(map_, cc.eye, d);
             const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-            double tStop = 0.0;
-            const LevelHit hit = castFresh(ray, horiz, cc.d0, !st.havePrev, tStop, st.steps);
-            if (hit.t >= 0.0) {
-                tHit = hit.t;
-                c = shadeLevelHit(hit, ray.at(hit.t));
+            const FreshCast f = castFresh(ray, horiz, cc.d0, !st.havePrev, st.steps);
+            if (f.hit) {
+                tHit = f.hit->t;
+                c = shadeLevelHit(*f.hit, ray.at(f.hit->t));
             } else {
                 c = skyColor(sky, ray.dir.z);
             }
-            st.prevU = tStop / lenPerU;
+            st.prevU = f.tStop / lenPerU;
         }
         st.havePrev = true;
     }
@@ -1103,15 +1108,15 @@ class FastCaster final : public Caster {
         const TerrainRay ray(map_, cc.eye, d);
         const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
         double t0, t1;
-        LevelHit hit;
+        std::optional<LevelHit> hit;
         double tStop = 0.0;
         if (clipToMapBox(map_, ray, t0, t1)) {
             hit = castFrom(ray, horiz, cc.d0, std::max(t0, r.u * lenPerU), t1, st.steps);
-            tStop = hit.t >= 0.0 ? hit.t : t1;
+            tStop = hit ? hit->t : t1;
         }
-        if (hit.t >= 0.0) {
-            tHit = hit.t;
-            c = shadeLevelHit(hit, ray.at(hit.t));
+        if (hit) {
+            tHit = hit->t;
+            c = shadeLevelHit(*hit, ray.at(hit->t));
         } else {
             c = skyColor(options_.sky, ray.dir.z);
         }
