@@ -7,6 +7,7 @@
 // Z = d f / L with d the Euclidean depth and L = |(x_l - cx, y_l - cy, f)|, so the disparity is
 // f e / Z = e L / d. Sky (d = +inf) has disparity 0.
 #include "ig/stereo.hpp"
+#include "base/check.hpp"
 #include "base/cpu_features.hpp"
 
 #include "ig/caster_impl.hpp"
@@ -970,9 +971,8 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     }
     const int w = left.width(), h = left.height();
     const std::size_t n = static_cast<std::size_t>(w) * h;
-    if (w <= 0 || h <= 0 || left.color.size() != n || left.depth.size() != n) {
-        throw std::invalid_argument("reprojectRightEye: left frame without colour and depth");
-    }
+    CHECK(w > 0 && h > 0 && left.color.size() == n && left.depth.size() == n)
+        << "reprojectRightEye: left frame without colour and depth";
     RenderedFrame right;
     right.sequence = left.sequence;
     right.time = left.time;

@@ -54,8 +54,12 @@ void setKernel(ig::RenderOptions& o, const std::string& kernel) {
 int main(int argc, char** argv) {
     int poses = 6;
     int w = 64, h = 48;
+    // --kernel-diffs: instead of hashes, the pixels where each vector kernel's image differs
+    // from the scalar kernel's, for every fast-caster configuration where any does.
+    bool kernelDiffs = false;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--poses") && i + 1 < argc) poses = std::atoi(argv[++i]);
+        if (!std::strcmp(argv[i], "--kernel-diffs")) kernelDiffs = true;
     }
     struct Named {
         const char* name;
@@ -76,6 +80,37 @@ int main(int argc, char** argv) {
                             static_cast<unsigned long long>(hash));
                 ++images;
             };
+            if (kernelDiffs) {
+                for (const int levels : {0, ig::kLevelsAuto, 2}) {
+                    for (const int ss : {1, 3}) {
+                        std::vector<ig::RenderedFrame> f;
+                        for (const char* kernel : kKernels) {
+                            ig::RenderOptions o;
+                            o.levels = levels;
+                            o.supersample = ss;
+                            o.threads = 1;
+                            setKernel(o, kernel);
+                            const auto caster = ig::makeCaster(ig::CasterKind::Fast, m.map, o);
+                            f.push_back(ig::renderFrame(*caster, m.map, pose, in));
+                        }
+                        for (std::size_t v = 1; v < f.size(); ++v) {
+                            int differ = 0;
+                            for (std::size_t i = 0; i < f[0].color.size(); ++i) {
+                                differ +=
+                                    !(f[v].color[i] == f[0].color[i]) ||
+                                    std::memcmp(&f[v].depth[i], &f[0].depth[i], sizeof(float)) != 0;
+                            }
+                            if (differ > 0) {
+                                std::printf(
+                                    "%s pose %zu levels %d ss %d %s: %d of %zu pixels "
+                                    "differ from scalar\n",
+                                    m.name, k, levels, ss, kKernels[v], differ, f[0].color.size());
+                            }
+                        }
+                    }
+                }
+                continue;
+            }
             for (const ig::CasterKind kind : {ig::CasterKind::Reference, ig::CasterKind::Naive}) {
                 const auto caster = ig::makeCaster(kind, m.map);
                 line(std::string(ig::casterName(kind)),
