@@ -1719,6 +1719,18 @@ class FastCaster final : public Caster {
         V h, h0, h1, i;
     };
 
+    // One step of a row batch's lanes from major line A to line B (stepHits): A's cell iA
+    // (an integer-valued double) and the ray's height over A's sample on the side the track
+    // moves to, dEdgeA; the minor coordinate nA at A; B's ray height zB; the ray's height over
+    // the surface at A (above) and at B (below); A and B's major distances uA, uB; the step's
+    // index k.
+    template <class V>
+    struct LaneStep {
+        V iA, dEdgeA, nA, zB, above, below;
+        double uA, uB;
+        long k;
+    };
+
     // Whether the four 32-bit lanes of v are equal.
     [[gnu::always_inline]] VIG_CASTER_AVX2 static bool sameInAllLanes(__m128i v) {
         return _mm_movemask_epi8(_mm_cmpeq_epi32(v, _mm_shuffle_epi32(v, 0))) == 0xFFFF;
