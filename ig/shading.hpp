@@ -22,7 +22,7 @@ inline Rgb8 skyColor(const SkyModel& sky, double dz) {
 
 // Distance haze: blends a colour (0..255 per channel) seen from `distance` metres toward the
 // horizon colour by 1 - exp(-distance / hazeDistance); no change when haze is off.
-inline void applyHaze(const SkyModel& sky, float rgb[3], double distance) {
+[[gnu::always_inline]] inline void applyHaze(const SkyModel& sky, float rgb[3], double distance) {
     if (sky.hazeDistance > 0.0) {
         const float k = static_cast<float>(1.0 - std::exp(-distance / sky.hazeDistance));
         rgb[0] += (sky.horizon.r - rgb[0]) * k;
@@ -32,7 +32,7 @@ inline void applyHaze(const SkyModel& sky, float rgb[3], double distance) {
 }
 
 // A colour of 0..255 floats to bytes, rounded to nearest and clamped.
-inline Rgb8 quantizeColor(const float rgb[3]) {
+[[gnu::always_inline]] inline Rgb8 quantizeColor(const float rgb[3]) {
     auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
     return Rgb8{q(rgb[0]), q(rgb[1]), q(rgb[2])};
 }
