@@ -43,3 +43,21 @@ TEST(CpuFeatures, AgreeWithTheCompilersView) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CpuFeatures, DisablingAFeatureHidesTheWiderOnes) {
+    const base::CpuFeatures all{true, true, true, true};
+    base::CpuFeatures f = base::withDisabled(all, "avx512");
+    EXPECT_TRUE(f.avx2 && f.fma);
+    EXPECT_FALSE(f.avx512 || f.avx512vbmi);
+    f = base::withDisabled(all, "avx2");
+    EXPECT_FALSE(f.avx2 || f.fma || f.avx512 || f.avx512vbmi);
+    f = base::withDisabled(all, "fma,avx512vbmi,unknown");
+    EXPECT_TRUE(f.avx2 && f.avx512);
+    EXPECT_FALSE(f.fma || f.avx512vbmi);
+    f = base::withDisabled(all, "");
+    EXPECT_TRUE(f.avx2 && f.fma && f.avx512 && f.avx512vbmi);
+}
+
+}  // namespace
