@@ -6,8 +6,10 @@
 #   scripts/caster-callgrind.sh [BENCH_RENDER] [REVISION] [JSON]
 #     BENCH_RENDER  default build/release/bin/bench-render
 #     REVISION      label of the runs ("before" | "after"; default after)
-#     JSON          default docs/results/data/caster_callgrind.json; runs of other revisions in
-#                   it are kept, this revision's replaced
+#     JSON          default docs/results/data/caster_callgrind.json; its other runs are kept,
+#                   those of this revision, level setting and kernel replaced
+#   CALLGRIND_RUNS  the runs as LEVELS[:KERNEL] words (default "auto 0": the default kernel;
+#                   a kernel needs a bench-render with --kernel)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bench="${1:-build/release/bin/bench-render}"
@@ -20,13 +22,16 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$cache"
 # A first run without valgrind writes the map's raw copy (fast to load under valgrind).
 "$bench" frame --size "$size" --image 64x48 --cache "$cache" --repeat 1 >/dev/null
-for levels in auto 0; do
-    valgrind --tool=callgrind --callgrind-out-file="$work/cg.$levels" --collect-atstart=no \
+for run in ${CALLGRIND_RUNS:-auto 0}; do
+    levels="${run%%:*}"
+    kernelArgs=()
+    [ "$run" != "$levels" ] && kernelArgs=(--kernel "${run#*:}")
+    valgrind --tool=callgrind --callgrind-out-file="$work/cg.$run" --collect-atstart=no \
         --toggle-collect='ig::renderFrame*' \
         "$bench" frame --size "$size" --image 1920x1080 --cache "$cache" --caster fast \
-        --levels "$levels" --repeat 1 >"$work/out.$levels" 2>"$work/err.$levels"
-    instructions=$(grep -E '^(summary|totals):' "$work/cg.$levels" | head -1 | awk '{print $2}')
-    kernel=$(sed -n 's/.*kernel \([a-z0-9-]*\).*/\1/p' "$work/out.$levels" | head -1)
+        --levels "$levels" "${kernelArgs[@]}" --repeat 1 >"$work/out.$run" 2>"$work/err.$run"
+    instructions=$(grep -E '^(summary|totals):' "$work/cg.$run" | head -1 | awk '{print $2}')
+    kernel=$(sed -n 's/.*kernel \([a-z0-9-]*\).*/\1/p' "$work/out.$run" | head -1)
     echo "levels $levels: $instructions instructions, kernel ${kernel:-?}"
     echo "$levels $instructions ${kernel:-avx2}" >>"$work/runs"
 done
@@ -45,10 +50,11 @@ try:
 except OSError:
     pass
 doc["machine"] = f"{cpu or platform.processor()}, valgrind callgrind (no AVX-512)"
-doc["runs"] = [r for r in doc["runs"] if r.get("revision") != revision]
 pixels = 1920 * 1080
 for line in open(runs):
     levels, n, kernel = line.split()
+    doc["runs"] = [r for r in doc["runs"]
+                   if (r.get("revision"), r.get("levels"), r.get("kernel")) != (revision, levels, kernel)]
     doc["runs"].append({"levels": levels, "kernel": kernel, "revision": revision,
                         "instructions": int(n), "pixels": pixels,
                         "instructions_per_pixel": round(int(n) / pixels, 1)})
