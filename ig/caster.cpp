@@ -1,5 +1,6 @@
 #include "ig/caster.hpp"
 
+#include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
 
@@ -27,6 +28,42 @@ CasterKind parseCasterKind(std::string_view name) {
     if (name == "naive") return CasterKind::Naive;
     if (name == "fast") return CasterKind::Fast;
     throw InputError("caster '" + std::string(name) + "': expected fast, naive or reference");
+}
+
+std::string_view casterKernelName(CasterKernel kernel) {
+    switch (kernel) {
+        case CasterKernel::Auto:
+            return "auto";
+        case CasterKernel::Scalar:
+            return "scalar";
+        case CasterKernel::Avx2:
+            return "avx2";
+        case CasterKernel::Avx512:
+            return "avx512";
+    }
+    return "?";
+}
+
+CasterKernel parseCasterKernel(std::string_view name) {
+    for (const CasterKernel k :
+         {CasterKernel::Auto, CasterKernel::Scalar, CasterKernel::Avx2, CasterKernel::Avx512}) {
+        if (name == casterKernelName(k)) return k;
+    }
+    throw InputError("kernel '" + std::string(name) + "': expected auto, scalar, avx2 or avx512");
+}
+
+std::string casterKernelMissing(CasterKernel kernel) {
+    const base::CpuFeatures& cpu = base::cpuFeatures();
+    switch (kernel) {
+        case CasterKernel::Auto:
+        case CasterKernel::Scalar:
+            return {};
+        case CasterKernel::Avx2:
+            return cpu.avx2 ? std::string() : std::string("AVX2");
+        case CasterKernel::Avx512:
+            return cpu.avx512 ? std::string() : std::string("AVX-512 F/DQ/VL/BW");
+    }
+    return {};
 }
 
 std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
@@ -99,6 +136,7 @@ RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pos
 
     const auto start = std::chrono::steady_clock::now();
     caster.render(camera, frame);
+    frame.stats.kernel = caster.kernelName();
     frame.stats.renderMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 

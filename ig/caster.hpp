@@ -28,6 +28,22 @@ struct SkyModel {
 
 inline constexpr int kLevelsAuto = -1;
 
+// The fast caster's kernels (docs/design/ray_casting.md), chosen once when the caster is built;
+// every one gives the scalar kernel's image to the bit. Auto: the widest the processor has.
+// Scalar: one column at a time, one ray at a time (the twin the vector kernels are tested
+// against). Avx2: four adjacent columns at a time on the single level (one ray per pixel),
+// four rows of a column at a time on the multiresolution caster. Avx512: eight rows at a time
+// on the multiresolution caster (four where eight do not go together); the single level has no
+// wider kernel than Avx2 and runs that.
+enum class CasterKernel { Auto, Scalar, Avx2, Avx512 };
+
+std::string_view casterKernelName(CasterKernel kernel);
+// Parses "auto" | "scalar" | "avx2" | "avx512"; throws InputError otherwise.
+CasterKernel parseCasterKernel(std::string_view name);
+// What the running processor lacks to run `kernel` ("AVX2", "AVX-512 F/DQ/VL/BW"); empty when
+// it can (always for Auto and Scalar).
+std::string casterKernelMissing(CasterKernel kernel);
+
 struct RenderOptions {
     SkyModel sky;
     int threads = 0;  // 0: the library's default
@@ -38,12 +54,9 @@ struct RenderOptions {
     // Fast caster: rays per pixel stacked vertically (1..8), averaged; for shallow pitch, where a
     // pixel's footprint stretches along the view. Depth is the nearest of them.
     int supersample = 1;
-    // Fast caster: cast four adjacent columns together with AVX2 where the processor has it
-    // (one ray per pixel). The image is bit for bit the same either way.
-    bool packets = true;
-    // Fast caster, multiresolution: vector lanes of its row batches. 0: the widest the
-    // processor has (eight with AVX-512, else four); 4: four (AVX2) at most. Same image.
-    int lanes = 0;
+    // Fast caster: its kernel (the image is bit for bit the same with each). A kernel the
+    // processor lacks is refused with InputError when the caster is built.
+    CasterKernel kernel = CasterKernel::Auto;
     // Fast caster, multiresolution: a long march passes max-height nodes the rays stay above
     // instead of sampling every grid line in them. Same image; off for tests and measurement.
     bool skipNodes = true;
@@ -64,10 +77,12 @@ class Caster {
   public:
     virtual ~Caster() = default;
     virtual CasterKind kind() const = 0;
+    // The kernel that renders the pixels, as recorded in RenderStats::kernel.
+    virtual std::string_view kernelName() const { return "scalar"; }
     // Renders colour and depth of `camera` into `frame`, whose color and depth must already hold
     // width * height pixels of the camera's intrinsics (renderFrame does that), and fills
     // frame.stats. The reference and naive casters honour any roll; the fast caster
-    // requires roll == 0 (CHECKed).
+    // requires roll == 0 (CHECKed: callers refuse a rolled pose as bad input first).
     virtual void render(const Camera& camera, RenderedFrame& frame) const = 0;
 
     // The same frame as independent work units (image rows for the per-pixel casters, groups

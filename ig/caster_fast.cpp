@@ -12,10 +12,15 @@
 // Multiresolution (RenderOptions::levels): up to the distance d0 where a level-0 voxel shrinks
 // to a pixel the march is exact on level 0; beyond it the ray steps over coarser display levels,
 // adjacent levels blended by distance. See docs/design/multires.md.
+#include "base/check.hpp"
+#include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
+#include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/level0_march.hpp"
 #include "ig/multires_march.hpp"
+#include "ig/node_skip.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 #include "ig/slope_bound.hpp"
@@ -40,6 +45,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -62,106 +68,7 @@ namespace {
 // more cells than this; shorter ones (near the nadir) are cheaper to march.
 constexpr double kSkipMinCells = 16.0;
 
-// The eye in grid units (x / spacingX, y / spacingY; z in metres), and whether it is over the map.
-struct EyeGrid {
-    double gx, gy, z;
-    bool inside;
-    double zRaw;  // z in the map's raw height units
-};
-
-// Outcome of a coherent column march: a level-0 hit at u (cell and local coordinates for the
-// colour), a stop at u (the ray left the map: sky), climbing above the map's highest point at
-// u (sky, and so is every coherent ray above it in the column), the level-0 distance
-// reached at u (go on with the multiresolution march), or a start outside the map (cast fresh).
-struct ColumnMarch {
-    enum Kind { kHit, kStop, kAbove, kFar, kFresh };
-    Kind kind = kHit;
-    double u = 0.0;
-    int cx = 0, cy = 0;
-    double fx = 0.0, fy = 0.0;
-};
-
-// Nearest integer (halves away from zero), inline (std::llround is a library call).
-inline std::int64_t roundToInt64(double v) {
-    return static_cast<std::int64_t>(v >= 0.0 ? v + 0.5 : v - 0.5);
-}
-
-// floor(v) for |v| < 2^62, inline (without SSE4.1 std::floor is a library call).
-inline long floorToLong(double v) {
-    const long t = static_cast<long>(v);
-    return t > v ? t - 1 : t;
-}
-
-// What the per-pixel path reads of the map, fetched once per frame into plain values (the
-// image writes, through byte pointers, would otherwise force the compiler to reload them).
-struct MapView {
-    const std::uint16_t* heights;
-    const std::uint16_t* cellMax;
-    const Rgb8* colors;
-    int width, height;
-    double scale, offset, invScale;
-    double maxRaw;  // the map's highest point in raw height units
-};
-
-inline Rgb8 quantize(const float c[3]) {
-    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
-    return Rgb8{q(c[0]), q(c[1]), q(c[2])};
-}
-
-// Exact solve of one march step (the ray between major grid lines m and m + sgn, in minor cells
-// ca..cb) on the level-0 bilinear surface, in the major-axis parameter s in [sBegin, sEnd].
-// Heights are in raw units (the solve is linear in them): ray height ezr + rzr * u.
-template <bool kMajorX>
-struct StepSolver {
-    const std::uint16_t* heights;
-    const std::uint16_t* cellMax;
-    int width;
-    int sgn;
-    double rn, rzr, ezr;
-
-    // kOwnBound: test the piece against its own cell's bound first (when the step's bound
-    // covered two cells, this piece may lie above its own).
-    template <bool kOwnBound>
-    [[gnu::always_inline]] bool piece(long m, int mc, int cn, std::int64_t n, double u, double s0,
-                                      double s1, ColumnMarch& out) const {
-        if (!(s0 < s1)) return false;
-        const int cx = kMajorX ? mc : cn, cy = kMajorX ? cn : mc;
-        const double za = ezr + rzr * (u + s0);
-        if (kOwnBound) {
-            const double zLow = rzr >= 0.0 ? za : za + rzr * (s1 - s0);
-            if (zLow > cellMax[static_cast<std::size_t>(cy) * (width - 1) + cx]) return false;
-        }
-        const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
-        const double majorLocal = static_cast<double>(m - mc);
-        const std::uint16_t* s00 = heights + static_cast<std::size_t>(cy) * width + cx;
-        const double h00 = s00[0], h10 = s00[1], h01 = s00[width], h11 = s00[width + 1];
-        const double am = majorLocal + sgn * s0, an = nD + rn * s0 - cn;
-        const double r = kMajorX
-                             ? solveBilinear(h00, h10, h01, h11, am, an, sgn, rn, za, rzr, s1 - s0)
-                             : solveBilinear(h00, h10, h01, h11, an, am, rn, sgn, za, rzr, s1 - s0);
-        if (r < 0.0) return false;
-        const double sh = s0 + r;
-        out.kind = ColumnMarch::kHit;
-        out.u = u + sh;
-        out.cx = cx;
-        out.cy = cy;
-        const double fm = majorLocal + sgn * sh, fn = nD + rn * sh - cn;
-        out.fx = kMajorX ? fm : fn;
-        out.fy = kMajorX ? fn : fm;
-        return true;
-    }
-
-    // Split where the step crosses the minor grid line between ca and cb.
-    [[gnu::always_inline]] bool solve(long m, int mc, int ca, int cb, std::int64_t n, double u,
-                                      double sBegin, double sEnd, ColumnMarch& out) const {
-        if (ca == cb) return piece<false>(m, mc, ca, n, u, sBegin, sEnd, out);
-        const double nD = static_cast<double>(n) * (1.0 / 4294967296.0);
-        const double line = ca < cb ? cb : ca;
-        const double sSplit = std::clamp((line - nD) / rn, 0.0, sEnd);
-        return piece<true>(m, mc, ca, n, u, std::max(sBegin, 0.0), sSplit, out) ||
-               piece<true>(m, mc, cb, n, u, std::max(sBegin, sSplit), sEnd, out);
-    }
-};
+using namespace fast;
 
 class FastCaster final : public Caster {
   public:
@@ -170,19 +77,17 @@ class FastCaster final : public Caster {
             throw InputError("supersample " + std::to_string(options_.supersample) +
                              ": expected 1..8 rays per pixel");
         }
-        if (options_.lanes != 0 && options_.lanes != 4) {
-            throw InputError("lanes " + std::to_string(options_.lanes) +
-                             ": expected 0 (the widest the processor has) or 4");
-        }
         if (options_.levels < kLevelsAuto) {
             throw InputError("levels " + std::to_string(options_.levels) +
                              ": expected auto or a count >= 0");
         }
+        chooseKernel();
         pyramid_ = std::make_unique<TerrainPyramid>(map, options_.levels);
         topLevel_ = pyramid_->levelCount() - 1;
         slopes_ = std::make_unique<SlopeBlocks>(map);
     }
     CasterKind kind() const override { return CasterKind::Fast; }
+    std::string_view kernelName() const override { return casterKernelName(kernel_); }
 
     void render(const Camera& camera, RenderedFrame& frame) const override {
         checkRoll(camera);
@@ -206,19 +111,17 @@ class FastCaster final : public Caster {
 
     int workUnits(const Camera& camera) const override {
         const int w = camera.intrinsics().width;
-        return usePackets() && !linear() ? (w + 3) / 4 : w;
+        return (w + columnsPerUnit_ - 1) / columnsPerUnit_;
     }
 
     std::pair<int, int> unitColumns(const Camera& camera, int unit) const override {
         const int w = camera.intrinsics().width;
-        if (usePackets() && !linear()) return {4 * unit, std::min(4 * unit + 4, w)};
-        return {unit, unit + 1};
+        return {columnsPerUnit_ * unit, std::min(columnsPerUnit_ * (unit + 1), w)};
     }
 
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
                     UnitCounters& counters) const override {
         checkRoll(camera);
-        const int w = camera.intrinsics().width;
         // Level 0 is used out to where a voxel spans one pixel across the view.
         const double d0 =
             topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
@@ -233,108 +136,122 @@ class FastCaster final : public Caster {
                          offset,
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
-        if (linear()) {
-            if (options_.supersample == 1) {
-                renderLinearColumn<false>(mv, camera, d0, unit, frame, counters);
-            } else {
-                renderLinearColumn<true>(mv, camera, d0, unit, frame, counters);
-            }
-            return;
-        }
-#if VIG_CASTER_PACKETS
-        if (usePackets()) {
-            const int x0 = 4 * unit;
-            if (x0 + 4 <= w) {
-                renderPacket(mv, camera, d0, x0, frame, counters);
-            } else {
-                for (int x = x0; x < w; ++x)
-                    renderColumn(mv, camera, d0, x, frame, counters);
-            }
-            return;
-        }
-#endif
-        renderColumn(mv, camera, d0, unit, frame, counters);
+        (this->*renderUnit_)(mv, camera, d0, unit, frame, counters);
     }
 
   private:
     static void checkRoll(const Camera& camera) {
-        if (camera.pose().roll != 0.0) {
-            throw std::invalid_argument(
-                "fast caster renders roll = 0 (the PRP applies roll); use naive or reference");
-        }
+        CHECK(camera.pose().roll == 0.0)
+            << "fast caster renders roll = 0 (the PRP applies roll); use naive or reference";
     }
 
-    // The multiresolution caster: coherent rays find their level-0 hit between the major grid
-    // lines where they pass from above to below the surface, by linear interpolation (the
-    // paper's discrete traversal, no exact solve); see linearRay.
-    bool linear() const {
-        return options_.levels != 0;
-    }
+    // Renders work unit `unit` (a column, or a group of four adjacent columns).
+    using UnitRenderer = void (FastCaster::*)(const MapView& mv, const Camera& camera, double d0,
+                                              int unit, RenderedFrame& frame,
+                                              UnitCounters& counters) const;
 
-    // Four columns at a time with AVX2 (one ray per pixel, where the processor has it).
-    bool usePackets() const {
-        return useVectors() && options_.supersample == 1;
-    }
-
-    // Four lanes with AVX2: four columns (single level, one ray per pixel) or four rows of a
-    // column (multiresolution, any number of rays per pixel).
-    bool useVectors() const {
-#if VIG_CASTER_PACKETS
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        // Vector gathers index colour bytes with 32-bit offsets.
+    // The kernel and the function that renders a work unit with it, chosen once. The
+    // multiresolution caster (levels != 0): coherent rays find their level-0 hit between the
+    // major grid lines where they pass from above to below the surface, by linear
+    // interpolation (the paper's discrete traversal, no exact solve; see linearRay), on rows
+    // batched over vector lanes where the kernel has them. The single level: columns, four at
+    // a time with AVX2 where the kernel has them and one ray per pixel.
+    void chooseKernel() {
+        CasterKernel k = options_.kernel;
+        // The vector gathers index colour bytes with 32-bit offsets.
         const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
-        return options_.packets && hasAvx2 && fits;
-#else
-        return false;
+        if (k == CasterKernel::Auto) {
+            const base::CpuFeatures& cpu = base::cpuFeatures();
+            k = !VIG_CASTER_PACKETS || !fits    ? CasterKernel::Scalar
+                : VIG_CASTER_WIDE && cpu.avx512 ? CasterKernel::Avx512
+                : cpu.avx2                      ? CasterKernel::Avx2
+                                                : CasterKernel::Scalar;
+        } else if (k != CasterKernel::Scalar) {
+            std::string missing = casterKernelMissing(k);
+            if (!VIG_CASTER_PACKETS) missing = "this build's vector code (x86-64 only)";
+            if (!missing.empty()) {
+                throw InputError("kernel " + std::string(casterKernelName(k)) +
+                                 ": the processor lacks " + missing);
+            }
+            if (!fits) {
+                throw InputError("kernel " + std::string(casterKernelName(k)) + ": the map (" +
+                                 std::to_string(map_.width()) + " x " +
+                                 std::to_string(map_.height()) +
+                                 ") is too large for the vector kernels' 32-bit offsets");
+            }
+        }
+        const bool super = options_.supersample > 1;
+        renderUnit_ = &FastCaster::renderColumnUnit;
+        kernel_ = CasterKernel::Scalar;
+        columnsPerUnit_ = 1;
+        if (options_.levels != 0) {
+            renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 0>
+                                : &FastCaster::renderLinearColumn<false, 0>;
+#if VIG_CASTER_PACKETS
+            if (k == CasterKernel::Avx2) {
+                kernel_ = k;
+                renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 4>
+                                    : &FastCaster::renderLinearColumn<false, 4>;
+            }
+#endif
+#if VIG_CASTER_WIDE
+            if (k == CasterKernel::Avx512) {
+                kernel_ = k;
+                renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 8>
+                                    : &FastCaster::renderLinearColumn<false, 8>;
+            }
+#endif
+            return;
+        }
+#if VIG_CASTER_PACKETS
+        // The single level has four-column packets (AVX2) only, for one ray per pixel.
+        if (k != CasterKernel::Scalar && !super) {
+            kernel_ = CasterKernel::Avx2;
+            renderUnit_ = &FastCaster::renderPacketUnit;
+            columnsPerUnit_ = 4;
+        }
 #endif
     }
 
-    // Eight lanes with AVX-512 for the multiresolution caster's row batches, where the
-    // processor has it and RenderOptions::lanes allows.
-    bool useWide() const {
-#if VIG_CASTER_WIDE
-        static const bool hasAvx512 =
-            __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
-            __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw");
-        return options_.lanes != 4 && hasAvx512;
-#else
-        return false;
-#endif
-    }
+    // A fresh cast: its hit, if any, and where the ray stopped (the hit, or where it left the
+    // map box; 0 when it misses the box).
+    struct FreshCast {
+        std::optional<LevelHit> hit;
+        double tStop = 0.0;
+    };
 
     // The fresh (t-parameterised) path: box clip, hierarchical skip where worthwhile, exact
-    // level-0 march out to tNear, multiresolution march beyond. Returns the hit (t < 0: none)
-    // and sets tStop to where the ray stopped (its hit, or where it left the map box).
+    // level-0 march out to tNear, multiresolution march beyond.
     // The bottom ray always descends the max-height pyramid (hierarchical first hit); a restart
     // only when its way through the map box is long (near the nadir a march is cheaper).
-    LevelHit castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom, double& tStop,
-                       std::uint64_t& steps) const {
-        LevelHit hit;
+    FreshCast castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom,
+                        std::uint64_t& steps) const {
+        FreshCast r;
         double t0, t1;
-        tStop = 0.0;
-        if (!clipToMapBox(map_, ray, t0, t1)) return hit;
+        if (!clipToMapBox(map_, ray, t0, t1)) return r;
         double tStart = t0;
         if (bottom || std::max(std::abs(ray.gdx), std::abs(ray.gdy)) * (t1 - t0) > kSkipMinCells) {
             tStart = skipEmptySpace(*pyramid_, ray, t0, t1, steps);
         }
-        if (tStart >= 0.0) hit = castFrom(ray, horiz, d0, tStart, t1, steps);
-        tStop = hit.t >= 0.0 ? hit.t : t1;
-        return hit;
+        if (tStart >= 0.0) r.hit = castFrom(ray, horiz, d0, tStart, t1, steps);
+        r.tStop = r.hit ? r.hit->t : t1;
+        return r;
     }
 
-    LevelHit castFrom(const TerrainRay& ray, double horiz, double d0, double tStart, double t1,
-                      std::uint64_t& steps) const {
-        LevelHit hit;
+    // The hit from tStart on: exact on level 0 out to tNear, the multiresolution march beyond.
+    std::optional<LevelHit> castFrom(const TerrainRay& ray, double horiz, double d0, double tStart,
+                                     double t1, std::uint64_t& steps) const {
         const double tNear = horiz > 0.0 ? d0 / horiz : t1;
         if (tStart < tNear) {
-            hit.t = marchRay(map_, ray, tStart, std::min(tNear, t1), steps);
-            hit.level = -1;  // level 0, colour from the map
+            const double t = marchRay(map_, ray, tStart, std::min(tNear, t1), steps);
+            if (t >= 0.0) return LevelHit{t, -1, 0.0};  // level 0, colour from the map
         }
-        if (hit.t < 0.0 && tNear < t1) {
-            hit = marchLevels(*pyramid_, ray, horiz, d0, topLevel_, std::max(tStart, tNear), t1,
-                              steps);
+        if (tNear < t1) {
+            const LevelHit hit = marchLevels(*pyramid_, ray, horiz, d0, topLevel_,
+                                             std::max(tStart, tNear), t1, steps);
+            if (hit.t >= 0.0) return hit;
         }
-        return hit;
+        return std::nullopt;
     }
 
     Rgb8 shadeLevelHit(const LevelHit& hit, const glm::dvec3& p) const {
@@ -347,15 +264,10 @@ class FastCaster final : public Caster {
         return haze(rgb, hit.t);
     }
 
+    // The shared haze and quantization (shading.hpp).
     Rgb8 haze(float rgb[3], double t) const {
-        const SkyModel& sky = options_.sky;
-        if (sky.hazeDistance > 0.0) {
-            const float k = static_cast<float>(1.0 - std::exp(-t / sky.hazeDistance));
-            rgb[0] += (sky.horizon.r - rgb[0]) * k;
-            rgb[1] += (sky.horizon.g - rgb[1]) * k;
-            rgb[2] += (sky.horizon.b - rgb[2]) * k;
-        }
-        return quantize(rgb);
+        applyHaze(options_.sky, rgb, t);
+        return quantizeColor(rgb);
     }
 
     // What every ray of one image column shares.
@@ -368,6 +280,17 @@ class FastCaster final : public Caster {
         double maxSlope;
         double spacingX, spacingY;
         bool multires;
+    };
+
+    // A ray of a column in major-axis form: direction d (length len); per major grid unit u it
+    // travels lenPerU along d, rn minor cells and rz metres up; inv = 1 / |major component|
+    // (grid units); the major axis is x (majorX) or y, travelled in direction sgn.
+    struct MajorRay {
+        glm::dvec3 d;
+        double len, lenPerU, inv;
+        bool majorX;
+        int sgn;
+        double rn, rz;
     };
 
     // The ray below, in major-axis form: it and the next ray share the major coordinate at
@@ -414,11 +337,11 @@ class FastCaster final : public Caster {
         const double sMajor = majorX ? cc.spacingX : cc.spacingY;
         const double sMinor = majorX ? cc.spacingY : cc.spacingX;
         const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
-        if (climb >= cc.maxSlope * sMinor * gap) return true;
+        if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
         // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
         const double reach =
             st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
-        return climb >= st.wedge.upTo(reach) * sMinor * gap;
+        return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
     }
 
     // One ray of a column, any case: coherent, restarted, past the level-0 distance, straight
@@ -435,11 +358,10 @@ class FastCaster final : public Caster {
         if (!(std::abs(gm) > 1e-9 * len)) {
             // Straight down or up: no major axis.
             const TerrainRay ray(map_, cc.eye, d);
-            double tStop = 0.0;
-            const LevelHit hit = castFresh(ray, 0.0, cc.d0, !st.havePrev, tStop, st.steps);
-            if (hit.t >= 0.0) {
-                tHit = hit.t;
-                c = shadeLevelHit(hit, ray.at(hit.t));
+            const FreshCast f = castFresh(ray, 0.0, cc.d0, !st.havePrev, st.steps);
+            if (f.hit) {
+                tHit = f.hit->t;
+                c = shadeLevelHit(*f.hit, ray.at(f.hit->t));
             } else {
                 c = skyColor(sky, ray.dir.z);
             }
@@ -476,21 +398,21 @@ class FastCaster final : public Caster {
         st.prevRn = rn;
         st.prevRz = rz;
         if (!resolved && st.havePrev && !coherent && sameAxis) {
-            resolved = restartInChain(cc, d, len, lenPerU, inv, majorX, sgn, rn, rz, st, c, tHit);
+            resolved = restartInChain(cc, MajorRay{d, len, lenPerU, inv, majorX, sgn, rn, rz}, st,
+                                      c, tHit);
         }
         if (!resolved) {
             // Bottom ray, restart, or a coherent start outside the map.
             const TerrainRay ray(map_, cc.eye, d);
             const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
-            double tStop = 0.0;
-            const LevelHit hit = castFresh(ray, horiz, cc.d0, !st.havePrev, tStop, st.steps);
-            if (hit.t >= 0.0) {
-                tHit = hit.t;
-                c = shadeLevelHit(hit, ray.at(hit.t));
+            const FreshCast f = castFresh(ray, horiz, cc.d0, !st.havePrev, st.steps);
+            if (f.hit) {
+                tHit = f.hit->t;
+                c = shadeLevelHit(*f.hit, ray.at(f.hit->t));
             } else {
                 c = skyColor(sky, ray.dir.z);
             }
-            st.prevU = tStop / lenPerU;
+            st.prevU = f.tStop / lenPerU;
         }
         st.havePrev = true;
     }
@@ -544,51 +466,6 @@ class FastCaster final : public Caster {
     // distance; rays close over it would try in vain).
     static constexpr long kSkipAfter = 16, kSkipRetry = 8;
     static constexpr int kSkipFirstLevel = 4;
-
-    // Lines a fan of rays from the eye may pass after major line lineA without a sample (at most
-    // maxLines): lines up to the far side of the max-height node (of level j, the level tried
-    // first, then finer ones down to 2) that the line after A lies in along the major axis, where
-    // over the nodes the fan's tracks cross every ray stays above the node maxima, and so above
-    // every line sample. The fan: rays with height eyeRaw + dzr * u (raw units) and minor
-    // coordinate en + rn * u at major distance u >= 0 from the eye, dzr >= dzrLow and
-    // rn in [rnLo, rnHi]; the expressions are the march's, so their rounding is too. 0 when no
-    // level gives any; j is left at the next level to try.
-    template <bool kMajorX>
-    [[gnu::always_inline]] static long skipNodes(const TerrainPyramid& pyr, int& j, long lineA,
-                                                 int sgn, long maxLines, double em, double en,
-                                                 double eyeRaw, double dzrLow, double rnLo,
-                                                 double rnHi) {
-        const int top = pyr.nodeLevelCount() - 1;
-        const double sgnD = sgn;
-        const double uA = (static_cast<double>(lineA) - em) * sgnD;
-        for (j = std::min(j, top); j >= 2; --j) {
-            const long node = (lineA + sgn) >> j;
-            const long end = sgn > 0 ? (node + 1) << j : node << j;
-            const long lines = std::min((end - lineA) * sgn, maxLines);
-            if (lines < 1) return 0;
-            const double uE = (static_cast<double>(lineA + sgn * lines) - em) * sgnD;
-            const double low = std::min(eyeRaw + dzrLow * uA, eyeRaw + dzrLow * uE);
-            const double lo = std::min(en + rnLo * uA, en + rnLo * uE);
-            const double hi = std::max(en + rnHi * uA, en + rnHi * uE);
-            const int majorNodes = kMajorX ? pyr.nodesX(j) : pyr.nodesY(j);
-            const int minorNodes = kMajorX ? pyr.nodesY(j) : pyr.nodesX(j);
-            const int mn = static_cast<int>(std::clamp<long>(node, 0, majorNodes - 1));
-            // (The tracks lie inside the map here: lo >= 0, so truncation is the floor.)
-            const int n0 = std::clamp(static_cast<int>(lo) >> j, 0, minorNodes - 1);
-            const int n1 = std::clamp(static_cast<int>(hi) >> j, 0, minorNodes - 1);
-            if (n1 - n0 > 3) continue;  // a wide fan: finer nodes
-            int bound = 0;
-            for (int n = n0; n <= n1; ++n)
-                bound = std::max<int>(
-                    bound, kMajorX ? pyr.nodeMaxRaw(j, mn, n) : pyr.nodeMaxRaw(j, n, mn));
-            if (low > bound) {
-                j = std::min(j + 1, top);
-                return lines;
-            }
-        }
-        j = 2;
-        return 0;
-    }
 
     // The pyramid whose nodes long marches pass, or none (RenderOptions::skipNodes).
     const TerrainPyramid* skipPyramid() const {
@@ -678,7 +555,7 @@ class FastCaster final : public Caster {
                 if (k >= tryAt && k < kSafe) {
                     const long lineA = m + sgn * k;
                     const long lines = skipNodes<kMajorX>(*pyr, skipLevel, lineA, sgn, kSafe - k,
-                                                          em, en, eg.zRaw, dzr, rn, rn);
+                                                          RayFan{em, en, eg.zRaw, dzr, rn, rn});
                     if (lines > 0) {
                         // Line A moves on by `lines`: the loop's values there.
                         k += lines;
@@ -1079,9 +956,13 @@ class FastCaster final : public Caster {
     // map, or a start off it): the ray is cast fresh.
     static constexpr double kChainReach = 4096.0;
 
-    bool restartInChain(const ColumnContext& cc, const glm::dvec3& d, double len, double lenPerU,
-                        double inv, bool majorX, int sgn, double rn, double rz, ColumnState& st,
-                        Rgb8& c, double& tHit) const {
+    bool restartInChain(const ColumnContext& cc, const MajorRay& ray, ColumnState& st, Rgb8& c,
+                        double& tHit) const {
+        const glm::dvec3& d = ray.d;
+        const double len = ray.len, lenPerU = ray.lenPerU, inv = ray.inv;
+        const bool majorX = ray.majorX;
+        const int sgn = ray.sgn;
+        const double rn = ray.rn, rz = ray.rz;
         if (st.chainLength == 0 || st.chainMajorX != majorX || st.chainSgn != sgn) {
             st.chainLength = 0;
             st.chainMajorX = majorX;
@@ -1227,15 +1108,15 @@ class FastCaster final : public Caster {
         const TerrainRay ray(map_, cc.eye, d);
         const double horiz = std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y);
         double t0, t1;
-        LevelHit hit;
+        std::optional<LevelHit> hit;
         double tStop = 0.0;
         if (clipToMapBox(map_, ray, t0, t1)) {
             hit = castFrom(ray, horiz, cc.d0, std::max(t0, r.u * lenPerU), t1, st.steps);
-            tStop = hit.t >= 0.0 ? hit.t : t1;
+            tStop = hit ? hit->t : t1;
         }
-        if (hit.t >= 0.0) {
-            tHit = hit.t;
-            c = shadeLevelHit(hit, ray.at(hit.t));
+        if (hit) {
+            tHit = hit->t;
+            c = shadeLevelHit(*hit, ray.at(hit->t));
         } else {
             c = skyColor(options_.sky, ray.dir.z);
         }
@@ -1265,11 +1146,12 @@ class FastCaster final : public Caster {
                              topLevel_ > 0};
     }
 
-    // One column of the multiresolution caster, bottom to top: four rays at a time with AVX2
-    // where they are coherent with the ray below them, else one by one. With kSuper, the
-    // supersample rays of each pixel are stacked in the column (as renderColumn casts them) and
-    // averaged, the depth the nearest.
-    template <bool kSuper>
+    // One column of the multiresolution caster, bottom to top: kLanes rays at a time (eight with
+    // AVX-512, with four where eight do not go; four with AVX2; 0: none) where they are
+    // coherent with the ray below them, else one by one. With kSuper, the supersample rays of
+    // each pixel are stacked in the column (as renderColumn casts them) and averaged, the depth
+    // the nearest.
+    template <bool kSuper, int kLanes>
     void renderLinearColumn(const MapView& mv, const Camera& camera, double d0, int x,
                             RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
@@ -1310,8 +1192,8 @@ class FastCaster final : public Caster {
             }
         };
 #if VIG_CASTER_PACKETS
-        const bool rows = useVectors();
-        const bool wide = rows && useWide();
+        constexpr bool rows = kLanes >= 4;
+        constexpr bool wide = kLanes == 8;
 #endif
         const int rays = h * sub;
         int single = 0;  // rays to cast one by one before trying a batch again
@@ -1388,6 +1270,26 @@ class FastCaster final : public Caster {
         counters.steps += st.steps;
         counters.restarts += st.restarts;
     }
+
+    void renderColumnUnit(const MapView& mv, const Camera& camera, double d0, int x,
+                          RenderedFrame& frame, UnitCounters& counters) const {
+        renderColumn(mv, camera, d0, x, frame, counters);
+    }
+
+#if VIG_CASTER_PACKETS
+    // Four adjacent columns with AVX2 (the image's last columns one at a time).
+    void renderPacketUnit(const MapView& mv, const Camera& camera, double d0, int unit,
+                          RenderedFrame& frame, UnitCounters& counters) const {
+        const int w = camera.intrinsics().width;
+        const int x0 = 4 * unit;
+        if (x0 + 4 <= w) {
+            renderPacket(mv, camera, d0, x0, frame, counters);
+        } else {
+            for (int x = x0; x < w; ++x)
+                renderColumn(mv, camera, d0, x, frame, counters);
+        }
+    }
+#endif
 
     // One column of the single-level caster, bottom to top, the supersample rays of a pixel
     // stacked inside it and averaged (depth: the nearest).
@@ -1639,7 +1541,8 @@ class FastCaster final : public Caster {
         }
         const V4 dRn = rn - prevRn;
         const double sMinor = kMajorX ? cc[0].spacingY : cc[0].spacingX;
-        M4 coherent = rz - prevRz >= cc[0].maxSlope * sMinor * (dRn < 0.0 ? -dRn : dRn);
+        M4 coherent;
+        testClimb(V4(rz - prevRz), cc[0].maxSlope, sMinor, V4(dRn < 0.0 ? -dRn : dRn), coherent);
         if (vmask(coherent) != 15) {
             for (int l = 0; l < 4; ++l)
                 coherent[l] = climbsClear(cc[l], st[l], kMajorX, rn[l], rz[l]) ? -1 : 0;
@@ -1816,6 +1719,18 @@ class FastCaster final : public Caster {
         V h, h0, h1, i;
     };
 
+    // One step of a row batch's lanes from major line A to line B (stepHits): A's cell iA
+    // (an integer-valued double) and the ray's height over A's sample on the side the track
+    // moves to, dEdgeA; the minor coordinate nA at A; B's ray height zB; the ray's height over
+    // the surface at A (above) and at B (below); A and B's major distances uA, uB; the step's
+    // index k.
+    template <class V>
+    struct LaneStep {
+        V iA, dEdgeA, nA, zB, above, below;
+        double uA, uB;
+        long k;
+    };
+
     // Whether the four 32-bit lanes of v are equal.
     [[gnu::always_inline]] VIG_CASTER_AVX2 static bool sameInAllLanes(__m128i v) {
         return _mm_movemask_epi8(_mm_cmpeq_epi32(v, _mm_shuffle_epi32(v, 0))) == 0xFFFF;
@@ -1898,7 +1813,7 @@ class FastCaster final : public Caster {
         const int last = _mm_extract_epi32(rgb, 2);
         std::memcpy(reinterpret_cast<unsigned char*>(c) + 8, &last, 4);
     }
-    // quantize() on four lanes (no haze).
+    // quantizeColor() on four lanes (no haze).
     [[gnu::always_inline]] VIG_CASTER_AVX2 static void quantizeLanes(const V4 rgb[3], Rgb8* c) {
         __m128i q[3];
         for (int ch = 0; ch < 3; ++ch) {
@@ -2114,154 +2029,11 @@ class FastCaster final : public Caster {
     }
 #endif
 
-    // Bilinear colour of level-0 cell (cx, cy) at local (fx, fy) (as TerrainMap::surfaceColor).
-    static void cellColor(const MapView& mv, int cx, int cy, double fx, double fy, float rgb[3]) {
-        fx = std::clamp(fx, 0.0, 1.0);
-        fy = std::clamp(fy, 0.0, 1.0);
-        const Rgb8* row0 = mv.colors + static_cast<std::size_t>(cy) * mv.width + cx;
-        const Rgb8* row1 = row0 + mv.width;
-        const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy,
-                     w11 = fx * fy;
-        rgb[0] = static_cast<float>(w00 * row0[0].r + w10 * row0[1].r + w01 * row1[0].r +
-                                    w11 * row1[1].r);
-        rgb[1] = static_cast<float>(w00 * row0[0].g + w10 * row0[1].g + w01 * row1[0].g +
-                                    w11 * row1[1].g);
-        rgb[2] = static_cast<float>(w00 * row0[0].b + w10 * row0[1].b + w01 * row1[0].b +
-                                    w11 * row1[1].b);
-    }
-
-    // The coherent march of one ray in major-axis form from u = uStart: grid line by grid line
-    // (as marchRay), the minor coordinate in 32.32 fixed point, z incremental (raw height units);
-    // the reachable step solved exactly. No per-ray box clip, normalisation or division.
-    template <bool kMajorX>
-    [[gnu::always_inline]] static inline ColumnMarch marchCoherent(const MapView& mv,
-                                                                   const EyeGrid& eg, int sgn,
-                                                                   double rn, double rz,
-                                                                   double uStart, double uNear,
-                                                                   std::uint64_t& steps) {
-        const std::uint16_t* __restrict__ cellMax = mv.cellMax;
-        const int w = mv.width;
-        const std::size_t stride = static_cast<std::size_t>(w - 1);
-        const int majorCount = kMajorX ? w : mv.height, minorCount = kMajorX ? mv.height : w;
-        const int lastMinorCell = minorCount - 2;
-        const double em = kMajorX ? eg.gx : eg.gy, en = kMajorX ? eg.gy : eg.gx;
-        ColumnMarch out;
-        out.u = uStart;
-        // The grid line at or before the start (in the direction of travel).
-        const double gm0 = em + sgn * uStart;
-        long m = sgn > 0 ? floorToLong(gm0) : -floorToLong(-gm0);
-        if (m < 0 || m > majorCount - 1) {
-            const bool ahead = sgn > 0 ? m < 0 : m > majorCount - 1;
-            out.kind = ahead || !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
-            return out;
-        }
-        double u = (m - em) * sgn;
-        constexpr double kFix = 4294967296.0;  // 2^32
-        std::int64_t n = roundToInt64((en + rn * u) * kFix);
-        const std::int64_t dn = roundToInt64(rn * kFix);
-        const std::int64_t minorLimit = static_cast<std::int64_t>(minorCount - 1) << 32;
-        const double ezr = eg.zRaw;
-        const double dzr = rz * mv.invScale;
-        double zr = ezr + dzr * u;
-        const double maxRaw = mv.maxRaw;
-        const bool rising = dzr >= 0.0;
-        if (n < 0 || n > minorLimit) {
-            out.kind = !eg.inside ? ColumnMarch::kFresh : ColumnMarch::kStop;
-            return out;
-        }
-        // Whole steps before the ray reaches the major end or the level-0 distance; a step that
-        // would leave the minor range ends the loop (then one last partial step).
-        constexpr std::int64_t kMany = std::int64_t{1} << 40;
-        const std::int64_t majorSteps = sgn > 0 ? majorCount - 1 - m : m;
-        std::int64_t nearSteps = kMany;
-        if (uNear < 1e12) nearSteps = std::max<long>(0, -floorToLong(u - uNear));
-        const std::int64_t total = std::min(majorSteps, nearSteps);
-        const int mc0 = static_cast<int>(m) + (sgn > 0 ? 0 : -1);
-        // The first step is solved from uStart on: before it the ray is known to be clear (and
-        // the grid line may lie behind the eye).
-        const double sBegin0 = uStart - u;
-        // The cell-max index of (major cell mc, minor cell c) is mc * majorStride + c *
-        // minorStride; the next step's first cell is this step's second one, one major cell on.
-        const std::ptrdiff_t minorStride = kMajorX ? static_cast<std::ptrdiff_t>(stride) : 1;
-        const std::ptrdiff_t majorStep = kMajorX ? sgn : sgn * static_cast<std::ptrdiff_t>(stride);
-        int ca = std::min(static_cast<int>(n >> 32), lastMinorCell);
-        std::ptrdiff_t ia = kMajorX ? static_cast<std::ptrdiff_t>(ca) * stride + mc0
-                                    : static_cast<std::ptrdiff_t>(mc0) * stride + ca;
-        // The lower end of the step's piece of ray (its start when rising, else its end).
-        double zLow = rising ? zr : zr + dzr;
-        // Step k runs from major grid line m + sgn * k (u + k) to the next one.
-        std::int64_t k = 0;
-        bool leavesMinor = false;
-        for (;;) {
-            // Scan for the next step the ray may reach (the hot loop: bound test only).
-            std::int64_t next = 0;
-            int cb = 0;
-            std::ptrdiff_t ib = 0;
-            bool reach = false;
-            for (; k < total; ++k) {
-                next = n + dn;
-                if (static_cast<std::uint64_t>(next) > static_cast<std::uint64_t>(minorLimit)) {
-                    leavesMinor = true;
-                    break;
-                }
-                cb = std::min(static_cast<int>(next >> 32), lastMinorCell);
-                ib = ia + (cb - ca) * minorStride;
-                if (zLow <= std::max(cellMax[ia], cellMax[ib])) {
-                    reach = true;
-                    break;
-                }
-                if (rising && zLow > maxRaw) {
-                    steps += static_cast<std::uint64_t>(k + 1);
-                    out.kind = ColumnMarch::kAbove;
-                    out.u = u + static_cast<double>(k);
-                    return out;
-                }
-                n = next;
-                ca = cb;
-                ia = ib + majorStep;
-                zLow += dzr;
-            }
-            if (!reach) break;
-            const StepSolver<kMajorX> solver{mv.heights, cellMax, w, sgn, rn, dzr, ezr};
-            const int step = static_cast<int>(k);
-            if (solver.solve(m + sgn * step, mc0 + sgn * step, ca, cb, n,
-                             u + static_cast<double>(k), k == 0 ? sBegin0 : 0.0, 1.0, out)) {
-                steps += static_cast<std::uint64_t>(k + 1);
-                return out;
-            }
-            n = next;
-            ca = cb;
-            ia = ib + majorStep;
-            zLow += dzr;
-            ++k;
-        }
-        steps += static_cast<std::uint64_t>(k);
-        out.u = u + static_cast<double>(k);
-        if (!leavesMinor) {
-            out.kind = total == nearSteps && nearSteps < majorSteps + 1 ? ColumnMarch::kFar
-                                                                        : ColumnMarch::kStop;
-            return out;
-        }
-        // The ray leaves through a minor edge part-way through this step: solve up to there.
-        out.kind = ColumnMarch::kStop;
-        ++steps;
-        const double edge = n + dn < 0 ? 0.0 : minorCount - 1.0;
-        const double nD = static_cast<double>(n) * (1.0 / kFix);
-        const double sEnd = std::clamp((edge - nD) / rn, 0.0, 1.0);
-        const int cb = n + dn < 0 ? 0 : lastMinorCell;
-        const int step = static_cast<int>(k);
-        const StepSolver<kMajorX> solver{mv.heights, cellMax, w, sgn, rn, dzr, ezr};
-        if (solver.solve(m + sgn * step, mc0 + sgn * step, ca, cb, n, out.u, k == 0 ? sBegin0 : 0.0,
-                         sEnd, out)) {
-            return out;
-        }
-        out.kind = ColumnMarch::kStop;
-        out.u = u + static_cast<double>(k);
-        return out;
-    }
-
     const TerrainMap& map_;
     RenderOptions options_;
+    CasterKernel kernel_ = CasterKernel::Scalar;  // the kernel that runs (chooseKernel)
+    UnitRenderer renderUnit_ = nullptr;
+    int columnsPerUnit_ = 1;
     std::unique_ptr<TerrainPyramid> pyramid_;
     std::unique_ptr<SlopeBlocks> slopes_;
     int topLevel_ = 0;

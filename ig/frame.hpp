@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <string_view>
 #include <vector>
 
 namespace ig {
@@ -26,9 +27,10 @@ inline constexpr float kSkyDepth = std::numeric_limits<float>::infinity();
 // What a caster did, accumulated per frame.
 struct RenderStats {
     double renderMs = 0.0;
-    std::uint64_t steps = 0;     // grid-line steps over all rays
-    std::uint64_t rays = 0;      // rays cast (may exceed pixels with supersampling)
-    std::uint64_t restarts = 0;  // coherence starts abandoned for a fresh march
+    std::uint64_t steps = 0;             // grid-line steps over all rays
+    std::uint64_t rays = 0;              // rays cast (may exceed pixels with supersampling)
+    std::uint64_t restarts = 0;          // coherence starts abandoned for a fresh march
+    std::string_view kernel = "scalar";  // the caster's kernel (Caster::kernelName)
 };
 
 // A rendered image with margins, per-pixel depth and nine control points. Immutable once

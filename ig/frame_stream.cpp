@@ -1,8 +1,8 @@
 #include "ig/frame_stream.hpp"
 
 #include "base/check.hpp"
-
 #include "ig/caster_impl.hpp"
+#include "ig/error.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -56,6 +56,9 @@ FrameStream::~FrameStream() {
 
 void FrameStream::submit(const Pose& pose, const Intrinsics& intrinsics, double time,
                          std::uint64_t sequence) {
+    if (caster_.kind() == CasterKind::Fast && pose.roll != 0.0) {
+        throw InputError("pose: the fast caster renders roll = 0 (the PRP applies roll)");
+    }
     auto job = std::make_shared<Job>(pose, intrinsics);
     job->frame = newFrame(map_, pose, intrinsics, time, sequence);
     job->units = caster_.workUnits(job->camera);
@@ -139,6 +142,7 @@ RenderedFrame FrameStream::take() {
     frame.stats.steps = job->steps.load();
     frame.stats.restarts = job->restarts.load();
     frame.stats.rays = static_cast<std::uint64_t>(frame.intrinsics.width) * frame.intrinsics.height;
+    frame.stats.kernel = caster_.kernelName();
     castControlPoints(map_, job->camera, frame);
     return std::move(frame);
 }

@@ -37,7 +37,8 @@ class FrameStream {
     FrameStream(const FrameStream&) = delete;
     FrameStream& operator=(const FrameStream&) = delete;
 
-    // Starts a frame: validates the view (InputError as renderFrame), allocates it and hands
+    // Starts a frame: validates the view (InputError as renderFrame, and for a rolled pose
+    // given to the fast caster, which renders roll = 0), allocates it and hands
     // its units to the workers, after those of the frames submitted before it.
     void submit(const Pose& pose, const Intrinsics& intrinsics, double time = 0.0,
                 std::uint64_t sequence = 0);
@@ -46,8 +47,8 @@ class FrameStream {
     void help();
     // Renders what is left of the oldest frame's units with the other workers, waits for
     // every unit of it, casts its control points and returns it (as
-    // renderFrame would have rendered it; stats.renderMs is submit-to-complete). Nothing in
-    // flight is a bug (CHECK); a worker's exception is rethrown.
+    // renderFrame would have rendered it; stats.renderMs is submit-to-complete). CHECKs that a
+    // frame is in flight; rethrows a worker's exception.
     RenderedFrame take();
     int inFlight() const;
 

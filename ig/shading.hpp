@@ -20,19 +20,30 @@ inline Rgb8 skyColor(const SkyModel& sky, double dz) {
                 mix(sky.horizon.b, sky.zenith.b)};
 }
 
+// Distance haze: blends a colour (0..255 per channel) seen from `distance` metres toward the
+// horizon colour by 1 - exp(-distance / hazeDistance); no change when haze is off.
+[[gnu::always_inline]] inline void applyHaze(const SkyModel& sky, float rgb[3], double distance) {
+    if (sky.hazeDistance > 0.0) {
+        const float k = static_cast<float>(1.0 - std::exp(-distance / sky.hazeDistance));
+        rgb[0] += (sky.horizon.r - rgb[0]) * k;
+        rgb[1] += (sky.horizon.g - rgb[1]) * k;
+        rgb[2] += (sky.horizon.b - rgb[2]) * k;
+    }
+}
+
+// A colour of 0..255 floats to bytes, rounded to nearest and clamped.
+[[gnu::always_inline]] inline Rgb8 quantizeColor(const float rgb[3]) {
+    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
+    return Rgb8{q(rgb[0]), q(rgb[1]), q(rgb[2])};
+}
+
 // Terrain colour at world (x, y) seen from `distance` metres: bilinear map colour, hazed.
 inline Rgb8 terrainColor(const TerrainMap& map, const SkyModel& sky, double x, double y,
                          double distance) {
     float c[3];
     map.surfaceColor(x, y, c);
-    if (sky.hazeDistance > 0.0) {
-        const float k = static_cast<float>(1.0 - std::exp(-distance / sky.hazeDistance));
-        c[0] += (sky.horizon.r - c[0]) * k;
-        c[1] += (sky.horizon.g - c[1]) * k;
-        c[2] += (sky.horizon.b - c[2]) * k;
-    }
-    auto q = [](float v) { return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f)); };
-    return Rgb8{q(c[0]), q(c[1]), q(c[2])};
+    applyHaze(sky, c, distance);
+    return quantizeColor(c);
 }
 
 }  // namespace ig

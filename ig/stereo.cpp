@@ -7,8 +7,11 @@
 // Z = d f / L with d the Euclidean depth and L = |(x_l - cx, y_l - cy, f)|, so the disparity is
 // f e / Z = e L / d. Sky (d = +inf) has disparity 0.
 #include "ig/stereo.hpp"
+#include "base/check.hpp"
+#include "base/cpu_features.hpp"
 
 #include "ig/caster_impl.hpp"
+#include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
 #include "ig/shading.hpp"
@@ -138,6 +141,7 @@ class RowReprojector {
           e_(options.eyeSeparation),
           gap_(options.gapThreshold),
           sweep_(options.referenceSweep),
+          avx2_(VIG_STEREO_VECTOR && base::cpuFeatures().avx2),
           pos_(static_cast<std::size_t>(w_)),
           depth_(static_cast<std::size_t>(w_)),
           acc_(static_cast<std::size_t>(w_) + 1),
@@ -171,7 +175,9 @@ class RowReprojector {
             } else {
                 overwriteRowDirect();
             }
-        } else if (sweep_ || !wanRowVector()) {
+        } else if (sweep_ || !avx2_) {
+            wanRow();
+        } else if (!wanRowVector()) {
             wanRow();
         }
     }
@@ -203,8 +209,7 @@ class RowReprojector {
 #if defined(__SSE__)
         int finiteMask = 0;
 #if VIG_STEREO_VECTOR
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        if (hasAvx2) i = project8(depth, base, e, cx, w_, pos, dr, finiteMask);
+        if (avx2_) i = project8(depth, base, e, cx, w_, pos, dr, finiteMask);
 #endif
         const __m128 vInf = _mm_set1_ps(kInf);
         const __m128 vBase = _mm_set1_ps(base), vE = _mm_set1_ps(e), vOne = _mm_set1_ps(1.0f);
@@ -539,9 +544,8 @@ class RowReprojector {
         std::memcpy(bytes + 8, &last, 4);
     }
 
+    // Needs AVX2 (the caller tests avx2_: this function is compiled for it).
     VIG_STEREO_AVX2 bool wanRowVector() {
-        static const bool hasAvx2 = __builtin_cpu_supports("avx2");
-        if (!hasAvx2) return false;
         const float* __restrict__ posOf = pos_.data();
         const float* __restrict__ depthOf = depth_.data();
         const Rgb8* __restrict__ colorOf = in_;
@@ -812,6 +816,7 @@ class RowReprojector {
     long total_;
     double e_, gap_;
     bool sweep_;
+    bool avx2_;  // the processor has AVX2 (base::cpuFeatures): project8 and wanRowVector run
     const Rgb8* in_ = nullptr;  // the row's left colours
     Out out_{};
     std::vector<float> pos_;
@@ -842,12 +847,14 @@ RayGeom rayGeom(const glm::dvec3& unitDir) {
     return g;
 }
 
-// The fast caster's safety test (docs/design/ray_casting.md): `upper` stays above the terrain
-// wherever `lower` was, because its climb over `lower` outruns the most the terrain can rise
-// across the gap between their tracks.
+// The fast caster's coherence proof (ig/coherence.hpp) per horizontal metre: `upper` stays
+// above the terrain wherever `lower` was, because its climb over `lower` outruns the most the
+// terrain can rise across the gap between their unit tracks (both leave the eye; tracks less
+// than a right angle apart).
 bool coherent(const RayGeom& lower, const RayGeom& upper, double maxSlope) {
     return lower.horiz > 1e-9 && upper.horiz > 1e-9 && glm::dot(upper.track, lower.track) > 0.0 &&
-           upper.slope - lower.slope >= maxSlope * glm::length(upper.track - lower.track);
+           climbsClearOf(upper.slope - lower.slope, maxSlope, 1.0,
+                         glm::length(upper.track - lower.track));
 }
 
 struct CastCounters {
@@ -952,17 +959,6 @@ class ColumnCaster {
     double backoff_ = 0.0;
 };
 
-void fillControlPoints(const TerrainMap& map, RenderedFrame& frame) {
-    const Camera camera(frame.pose, frame.intrinsics);
-    const auto pixels = controlPointPixels(frame.intrinsics);
-    for (int i = 0; i < kControlPointCount; ++i) {
-        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
-        const RayHit hit = intersectTerrain(map, frame.pose.position, dir);
-        frame.controlPoints[i].pixel = pixels[i];
-        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
-    }
-}
-
 }  // namespace
 
 RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
@@ -975,9 +971,8 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     }
     const int w = left.width(), h = left.height();
     const std::size_t n = static_cast<std::size_t>(w) * h;
-    if (w <= 0 || h <= 0 || left.color.size() != n || left.depth.size() != n) {
-        throw std::invalid_argument("reprojectRightEye: left frame without colour and depth");
-    }
+    CHECK(w > 0 && h > 0 && left.color.size() == n && left.depth.size() == n)
+        << "reprojectRightEye: left frame without colour and depth";
     RenderedFrame right;
     right.sequence = left.sequence;
     right.time = left.time;
@@ -1118,7 +1113,7 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     right.stats.steps = cast.steps;
     right.stats.restarts = cast.restarts;
     right.stats.rays = stats.rayCast - cast.sky;
-    fillControlPoints(map, right);
+    castControlPoints(map, Camera(right.pose, right.intrinsics), right);
     return right;
 }
 

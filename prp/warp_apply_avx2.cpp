@@ -23,11 +23,6 @@
 
 namespace prp::detail {
 
-bool cpuHasAvx2() {
-    static const bool has = __builtin_cpu_supports("avx2");
-    return has;
-}
-
 namespace {
 
 using namespace simd;

@@ -21,14 +21,6 @@
 
 namespace prp::detail {
 
-bool cpuHasAvx512() {
-    static const bool has =
-        __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-        __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512vl") &&
-        __builtin_cpu_supports("avx512vbmi");
-    return has;
-}
-
 namespace {
 
 using namespace simd;

@@ -1,6 +1,7 @@
 // Internals shared by the scalar and SIMD warp kernels: fixed point, integer BT.601, sampler.
 #pragma once
 
+#include "base/cpu_features.hpp"
 #include "prp/warp_apply.hpp"
 
 #include <algorithm>
@@ -220,10 +221,14 @@ inline bool avx2Takes(const SourceView& s, int gainQ8) {
 }
 
 #if VIG_PRP_HAVE_AVX2
-// True when the running processor has AVX2, respectively AVX-512 F+BW+DQ+VL+VBMI (checked
-// once).
-bool cpuHasAvx2();
-bool cpuHasAvx512();
+// True when the running processor has AVX2, respectively AVX-512 F+BW+DQ+VL+VBMI
+// (base::cpuFeatures, detected once).
+inline bool cpuHasAvx2() {
+    return base::cpuFeatures().avx2;
+}
+inline bool cpuHasAvx512() {
+    return base::cpuFeatures().avx512vbmi;
+}
 // applyQuadratic's AVX2 kernel; bit-identical to the scalar one. Needs cpuHasAvx2() and
 // avx2Takes(source, gainQ8).
 ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& sourceFromOutput,

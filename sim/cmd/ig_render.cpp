@@ -136,6 +136,7 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
                    {"gap_threshold_px", s.gapThreshold}};
     j["left_ms"] = f.stats.leftMs;
     j["right_ms"] = f.stats.rightMs;
+    j["kernel"] = std::string(f.left.stats.kernel);
     j["right_over_left"] = f.stats.leftMs > 0.0 ? f.stats.rightMs / f.stats.leftMs : 0.0;
     j["reproject_ms"] = f.stats.reprojectMs;
     j["cast_ms"] = f.stats.castMs;
@@ -192,6 +193,7 @@ int main(int argc, char** argv) {
     double haze = 0.0;
     std::string levelsText = "auto";
     int supersample = 1;
+    std::string kernelText = "auto";
     app.add_option("--pose", poseText,
                    "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H). Default: " + shippedPose +
                        " over the shipped map; over others, above the south-west quarter looking "
@@ -215,6 +217,10 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--supersample", supersample,
                    "Fast caster: rays per pixel stacked vertically, 1..8 (for shallow pitch)")
+        ->capture_default_str();
+    app.add_option("--kernel", kernelText,
+                   "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
+                   "the same image with each, refused where the processor lacks it")
         ->capture_default_str();
     StereoFlags stereo;
     addStereoFlags(app, stereo);
@@ -264,6 +270,12 @@ int main(int argc, char** argv) {
             throw ig::InputError("--supersample: must be 1..8 rays per pixel");
         }
         options.supersample = supersample;
+        options.kernel = ig::parseCasterKernel(kernelText);
+        if (kind != ig::CasterKind::Fast && options.kernel != ig::CasterKernel::Auto) {
+            throw ig::InputError("--kernel " + kernelText +
+                                 ": only the fast caster has kernels; drop --kernel or use "
+                                 "--caster fast");
+        }
         if (stereo.enabled())
             return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
         const auto caster = ig::makeCaster(kind, map, options);
@@ -292,6 +304,7 @@ int main(int argc, char** argv) {
         j["coherence_restarts"] = frame.stats.restarts;
         j["levels"] = levelsText;
         j["supersample"] = supersample;
+        j["kernel"] = std::string(frame.stats.kernel);
         j["pose"] = poseJson(pose);
         j["terrain"] = ig::describeTerrain(map);
         for (const ig::ControlPoint& cp : frame.controlPoints) {
@@ -301,9 +314,10 @@ int main(int argc, char** argv) {
         }
         if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         if (outPath != "-") {
-            std::fprintf(stderr, "%s: %dx%d in %.1f ms (%.1f ns/pixel, %.2f steps/pixel) -> %s\n",
-                         casterText.c_str(), frame.width(), frame.height(), frame.stats.renderMs,
-                         frame.stats.renderMs * 1e6 / pixels,
+            std::fprintf(stderr,
+                         "%s (%s): %dx%d in %.1f ms (%.1f ns/pixel, %.2f steps/pixel) -> %s\n",
+                         casterText.c_str(), std::string(frame.stats.kernel).c_str(), frame.width(),
+                         frame.height(), frame.stats.renderMs, frame.stats.renderMs * 1e6 / pixels,
                          static_cast<double>(frame.stats.steps) / pixels, outPath.c_str());
         }
         return 0;

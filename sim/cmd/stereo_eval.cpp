@@ -135,6 +135,10 @@ int main(int argc, char** argv) {
                    "(cpu with one thread, else wall)")
         ->capture_default_str();
     app.add_option("--json", jsonPath, "Results as JSON ('-': standard output)");
+    std::string kernelText = "auto";
+    app.add_option("--kernel", kernelText,
+                   "Fast caster's kernel: auto | scalar | avx2 | avx512 (the same images)")
+        ->capture_default_str();
     CLI11_PARSE(app, argc, argv);
 
     return ig::runProgram("stereo-eval", [&]() -> int {
@@ -186,6 +190,7 @@ int main(int argc, char** argv) {
         const ig::Intrinsics intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg));
         ig::RenderOptions renderOptions;
         renderOptions.threads = threads;
+        renderOptions.kernel = ig::parseCasterKernel(kernelText);
 
         std::vector<Config> configs;
         ig::StereoOptions base;
@@ -321,6 +326,7 @@ int main(int argc, char** argv) {
         j["poses"] = used;
         j["poses_skipped"] = skipped;
         j["threads"] = threads;
+        j["kernel"] = std::string(caster->kernelName());
         j["repeat"] = repeat;
         j["clock"] = useCpu ? "thread_cpu" : "wall";
         if (fixedSeparation) {

@@ -43,8 +43,7 @@ struct Config {
     int size = 16384;
     int width = 1920, height = 1080;
     int repeat = 3;
-    bool packets = true;
-    int lanes = 0;
+    ig::CasterKernel kernel = ig::CasterKernel::Auto;
     std::vector<std::string> sections;
 };
 
@@ -53,8 +52,7 @@ double secondsSince(Clock::time_point start) {
 }
 
 std::string gCache;
-bool gPackets = true;
-int gLanes = 0;             // RenderOptions::lanes; --lanes 4 keeps the row batches to four lanes
+ig::CasterKernel gKernel = ig::CasterKernel::Auto;  // RenderOptions::kernel (--kernel)
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 double gPitchDeg = -10.0;   // its pitch; --pitch changes it (frame section)
 nlohmann::json gJson = nlohmann::json::object();  // each section's figures, for --json
@@ -146,13 +144,13 @@ Timed timeFrames(const ig::Caster& caster, const ig::TerrainMap& map, const ig::
 }
 
 std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& map, int levels,
-                                   int threads, int supersample = 1, int lanes = gLanes) {
+                                   int threads, int supersample = 1,
+                                   ig::CasterKernel kernel = gKernel) {
     ig::RenderOptions o;
     o.levels = levels;
     o.threads = threads;
     o.supersample = supersample;
-    o.packets = gPackets;
-    o.lanes = lanes;
+    o.kernel = kernel;
     const auto start = Clock::now();
     auto c = ig::makeCaster(kind, map, o);
     if (kind == ig::CasterKind::Fast && levels != 0) {
@@ -203,7 +201,10 @@ void speed(const Config& c) {
     const auto naive = caster(ig::CasterKind::Naive, map, 0, 1);
     const auto single = caster(ig::CasterKind::Fast, map, 0, 1);
     const auto multi = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
-    const auto multi4 = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1, 1, 4);
+    // Four lanes where the processor has them.
+    const ig::CasterKernel four =
+        ig::casterKernelMissing(ig::CasterKernel::Avx2).empty() ? ig::CasterKernel::Avx2 : gKernel;
+    const auto multi4 = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1, 1, four);
     const Timed n = timeFrames(*naive, map, pose, in, 1);
     // The three fast casters' frames in turn.
     const std::vector<Timed> t =
@@ -245,8 +246,7 @@ void packets(const Config& c) {
         ig::RenderOptions o;
         o.levels = levels;
         o.threads = 1;
-        o.packets = lanes;
-        o.lanes = gLanes;
+        o.kernel = lanes ? gKernel : ig::CasterKernel::Scalar;
         return ig::makeCaster(ig::CasterKind::Fast, map, o);
     };
     const auto single = make(0, true), singleOne = make(0, false);
@@ -507,9 +507,9 @@ void frame(const Config& c) {
         if (g.stats.renderMs < f.stats.renderMs) f = std::move(g);
     }
     const double pixels = static_cast<double>(c.width) * c.height;
-    std::printf("frame: %s, levels %d, %dx%d, synthetic %d^2: %.1f ms, %.2f steps/px\n",
-                c.caster.c_str(), c.levels, c.width, c.height, c.size, f.stats.renderMs,
-                static_cast<double>(f.stats.steps) / pixels);
+    std::printf("frame: %s, levels %d, kernel %s, %dx%d, synthetic %d^2: %.1f ms, %.2f steps/px\n",
+                c.caster.c_str(), c.levels, std::string(f.stats.kernel).c_str(), c.width, c.height,
+                c.size, f.stats.renderMs, static_cast<double>(f.stats.steps) / pixels);
 }
 
 // Consecutive frames of a slow flight on two threads: one frame at a time (each frame's
@@ -532,8 +532,7 @@ void stream(const Config& c) {
         map.width(), c.width, c.height, frames);
     ig::RenderOptions o;
     o.threads = 2;
-    o.packets = gPackets;
-    o.lanes = gLanes;
+    o.kernel = gKernel;
     const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, o);
     // Frames are compared by a hash of their colours (keeping them all would add page faults).
     auto hash = [](const ig::RenderedFrame& f) {
@@ -657,14 +656,13 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "bench-render: --pitch: expected degrees in [-90, 90]\n");
                 return 2;
             }
-        } else if (a == "--lanes") {
-            c.lanes = std::atoi(next().c_str());
-            if (c.lanes != 0 && c.lanes != 4) {
-                std::fprintf(stderr, "bench-render: --lanes: expected 0 or 4\n");
+        } else if (a == "--kernel") {
+            try {
+                c.kernel = ig::parseCasterKernel(next());
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "bench-render: %s\n", e.what());
                 return 2;
             }
-        } else if (a == "--no-packets") {
-            c.packets = false;
         } else if (a == "--no-hugepages") {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
@@ -677,7 +675,7 @@ int main(int argc, char** argv) {
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
                 "[stream] [headings] [pitches] [--size N] "
-                "[--image WxH] [--repeat N] [--no-hugepages] [--no-packets] [--lanes 0|4] "
+                "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--cache DIR] "
                 "[--caster fast|naive|reference] [--levels auto|N] [--json FILE]\n",
@@ -687,8 +685,7 @@ int main(int argc, char** argv) {
     }
     if (c.sections.empty()) c.sections.push_back("speed");
     gCache = c.cache;
-    gPackets = c.packets;
-    gLanes = c.lanes;
+    gKernel = c.kernel;
     try {
         // One-thread sections run on one core, so the casters they compare share it (a VM's
         // cores need not be equally fast); threads and stream use every core allowed.

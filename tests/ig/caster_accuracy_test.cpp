@@ -14,12 +14,15 @@ namespace {
 
 struct SweepResult {
     double worstMaePct = 0.0;
+    double worstDepthRel = 0.0;  // largest |fast - reference| / reference over hit pixels
     double worstDepthOkFraction = 1.0;
     double meanStepsFast = 0.0, meanStepsNaive = 0.0;
 };
 
-// Every pose: mean absolute colour error <= 1 % of full scale, and >= 99 % of the reference's
-// hit pixels with depth within 1 %.
+// Every pose: the fast caster (single level, the default) is documented to match the reference
+// to rounding (0.0000 % colour error, docs/design/ray_casting.md): the same colours (measured:
+// no pixel differs), every one of the reference's hit pixels a hit with depth within 1e-6 of
+// the reference's (measured: 1.2e-7 at worst, the float depth's rounding).
 SweepResult sweep(const ig::TerrainMap& map, int poses) {
     const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
     const auto fast = ig::makeCaster(ig::CasterKind::Fast, map);
@@ -34,12 +37,14 @@ SweepResult sweep(const ig::TerrainMap& map, int poses) {
         for (std::size_t i = 0; i < ref.depth.size(); ++i) {
             if (!std::isfinite(ref.depth[i])) continue;
             ++hits;
-            if (std::abs(got.depth[i] - ref.depth[i]) <= 0.01 * ref.depth[i]) ++ok;
+            const double rel = std::abs(got.depth[i] - ref.depth[i]) / ref.depth[i];
+            if (rel <= 1e-6) ++ok;
+            r.worstDepthRel = std::max(r.worstDepthRel, std::isfinite(rel) ? rel : 1.0);
         }
         const double okFraction = hits ? static_cast<double>(ok) / hits : 1.0;
-        EXPECT_LE(mae, 1.0) << "pose " << k << " (z " << pose.position.z << ", pitch "
+        EXPECT_EQ(mae, 0.0) << "pose " << k << " (z " << pose.position.z << ", pitch "
                             << ig::radToDeg(pose.pitch) << ")";
-        EXPECT_GE(okFraction, 0.99) << "pose " << k;
+        EXPECT_EQ(okFraction, 1.0) << "pose " << k;
         r.worstMaePct = std::max(r.worstMaePct, mae);
         r.worstDepthOkFraction = std::min(r.worstDepthOkFraction, okFraction);
         ++k;
@@ -50,15 +55,15 @@ SweepResult sweep(const ig::TerrainMap& map, int poses) {
 TEST(CasterAccuracy, FastMatchesReferenceOverPugetSoundSweep) {
     const ig::TerrainMap map = ig::loadPugetSound();
     const SweepResult r = sweep(map, 50);
-    std::printf("Puget Sound: worst MAE %.4f %%, worst depth-within-1%% fraction %.4f\n",
-                r.worstMaePct, r.worstDepthOkFraction);
+    std::printf("Puget Sound: worst MAE %.6f %%, worst relative depth error %.3g\n", r.worstMaePct,
+                r.worstDepthRel);
 }
 
 TEST(CasterAccuracy, FastMatchesReferenceOverGoletaSweep) {
     const ig::TerrainMap map = ig::loadGoleta();
     const SweepResult r = sweep(map, 50);
-    std::printf("Goleta: worst MAE %.4f %%, worst depth-within-1%% fraction %.4f\n", r.worstMaePct,
-                r.worstDepthOkFraction);
+    std::printf("Goleta: worst MAE %.6f %%, worst relative depth error %.3g\n", r.worstMaePct,
+                r.worstDepthRel);
 }
 
 TEST(CasterAccuracy, SweepCoversTheRequiredRanges) {

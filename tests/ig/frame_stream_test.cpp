@@ -95,13 +95,24 @@ TEST(FrameStream, ManyFramesInFlightComeOutInOrder) {
     }
 }
 
+// Taking a frame when none is in flight is a caller's bug: CHECKed.
+TEST(FrameStream, TakingWithNothingInFlightIsABug) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const TerrainMap& map = terrain();
+    const auto caster = ig::makeCaster(CasterKind::Fast, map);
+    EXPECT_DEATH(
+        {
+            ig::FrameStream stream(*caster, map, 2);
+            (void)stream.take();
+        },
+        "no frame in flight");
+}
+
 TEST(FrameStream, BadInputIsRefusedAndTheStreamGoesOn) {
     const TerrainMap& map = terrain();
     const Intrinsics in = Intrinsics::fromFov(64, 48, ig::degToRad(60), 4);
     const auto caster = ig::makeCaster(CasterKind::Fast, map);
     ig::FrameStream stream(*caster, map, 2);
-    GTEST_FLAG_SET(death_test_style, "threadsafe");  // the stream has worker threads
-    EXPECT_DEATH(stream.take(), "no frame in flight");
     Pose below = flight(1)[0];
     below.position.z = map.surfaceHeight(below.position.x, below.position.y) - 5.0;
     EXPECT_THROW(stream.submit(below, in), ig::InputError);
@@ -109,11 +120,11 @@ TEST(FrameStream, BadInputIsRefusedAndTheStreamGoesOn) {
     nan.pitch = std::nan("");
     EXPECT_THROW(stream.submit(nan, in), ig::InputError);
     EXPECT_EQ(stream.inFlight(), 0);
-    // The fast caster refuses roll: the frame's error comes out of take().
+    // The fast caster refuses roll, as bad input, before the frame is in flight.
     Pose rolled = flight(1)[0];
     rolled.roll = 0.2;
-    stream.submit(rolled, in);
-    EXPECT_THROW(stream.take(), std::invalid_argument);
+    EXPECT_THROW(stream.submit(rolled, in), ig::InputError);
+    EXPECT_EQ(stream.inFlight(), 0);
     stream.submit(flight(1)[0], in, 0.0, 7);
     expectSame(stream.take(), ig::renderFrame(*caster, map, flight(1)[0], in, 0.0, 7));
 }
