@@ -143,7 +143,8 @@ int main(int argc, char** argv) {
     app.add_option("--start", startText, "Stick flight start X,Y,Z,HEADING (metres, degrees)")
         ->excludes(trajectoryOpt);
     app.add_option("--cigi", cigiBind,
-                   "Be driven by a CIGI 3.3 host: receive its UDP messages on [ADDR:]PORT")
+                   "Be driven by a CIGI 3.3 host: receive its UDP messages on [ADDR:]PORT (0: any "
+                   "free port)")
         ->excludes(trajectoryOpt);
     app.add_option("--cigi-host", cigiHost, "CIGI: send Start of Frame to ADDR:PORT");
     app.add_option("--cigi-origin", cigiOrigin,
@@ -243,7 +244,7 @@ int main(int argc, char** argv) {
         if (cigi) {
             if (!stickSpec.empty()) throw ig::InputError("--cigi: cannot be used with --stick");
             if (const std::string bad =
-                    io::parseUdpEndpoint(cigiBind, true, false, cigiOptions.bind);
+                    io::parseUdpEndpoint(cigiBind, true, true, cigiOptions.bind);
                 !bad.empty()) {
                 throw ig::InputError("--cigi " + base::quoted(cigiBind) + ": " + bad +
                                      " (expected [ADDR:]PORT)");
