@@ -321,6 +321,20 @@ TEST(CigiSession, HoldsTheStartPoseUntilTheFirstEntityControlAndAfterAReset) {
     EXPECT_NEAR(p.position.x, 2000.0, 1e-6);
     EXPECT_NEAR(source.predict(0.6).position.y, 2105.0, 1e-6);  // 10 m/s north for 0.5 s
 
+    // A host writing little-endian is understood as well.
+    cigi::IgControl control;
+    control.hostFrameNumber = ++world.host.frame;
+    cigi::EntityControl moved = e;
+    const glm::dvec3 g2 =
+        source.session().geo().geodeticFromWorld({2500.0, 2100.0, world.map.maxHeight() + 50});
+    moved.latOrX = g2.x;
+    moved.lonOrY = g2.y;
+    const std::vector<cigi::Packet> little{control, moved};
+    world.host.sendRaw(cigi::encodeMessage(little, cigi::ByteOrder::Little));
+    EXPECT_NEAR(source.advanceTo(0.15).position.x, 2500.0, 1e-6);
+    world.host.send({e, r});
+    source.advanceTo(0.15);
+
     // Other entities, attached entities: counted, not applied.
     cigi::EntityControl other = e;
     other.entityId = 3;
@@ -336,10 +350,49 @@ TEST(CigiSession, HoldsTheStartPoseUntilTheFirstEntityControlAndAfterAReset) {
     EXPECT_EQ(source.session().stats().resets, 1u);
     EXPECT_EQ(source.session().igMode(), cigi::IgMode::Reset);
     const auto sofs = packetsOf<cigi::StartOfFrame>(world.host.receiveAll());
-    ASSERT_EQ(sofs.size(), 4u);
+    ASSERT_EQ(sofs.size(), 6u);
     EXPECT_EQ(sofs[0].igMode, cigi::IgMode::Reset);
     EXPECT_EQ(sofs[1].igMode, cigi::IgMode::Operate);
-    EXPECT_EQ(sofs[3].igMode, cigi::IgMode::Reset);
+    EXPECT_EQ(sofs[5].igMode, cigi::IgMode::Reset);
+}
+
+// Rates in the entity's own axes (x forward, y right, z down) turn with its attitude.
+TEST(CigiSession, LocalRatesFollowTheEntitysAxes) {
+    World world;
+    sim::CigiPoseSource source(world.map, world.options());
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    world.host.ig = source.session().localEndpoint();
+    const glm::dvec3 p0{1000.0, 1000.0, world.map.maxHeight() + 500.0};
+    const glm::dvec3 g = source.session().geo().geodeticFromWorld(p0);
+    cigi::EntityControl e;
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    e.yawDeg = 90.0f;  // heading east
+    cigi::RateControl r;
+    r.localCoordinates = true;
+    r.xRate = 10.0f;  // forward: east
+    r.yRate = 3.0f;   // right: south
+    r.zRate = 2.0f;   // down
+    r.yawRateDeg = 5.0f;
+    world.host.send({e, r});
+    source.advanceTo(0.0);
+    const ig::Pose p = source.advanceTo(1.0);
+    EXPECT_NEAR(p.position.x - p0.x, 10.0, 1e-6);
+    EXPECT_NEAR(p.position.y - p0.y, -3.0, 1e-6);
+    EXPECT_NEAR(p.position.z - p0.z, -2.0, 1e-6);
+    EXPECT_NEAR(p.yaw, 95.0 * kDeg, 1e-9);
+
+    // Pitched up 30 degrees, forward climbs; a new Entity Control turns the same rates with it.
+    e.pitchDeg = 30.0f;
+    world.host.send({e});
+    source.advanceTo(1.0);
+    const ig::Pose q = source.advanceTo(2.0);
+    const double c = std::cos(30.0 * kDeg), s = std::sin(30.0 * kDeg);
+    EXPECT_NEAR(q.position.x - p0.x, 10.0 * c + 2.0 * s, 1e-5);
+    EXPECT_NEAR(q.position.y - p0.y, -3.0, 1e-5);
+    EXPECT_NEAR(q.position.z - p0.z, 10.0 * s - 2.0 * c, 1e-5);
 }
 
 TEST(CigiSession, OwnshipUnderTheTerrainIsLiftedAboveIt) {
