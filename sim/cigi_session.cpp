@@ -71,6 +71,20 @@ void normalAngles(const ig::TerrainMap& map, double x, double y, float& azimuthD
     elevationDeg = static_cast<float>(std::atan2(1.0, slope) / kDeg);
 }
 
+// A vector in an entity's axes (x forward, y right, z down) in world axes (x east, y north,
+// z up), for the pose's yaw (clockwise from north), pitch (up) and roll (right wing down).
+glm::dvec3 worldFromBody(const ig::Pose& pose, const glm::dvec3& v) {
+    const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
+    const double cp = std::cos(pose.pitch), sp = std::sin(pose.pitch);
+    const double cr = std::cos(pose.roll), sr = std::sin(pose.roll);
+    const glm::dvec3 forward{sy * cp, cy * cp, sp};
+    const glm::dvec3 right0{cy, -sy, 0.0};
+    const glm::dvec3 up0{-sy * sp, -cy * sp, cp};
+    const glm::dvec3 right = right0 * cr - up0 * sr;
+    const glm::dvec3 up = up0 * cr + right0 * sr;
+    return forward * v.x + right * v.y - up * v.z;
+}
+
 bool onMap(const ig::TerrainMap& map, double x, double y) {
     return x >= 0.0 && y >= 0.0 && x <= map.extentX() && y <= map.extentY();
 }
@@ -180,15 +194,9 @@ void CigiSession::setRates(double t) {
     }
     // Body rates: x forward, y right, z down, turned into world axes at the pose of time t (the
     // velocity is then held until the next update: linear dead reckoning).
-    const double cy = std::cos(ownship_.pose.yaw), sy = std::sin(ownship_.pose.yaw);
-    const double cp = std::cos(ownship_.pose.pitch), sp = std::sin(ownship_.pose.pitch);
+    ownship_.velocity = worldFromBody(ownship_.pose, {x, y, z});
+    const double cp = std::cos(ownship_.pose.pitch);
     const double cr = std::cos(ownship_.pose.roll), sr = std::sin(ownship_.pose.roll);
-    const glm::dvec3 forward{sy * cp, cy * cp, sp};
-    const glm::dvec3 right0{cy, -sy, 0.0};
-    const glm::dvec3 up0{-sy * sp, -cy * sp, cp};
-    const glm::dvec3 right = right0 * cr - up0 * sr;
-    const glm::dvec3 up = up0 * cr + right0 * sr;
-    ownship_.velocity = forward * x + right * y - up * z;
     // Body angular rates (p roll, q pitch, r yaw) to Euler angle rates.
     const double tp = std::tan(ownship_.pose.pitch);
     const double safeCp = std::max(std::abs(cp), 1e-6);
@@ -256,12 +264,22 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
     }
 }
 
-cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn) const {
+cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
+    // A point of a request: geodetic, or an offset from the ownship in its axes.
+    const ig::Pose ownship = ownship_.at(t);
+    const auto point = [&](bool entity, std::uint16_t entityId, double a, double b, double c,
+                           bool& ok) {
+        if (!entity) return geo_.worldFromGeodetic(a, b, c);
+        ok = ok && entityId == 0;
+        return ownship.position + worldFromBody(ownship, {a, b, c});
+    };
     if (const auto* q = std::get_if<cigi::HatHotRequest>(&request)) {
-        const glm::dvec3 p = geo_.worldFromGeodetic(q->latOrX, q->lonOrY, q->altOrZ);
-        const bool valid = !q->entityCoordinates && onMap(map_, p.x, p.y);
+        bool known = true;
+        const glm::dvec3 p =
+            point(q->entityCoordinates, q->entityId, q->latOrX, q->lonOrY, q->altOrZ, known);
+        const bool valid = known && onMap(map_, p.x, p.y);
         const double hot = valid ? map_.surfaceHeight(p.x, p.y) + options_.origin.altM : 0.0;
-        const double hat = valid ? q->altOrZ - hot : 0.0;
+        const double hat = valid ? (p.z + options_.origin.altM) - hot : 0.0;
         if (q->type == cigi::HatHotType::Extended) {
             cigi::HatHotExtendedResponse a;
             a.requestId = q->requestId;
@@ -292,21 +310,27 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn) 
         requestId = s->requestId;
         extended = s->extended;
         segment = true;
-        source = geo_.worldFromGeodetic(s->sourceLatOrX, s->sourceLonOrY, s->sourceAltOrZ);
-        dir = geo_.worldFromGeodetic(s->destinationLatOrX, s->destinationLonOrY,
-                                     s->destinationAltOrZ) -
+        bool known = true;
+        source = point(s->sourceEntityCoordinates, s->entityId, s->sourceLatOrX, s->sourceLonOrY,
+                       s->sourceAltOrZ, known);
+        // The destination's entity is the request's unless it names one of its own.
+        dir = point(s->destinationEntityCoordinates,
+                    s->destinationEntityIdValid ? s->destinationEntityId : s->entityId,
+                    s->destinationLatOrX, s->destinationLonOrY, s->destinationAltOrZ, known) -
               source;
         maxRange = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
-        valid = !s->sourceEntityCoordinates && !s->destinationEntityCoordinates && maxRange > 0.0;
+        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
     } else if (const auto* v = std::get_if<cigi::LosVectorRequest>(&request)) {
         requestId = v->requestId;
         extended = v->extended;
-        source = geo_.worldFromGeodetic(v->sourceLatOrX, v->sourceLonOrY, v->sourceAltOrZ);
+        bool known = true;
+        source = point(v->sourceEntityCoordinates, v->entityId, v->sourceLatOrX, v->sourceLonOrY,
+                       v->sourceAltOrZ, known);
         const double az = v->azimuthDeg * kDeg, el = v->elevationDeg * kDeg;
         dir = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
         minRange = v->minRangeM;
         maxRange = v->maxRangeM;
-        valid = !v->sourceEntityCoordinates && maxRange > 0.0;
+        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
     } else {
         CHECK(false) << "not a request: " << cigi::packetName(request);
     }
@@ -401,7 +425,7 @@ void CigiSession::poll(double t) {
     const std::size_t answered =
         std::min(pending_.size(), static_cast<std::size_t>(options_.maxAnswersPerField));
     for (std::size_t i = 0; i < answered; ++i) {
-        cigi::encodePacket(answer(pending_[i].request, pending_[i].hostFrameLsn),
+        cigi::encodePacket(answer(pending_[i].request, pending_[i].hostFrameLsn, t),
                            cigi::ByteOrder::Big, out_);
     }
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(answered));

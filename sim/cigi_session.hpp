@@ -114,8 +114,11 @@ class CigiSession {
     CigiStats& stats() { return stats_; }
     const GeoFrame& geo() const { return geo_; }
 
-    // The answers to one request, as sent (public for tests and tools).
-    io::cigi::Packet answer(const io::cigi::Packet& request, std::uint8_t hostFrameLsn) const;
+    // The answer to one request at simulation time t, as sent (public for tests and tools).
+    // Entity coordinates are offsets from the ownship (entity 0) in its own axes: x forward,
+    // y right, z down; other entities' answer invalid.
+    io::cigi::Packet answer(const io::cigi::Packet& request, std::uint8_t hostFrameLsn,
+                            double t) const;
 
   private:
     struct Pending {

@@ -586,6 +586,59 @@ TEST(CigiSession, AnswersHeightAndLineOfSightFromTheTerrainExactly) {
     RecordProperty("worst_los_range_m", figure(worstRange));
 }
 
+// Entity coordinates: offsets from the ownship in its axes (x forward, y right, z down).
+TEST(CigiSession, AnswersInTheOwnshipsCoordinates) {
+    World world;
+    sim::CigiPoseSource source(world.map, world.options());
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    world.host.ig = source.session().localEndpoint();
+    const glm::dvec3 p0{1000.0, 1500.0, world.map.maxHeight() + 400.0};
+    const glm::dvec3 g = source.session().geo().geodeticFromWorld(p0);
+    cigi::EntityControl e;
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    e.yawDeg = 90.0f;  // east
+    cigi::RateControl r;
+    r.yRate = 60.0f;  // east, 60 m/s: answers are for the field's dead-reckoned ownship
+    world.host.send({e, r});
+    source.advanceTo(0.0);
+
+    std::vector<cigi::Packet> requests;
+    for (std::uint16_t id = 0; id < 3; ++id) {
+        cigi::HatHotRequest q;
+        q.requestId = id;
+        q.type = cigi::HatHotType::Hat;
+        q.entityCoordinates = true;
+        q.latOrX = id == 1 ? 200.0 : 0.0;  // 200 m ahead
+        q.entityId = id == 2 ? 7 : 0;      // an entity this image generator does not know
+        requests.push_back(q);
+    }
+    cigi::LosVectorRequest down;  // straight down from the ownship
+    down.requestId = 3;
+    down.sourceEntityCoordinates = true;
+    down.elevationDeg = -90.0f;
+    down.maxRangeM = 10000.0f;
+    requests.push_back(down);
+    world.host.send(requests);
+    const double t = 0.5;
+    source.advanceTo(t);
+    const auto messages = world.host.receiveAll();
+    const auto hats = packetsOf<cigi::HatHotResponse>(messages);
+    ASSERT_EQ(hats.size(), 3u);
+    const glm::dvec3 at{p0.x + 60.0 * t, p0.y, p0.z};
+    EXPECT_TRUE(hats[0].valid);
+    EXPECT_NEAR(hats[0].heightM, at.z - world.map.surfaceHeight(at.x, at.y), 1e-6);
+    EXPECT_TRUE(hats[1].valid);
+    EXPECT_NEAR(hats[1].heightM, at.z - world.map.surfaceHeight(at.x + 200.0, at.y), 1e-6);
+    EXPECT_FALSE(hats[2].valid);
+    const auto los = packetsOf<cigi::LosResponse>(messages);
+    ASSERT_EQ(los.size(), 1u);
+    EXPECT_TRUE(los[0].valid);
+    EXPECT_NEAR(los[0].rangeM, at.z - world.map.surfaceHeight(at.x, at.y), 1e-6);
+}
+
 // Bad traffic: refused datagrams are counted and the first few reported; fields go on.
 TEST(CigiSession, BadTrafficNeverStopsTheFields) {
     World world;
