@@ -156,6 +156,7 @@ CigiSession::CigiSession(const ig::TerrainMap& map, const CigiOptions& options)
     in_.resize(65536);
     out_.reserve(65536);
     pending_.reserve(options_.maxPendingRequests);
+    repeating_.reserve(kMaxRepeating);
     message_.packets.reserve(64);
     stats_.firstErrors.reserve(CigiStats::kReportedErrors);
     ownship_.time = options_.startTime;
@@ -221,6 +222,7 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ownship_.pose = options_.startPose;
             rates_ = {};
             pending_.clear();
+            repeating_.clear();
         }
         igMode_ = ig->igMode;
     } else if (const auto* e = std::get_if<cigi::EntityControl>(&packet)) {
@@ -254,6 +256,28 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
         }
         if (!operating) {
             ++stats_.ignoredPackets;
+            return;
+        }
+        // A request with an update period is answered every that many fields until a request
+        // of the same kind and id replaces it (period 0: once, and the repeating one ends).
+        const auto [id, period] = std::visit(
+            [](const auto& q) -> std::pair<std::uint16_t, std::uint8_t> {
+                if constexpr (requires { q.updatePeriod; }) {
+                    return {q.requestId, q.updatePeriod};
+                } else {
+                    return {0, 0};
+                }
+            },
+            packet);
+        std::erase_if(repeating_, [&, id = id](const Repeating& old) {
+            return old.request.index() == packet.index() && old.requestId == id;
+        });
+        if (period > 0) {
+            if (repeating_.size() >= kMaxRepeating) {
+                ++stats_.droppedRequests;
+            } else {
+                repeating_.push_back({packet, id, period, igFrame_});
+            }
         } else if (pending_.size() >= options_.maxPendingRequests) {
             ++stats_.droppedRequests;
         } else {
@@ -430,6 +454,12 @@ void CigiSession::poll(double t) {
     }
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(answered));
     stats_.answers += answered;
+    const std::uint8_t lastLsn = static_cast<std::uint8_t>(stats_.lastHostFrame & 15u);
+    for (const Repeating& r : repeating_) {
+        if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
+        cigi::encodePacket(answer(r.request, lastLsn, t), cigi::ByteOrder::Big, out_);
+        ++stats_.answers;
+    }
     ++igFrame_;
     if (socket_.isOpen()) {
         const int rc = socket_.sendTo(out_, options_.host);

@@ -72,7 +72,9 @@ struct CigiOptions {
     ig::Pose startPose;      // held until the first Entity Control for entity 0
     double startTime = 0.0;  // simulation time of the first field (Start of Frame timestamp 0)
     int maxDatagramsPerField = 256;  // more wait for the next field (or the kernel drops them)
-    int maxAnswersPerField = 64;     // HAT/HOT and LOS answers in one Start of Frame datagram
+    // One-time HAT/HOT and LOS answers in one Start of Frame datagram (the rest wait); requests
+    // with an update period (at most 64) are answered on top.
+    int maxAnswersPerField = 64;
     std::size_t maxPendingRequests = 1024;  // beyond, requests are dropped and counted
 };
 
@@ -125,6 +127,15 @@ class CigiSession {
         io::cigi::Packet request;
         std::uint8_t hostFrameLsn = 0;
     };
+    struct Repeating {
+        io::cigi::Packet request;
+        std::uint16_t requestId = 0;
+        std::uint8_t period = 1;
+        std::uint32_t firstFrame = 0;
+    };
+    // Requests with an update period answered at once, each field (beyond, dropped).
+    static constexpr std::size_t kMaxRepeating = 64;
+
     void apply(const io::cigi::Packet& packet, double t, std::uint8_t& lsn);
     void setRates(double t);
     void noteError(const std::string& message);
@@ -136,6 +147,7 @@ class CigiSession {
     io::cigi::Message message_;
     std::vector<std::uint8_t> in_, out_;
     std::vector<Pending> pending_;
+    std::vector<Repeating> repeating_;
     DeadReckoning ownship_;
     io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;

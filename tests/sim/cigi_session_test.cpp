@@ -639,6 +639,49 @@ TEST(CigiSession, AnswersInTheOwnshipsCoordinates) {
     EXPECT_NEAR(los[0].rangeM, at.z - world.map.surfaceHeight(at.x, at.y), 1e-6);
 }
 
+// A request with an update period is answered every that many fields, at each field's pose,
+// until a request with the same id and period 0 (answered once) ends it.
+TEST(CigiSession, RepeatingRequestsFollowTheOwnshipUntilCancelled) {
+    World world;
+    sim::CigiPoseSource source(world.map, world.options());
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    world.host.ig = source.session().localEndpoint();
+    const glm::dvec3 p0{800.0, 900.0, world.map.maxHeight() + 300.0};
+    const glm::dvec3 g = source.session().geo().geodeticFromWorld(p0);
+    cigi::EntityControl e;
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    cigi::RateControl r;
+    r.xRate = 90.0f;  // north
+    cigi::HatHotRequest q;
+    q.requestId = 42;
+    q.type = cigi::HatHotType::Hot;
+    q.entityCoordinates = true;
+    q.updatePeriod = 2;
+    world.host.send({e, r, q});
+    std::vector<int> answeredAt;
+    for (int n = 0; n < 10; ++n) {
+        if (n == 7) {
+            q.updatePeriod = 0;
+            world.host.send({q});
+        }
+        const double t = n * kPeriod;
+        source.advanceTo(t);
+        for (const cigi::HatHotResponse& a :
+             packetsOf<cigi::HatHotResponse>(world.host.receiveAll())) {
+            EXPECT_EQ(a.requestId, 42);
+            EXPECT_TRUE(a.valid);
+            EXPECT_NEAR(
+                a.heightM,
+                world.map.surfaceHeight(p0.x, p0.y + 90.0 * t) + world.options().origin.altM, 1e-6);
+            answeredAt.push_back(n);
+        }
+    }
+    EXPECT_EQ(answeredAt, (std::vector<int>{0, 2, 4, 6, 7}));
+}
+
 // Bad traffic: refused datagrams are counted and the first few reported; fields go on.
 TEST(CigiSession, BadTrafficNeverStopsTheFields) {
     World world;
