@@ -8,9 +8,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <thread>
 #include <type_traits>
 #include <variant>
 
@@ -498,6 +500,16 @@ ig::Pose CigiPoseSource::advanceTo(double t) {
     latest_.back() = session_.ownship();
     latest_.publish();
     return clamped(session_.ownship().at(t), true);
+}
+
+bool CigiPoseSource::waitForHost(double seconds) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (true) {
+        advanceTo(startTime_);
+        if (session_.stats().entityUpdates > 0) return true;
+        if (std::chrono::steady_clock::now() >= until) return false;
+        std::this_thread::sleep_for(std::chrono::microseconds(16683));
+    }
 }
 
 ig::Pose CigiPoseSource::predict(double t) {

@@ -167,6 +167,11 @@ class CigiPoseSource final : public PoseSource {
     ig::Pose predict(double t) override;
     double startTime() const override { return startTime_; }
 
+    // Before a run (never during one): polls at the start time once a field period of wall
+    // time, each poll sending Start of Frame (a synchronous host answers those), until the
+    // host's first Entity Control arrives or `seconds` pass. Whether it arrived.
+    bool waitForHost(double seconds);
+
     CigiSession& session() { return session_; }
     const CigiSession& session() const { return session_; }
 

@@ -58,7 +58,8 @@ CIGI: --cigi [ADDR:]PORT --cigi-host ADDR:PORT --cigi-origin LAT,LON[,ALT] lets 
 drive the ownship (entity 0, dead-reckoned with its Rate Control to every field's instant) and
 ask HAT/HOT and line-of-sight questions; Start of Frame goes to the host every field. The origin
 is the geodetic position of the map's south-west sample at height 0 (a local tangent plane
-about it). Until the first Entity Control the ownship holds the --start pose.
+about it). Until the first Entity Control the ownship holds the --start pose; --cigi-wait S
+waits up to S seconds for it before the first field.
 
 Outputs: a file is written beside its path and renamed into place when complete; a device or
 FIFO is written in place; an output on an input or another output is refused before the run;
@@ -135,6 +136,7 @@ int main(int argc, char** argv) {
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false, overwrite = false;
     std::string cigiBind, cigiHost, cigiOrigin;
+    double cigiWait = 0.0;
 
     auto* trajectoryOpt =
         app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
@@ -147,6 +149,10 @@ int main(int argc, char** argv) {
                    "free port)")
         ->excludes(trajectoryOpt);
     app.add_option("--cigi-host", cigiHost, "CIGI: send Start of Frame to ADDR:PORT");
+    app.add_option("--cigi-wait", cigiWait,
+                   "CIGI: before the first field, wait up to this many seconds for the host's "
+                   "first Entity Control, sending Start of Frame meanwhile (0: start at once)")
+        ->capture_default_str();
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
                    "metres)");
@@ -262,6 +268,10 @@ int main(int argc, char** argv) {
                     "--cigi-origin: needed with --cigi (LAT,LON[,ALT] of the map's origin)");
             }
             cigiOptions.origin = sim::parseGeoOrigin(cigiOrigin, "--cigi-origin");
+            if (!(cigiWait >= 0.0 && cigiWait <= 3600.0)) {
+                throw ig::InputError("--cigi-wait " + base::number(cigiWait) +
+                                     ": must be 0 .. 3600 seconds");
+            }
         } else if (!cigiHost.empty() || !cigiOrigin.empty()) {
             throw ig::InputError(std::string(cigiHost.empty() ? "--cigi-origin" : "--cigi-host") +
                                  ": only with --cigi [ADDR:]PORT");
@@ -346,6 +356,13 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "flythrough: CIGI on %s, Start of Frame to %s\n",
                          io::toString(source->session().localEndpoint()).c_str(),
                          io::toString(cigiOptions.host).c_str());
+            if (cigiWait > 0.0) {
+                const bool heard = source->waitForHost(cigiWait);
+                std::fprintf(stderr, "flythrough: %s\n",
+                             heard ? "the host's first Entity Control arrived"
+                                   : "no Entity Control from the host yet: starting at the "
+                                     "start pose");
+            }
             flightName = "CIGI host " + io::toString(cigiOptions.host);
             flightSeconds = scenario.duration;
             cigiSource = source.get();

@@ -307,6 +307,12 @@ TEST(CigiSession, HoldsTheStartPoseUntilTheFirstEntityControlAndAfterAReset) {
     EXPECT_EQ(source.advanceTo(0.0).position, options.startPose.position);
     EXPECT_EQ(source.predict(1.0).position, options.startPose.position);
     EXPECT_EQ(source.session().igMode(), cigi::IgMode::Reset);
+    // No host: the wait ends at its limit, a Start of Frame sent every field period meanwhile.
+    const auto before = std::chrono::steady_clock::now();
+    EXPECT_FALSE(source.waitForHost(0.05));
+    EXPECT_LT(std::chrono::steady_clock::now() - before, std::chrono::seconds(1));
+    EXPECT_GE(packetsOf<cigi::StartOfFrame>(world.host.receiveAll()).size(), 2u);
+    source.advanceTo(0.0);
 
     cigi::EntityControl e;
     const glm::dvec3 g =
@@ -858,6 +864,7 @@ TEST(CigiSession, HostDrivenFieldsAgainstTheSameTrajectoryFromCsv) {
     // A host already sending when the run starts: its first message is taken before frame 0
     // is rendered (as the CSV path's frame 0 shows the line's start).
     host.advanceTo(0.0);
+    EXPECT_TRUE(source.waitForHost(0.0));
     const auto fromHost = captureFields(world, host, seconds);
     ASSERT_EQ(fromHost.size(), fromCsv.size());
 
