@@ -10,7 +10,9 @@
 #include "io/output_file.hpp"
 #include "io/stick.hpp"
 #include "io/stop_signals.hpp"
+#include "io/udp_socket.hpp"
 #include "prp/field.hpp"
+#include "sim/cigi_session.hpp"
 #include "sim/pipeline.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/scenario.hpp"
@@ -51,6 +53,13 @@ down|up" per line. Trajectory CSV: a header naming t,x,y,z,yaw_deg,pitch_deg,rol
 --start X,Y,Z,HEADING (metres, degrees; Z written +H is H metres above the terrain) sets where
 a stick flight begins (default: the scenario's start on Puget Sound, else over the south-west
 of the map heading north-east).
+
+CIGI: --cigi [ADDR:]PORT --cigi-host ADDR:PORT --cigi-origin LAT,LON[,ALT] lets a CIGI 3.3 host
+drive the ownship (entity 0, dead-reckoned with its Rate Control to every field's instant) and
+ask HAT/HOT and line-of-sight questions; Start of Frame goes to the host every field. The origin
+is the geodetic position of the map's south-west sample at height 0 (a local tangent plane
+about it). Until the first Entity Control the ownship holds the --start pose; --cigi-wait S
+waits up to S seconds for it before the first field.
 
 Outputs: a file is written beside its path and renamed into place when complete; a device or
 FIFO is written in place; an output on an input or another output is refused before the run;
@@ -126,6 +135,8 @@ int main(int argc, char** argv) {
     std::string levelsText = "auto";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false, overwrite = false;
+    std::string cigiBind, cigiHost, cigiOrigin;
+    double cigiWait = 0.0;
 
     auto* trajectoryOpt =
         app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
@@ -133,6 +144,18 @@ int main(int argc, char** argv) {
         ->excludes(trajectoryOpt);
     app.add_option("--start", startText, "Stick flight start X,Y,Z,HEADING (metres, degrees)")
         ->excludes(trajectoryOpt);
+    app.add_option("--cigi", cigiBind,
+                   "Be driven by a CIGI 3.3 host: receive its UDP messages on [ADDR:]PORT (0: any "
+                   "free port)")
+        ->excludes(trajectoryOpt);
+    app.add_option("--cigi-host", cigiHost, "CIGI: send Start of Frame to ADDR:PORT");
+    app.add_option("--cigi-wait", cigiWait,
+                   "CIGI: before the first field, wait up to this many seconds for the host's "
+                   "first Entity Control, sending Start of Frame meanwhile (0: start at once)")
+        ->capture_default_str();
+    app.add_option("--cigi-origin", cigiOrigin,
+                   "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
+                   "metres)");
     app.add_option("--duration", duration,
                    "Seconds to fly (default: the scenario's 10 s, or the trajectory's span)");
     app.add_option("--render-hz", renderHz, "Cap on the render rate (0: as fast as it can)")
@@ -221,6 +244,38 @@ int main(int argc, char** argv) {
             throw ig::InputError("--hold-after-ms " + base::number(holdAfterMs) +
                                  ": must be 0 (never) .. 3600000");
         }
+        // CIGI: every flag checked before anything is loaded.
+        const bool cigi = !cigiBind.empty();
+        sim::CigiOptions cigiOptions;
+        if (cigi) {
+            if (!stickSpec.empty()) throw ig::InputError("--cigi: cannot be used with --stick");
+            if (const std::string bad =
+                    io::parseUdpEndpoint(cigiBind, true, true, cigiOptions.bind);
+                !bad.empty()) {
+                throw ig::InputError("--cigi " + base::quoted(cigiBind) + ": " + bad +
+                                     " (expected [ADDR:]PORT)");
+            }
+            if (cigiHost.empty()) {
+                throw ig::InputError("--cigi-host: needed with --cigi (ADDR:PORT of the host)");
+            }
+            if (const std::string bad =
+                    io::parseUdpEndpoint(cigiHost, false, false, cigiOptions.host);
+                !bad.empty()) {
+                throw ig::InputError("--cigi-host " + base::quoted(cigiHost) + ": " + bad);
+            }
+            if (cigiOrigin.empty()) {
+                throw ig::InputError(
+                    "--cigi-origin: needed with --cigi (LAT,LON[,ALT] of the map's origin)");
+            }
+            cigiOptions.origin = sim::parseGeoOrigin(cigiOrigin, "--cigi-origin");
+            if (!(cigiWait >= 0.0 && cigiWait <= 3600.0)) {
+                throw ig::InputError("--cigi-wait " + base::number(cigiWait) +
+                                     ": must be 0 .. 3600 seconds");
+            }
+        } else if (!cigiHost.empty() || !cigiOrigin.empty()) {
+            throw ig::InputError(std::string(cigiHost.empty() ? "--cigi-origin" : "--cigi-host") +
+                                 ": only with --cigi [ADDR:]PORT");
+        }
         std::optional<sim::RendererFault> fault;
         if (!faultText.empty()) {
             if (!rendererProcess) {
@@ -287,7 +342,32 @@ int main(int argc, char** argv) {
         std::unique_ptr<sim::PoseSource> poses;
         double flightSeconds = 10.0;
         std::string flightName;
-        if (!trajectoryPath.empty()) {
+        sim::CigiPoseSource* cigiSource = nullptr;
+        if (cigi) {
+            const sim::Scenario scenario = sim::defaultScenario();
+            sim::FlightState start =
+                shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
+            if (!startText.empty()) start = parseStart(startText, map, scenario.limits);
+            cigiOptions.startPose.position = start.position;
+            cigiOptions.startPose.yaw = start.heading;
+            cigiOptions.startTime = 0.0;
+            auto source = std::make_unique<sim::CigiPoseSource>(map, cigiOptions);
+            if (source->open(&error) != 0) throw ig::InputError("--cigi " + error);
+            std::fprintf(stderr, "flythrough: CIGI on %s, Start of Frame to %s\n",
+                         io::toString(source->session().localEndpoint()).c_str(),
+                         io::toString(cigiOptions.host).c_str());
+            if (cigiWait > 0.0) {
+                const bool heard = source->waitForHost(cigiWait);
+                std::fprintf(stderr, "flythrough: %s\n",
+                             heard ? "the host's first Entity Control arrived"
+                                   : "no Entity Control from the host yet: starting at the "
+                                     "start pose");
+            }
+            flightName = "CIGI host " + io::toString(cigiOptions.host);
+            flightSeconds = scenario.duration;
+            cigiSource = source.get();
+            poses = std::move(source);
+        } else if (!trajectoryPath.empty()) {
             sim::Trajectory trajectory = sim::Trajectory::loadCsv(trajectoryPath);
             sim::checkTrajectoryClearance(
                 trajectory, map, trajectoryPath, 1.0, 0.05,
@@ -402,6 +482,24 @@ int main(int argc, char** argv) {
                          io::stopSignalNumber(), static_cast<std::size_t>(result.stats.fields));
         }
         std::fprintf(stderr, "%s", sim::formatSummary(result.stats).c_str());
+        if (cigiSource) {
+            const sim::CigiStats& c = cigiSource->session().stats();
+            std::fprintf(stderr,
+                         "cigi: %llu datagrams (%llu refused), %llu entity and %llu rate updates, "
+                         "%llu answers, %llu Start of Frame sent (%llu send errors), last host "
+                         "frame %u, %llu poses lifted above the terrain\n",
+                         static_cast<unsigned long long>(c.datagrams),
+                         static_cast<unsigned long long>(c.badDatagrams),
+                         static_cast<unsigned long long>(c.entityUpdates),
+                         static_cast<unsigned long long>(c.rateUpdates),
+                         static_cast<unsigned long long>(c.answers),
+                         static_cast<unsigned long long>(c.framesSent),
+                         static_cast<unsigned long long>(c.sendErrors), c.lastHostFrame,
+                         static_cast<unsigned long long>(c.clampedPoses));
+            for (const std::string& e : c.firstErrors) {
+                std::fprintf(stderr, "cigi: %s\n", e.c_str());
+            }
+        }
         const std::string videoPath = io::sinkPath(outSpec);
         std::fprintf(report, "video: %s\n",
                      videoPath.empty() ? outSpec.c_str() : videoPath.c_str());
@@ -423,6 +521,22 @@ int main(int argc, char** argv) {
             j["warp"] = warpText;
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
+            if (cigiSource) {
+                const sim::CigiStats& c = cigiSource->session().stats();
+                j["cigi"] = {{"datagrams", c.datagrams},
+                             {"bad_datagrams", c.badDatagrams},
+                             {"skipped_packets", c.skippedPackets},
+                             {"ignored_packets", c.ignoredPackets},
+                             {"entity_updates", c.entityUpdates},
+                             {"rate_updates", c.rateUpdates},
+                             {"answers", c.answers},
+                             {"dropped_requests", c.droppedRequests},
+                             {"start_of_frame_sent", c.framesSent},
+                             {"send_errors", c.sendErrors},
+                             {"last_host_frame", c.lastHostFrame},
+                             {"clamped_poses", c.clampedPoses},
+                             {"first_errors", c.firstErrors}};
+            }
             io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }
         return result.stopped ? io::exitStatusForStop() : 0;

@@ -293,6 +293,32 @@ start_underground)
     must_refuse "--start.*not above the terrain" "$fly" --start 80000,80000,-100,0 --out null \
         --duration 0.1 --contact none
     ;;
+cigi_garbage_host)
+    # A "host" sending garbage and half-right datagrams during a wall-clock run: every field
+    # still leaves, the run ends normally, and the JSON counts what it refused.
+    "$fly" --synthetic 128 --cigi 127.0.0.1:0 --cigi-host 127.0.0.1:9 --cigi-origin 47,-122 \
+        --duration 2 --out null --contact none --json "$tmp/run.json" "${fly_small[@]}" \
+        2>"$tmp/err" &
+    pid=$!
+    port=""
+    for _ in $(seq 200); do
+        port=$(grep -o 'CIGI on 127\.0\.0\.1:[0-9]*' "$tmp/err" | grep -o '[0-9]*$')
+        [ -n "$port" ] && break
+        sleep 0.05
+    done
+    [ -n "$port" ] || { kill "$pid"; fail "no CIGI port announced: $(cat "$tmp/err")"; }
+    for i in $(seq 200); do
+        printf 'garbage %d' "$i" >"/dev/udp/127.0.0.1/$port"
+        # IG Control's first bytes, cut short.
+        printf '\x01\x18\x03\x00\x31\x00\x80\x00' >"/dev/udp/127.0.0.1/$port"
+    done
+    wait "$pid" || fail "flythrough exited $?: $(cat "$tmp/err")"
+    grep -q '"fields": 120' "$tmp/run.json" || fail "not every field: $(cat "$tmp/run.json")"
+    bad=$(grep -o '"bad_datagrams": [0-9]*' "$tmp/run.json" | grep -o '[0-9]*$')
+    # (a burst beyond the socket buffer, about 256 small datagrams, is dropped by the kernel)
+    [ "${bad:-0}" -ge 100 ] || fail "refused datagrams not counted ($bad): $(cat "$tmp/err")"
+    grep -q 'cigi: CIGI message from the host' "$tmp/err" || fail "no refusal reported: $(cat "$tmp/err")"
+    ;;
 *)
     fail "unknown case"
     ;;

@@ -1,0 +1,520 @@
+#include "sim/cigi_session.hpp"
+
+#include "base/check.hpp"
+#include "base/error.hpp"
+#include "base/text.hpp"
+#include "ig/surface_hit.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <numbers>
+#include <thread>
+#include <type_traits>
+#include <variant>
+
+namespace sim {
+
+namespace cigi = io::cigi;
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+// WGS 84.
+constexpr double kEarthA = 6378137.0;
+constexpr double kEarthF = 1.0 / 298.257223563;
+constexpr double kEarthE2 = kEarthF * (2.0 - kEarthF);
+
+bool parseDouble(std::string_view text, double& value) {
+    while (!text.empty() && text.front() == ' ')
+        text.remove_prefix(1);
+    while (!text.empty() && text.back() == ' ')
+        text.remove_suffix(1);
+    if (text.empty()) return false;
+    if (text.front() == '+') text.remove_prefix(1);
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+    return ec == std::errc() && end == text.data() + text.size() && std::isfinite(value);
+}
+
+double wrapLongitude(double lon) {
+    if (lon >= -180.0 && lon <= 180.0) return lon;
+    lon = std::fmod(lon + 180.0, 360.0);
+    if (lon < 0.0) lon += 360.0;
+    return lon - 180.0;
+}
+
+// Gradient of the bilinear surface at (x, y), as TerrainMap::surfaceHeight interpolates it.
+glm::dvec2 surfaceGradient(const ig::TerrainMap& map, double x, double y) {
+    const auto cell = [](double v, double spacing, int n, int& i, double& f) {
+        const double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
+        i = std::min(static_cast<int>(g), std::max(n - 2, 0));
+        f = g - i;
+    };
+    int ix, iy;
+    double fx, fy;
+    cell(x, map.spacingX(), map.width(), ix, fx);
+    cell(y, map.spacingY(), map.height(), iy, fy);
+    const int ix1 = std::min(ix + 1, map.width() - 1), iy1 = std::min(iy + 1, map.height() - 1);
+    const double h00 = map.heightAt(ix, iy), h10 = map.heightAt(ix1, iy);
+    const double h01 = map.heightAt(ix, iy1), h11 = map.heightAt(ix1, iy1);
+    return {((h10 - h00) * (1 - fy) + (h11 - h01) * fy) / map.spacingX(),
+            ((h01 - h00) * (1 - fx) + (h11 - h10) * fx) / map.spacingY()};
+}
+
+// Azimuth (clockwise from north) and elevation of the surface normal, degrees.
+void normalAngles(const ig::TerrainMap& map, double x, double y, float& azimuthDeg,
+                  float& elevationDeg) {
+    const glm::dvec2 g = surfaceGradient(map, x, y);
+    const double slope = std::hypot(g.x, g.y);
+    azimuthDeg = slope > 0.0 ? static_cast<float>(std::atan2(-g.x, -g.y) / kDeg) : 0.0f;
+    elevationDeg = static_cast<float>(std::atan2(1.0, slope) / kDeg);
+}
+
+// A vector in an entity's axes (x forward, y right, z down) in world axes (x east, y north,
+// z up), for the pose's yaw (clockwise from north), pitch (up) and roll (right wing down).
+glm::dvec3 worldFromBody(const ig::Pose& pose, const glm::dvec3& v) {
+    const double cy = std::cos(pose.yaw), sy = std::sin(pose.yaw);
+    const double cp = std::cos(pose.pitch), sp = std::sin(pose.pitch);
+    const double cr = std::cos(pose.roll), sr = std::sin(pose.roll);
+    const glm::dvec3 forward{sy * cp, cy * cp, sp};
+    const glm::dvec3 right0{cy, -sy, 0.0};
+    const glm::dvec3 up0{-sy * sp, -cy * sp, cp};
+    const glm::dvec3 right = right0 * cr - up0 * sr;
+    const glm::dvec3 up = up0 * cr + right0 * sr;
+    return forward * v.x + right * v.y - up * v.z;
+}
+
+bool onMap(const ig::TerrainMap& map, double x, double y) {
+    return x >= 0.0 && y >= 0.0 && x <= map.extentX() && y <= map.extentY();
+}
+
+}  // namespace
+
+GeoOrigin parseGeoOrigin(std::string_view text, std::string_view flag) {
+    const std::string what = std::string(flag) + " " + base::quoted(text);
+    double v[3] = {0.0, 0.0, 0.0};
+    int n = 0;
+    std::string_view rest = text;
+    while (true) {
+        const std::size_t comma = rest.find(',');
+        if (n == 3 || !parseDouble(rest.substr(0, comma), v[n])) {
+            throw base::InputError(what + ": expected LAT,LON[,ALT] (degrees, degrees, metres)");
+        }
+        ++n;
+        if (comma == std::string_view::npos) break;
+        rest.remove_prefix(comma + 1);
+    }
+    if (n < 2) throw base::InputError(what + ": expected LAT,LON[,ALT] (degrees, degrees, metres)");
+    if (!(std::abs(v[0]) <= 85.0)) {
+        throw base::InputError(what + ": latitude " + base::number(v[0]) +
+                               " is outside [-85, 85] degrees (a local tangent plane near a "
+                               "pole is not supported)");
+    }
+    if (!(std::abs(v[1]) <= 180.0)) {
+        throw base::InputError(what + ": longitude " + base::number(v[1]) +
+                               " is outside [-180, 180] degrees");
+    }
+    if (!(std::abs(v[2]) <= 100000.0)) {
+        throw base::InputError(what + ": altitude " + base::number(v[2]) +
+                               " is outside [-100000, 100000] metres");
+    }
+    return {v[0], v[1], v[2]};
+}
+
+GeoFrame::GeoFrame(const GeoOrigin& origin) : origin_(origin) {
+    const double s = std::sin(origin.latDeg * kDeg);
+    const double w = std::sqrt(1.0 - kEarthE2 * s * s);
+    const double meridian = kEarthA * (1.0 - kEarthE2) / (w * w * w);
+    const double primeVertical = kEarthA / w;
+    perLat_ = meridian * kDeg;
+    perLon_ = primeVertical * std::cos(origin.latDeg * kDeg) * kDeg;
+}
+
+glm::dvec3 GeoFrame::worldFromGeodetic(double latDeg, double lonDeg, double altM) const {
+    return {wrapLongitude(lonDeg - origin_.lonDeg) * perLon_, (latDeg - origin_.latDeg) * perLat_,
+            altM - origin_.altM};
+}
+
+glm::dvec3 GeoFrame::geodeticFromWorld(const glm::dvec3& world) const {
+    return {std::clamp(origin_.latDeg + world.y / perLat_, -90.0, 90.0),
+            wrapLongitude(origin_.lonDeg + world.x / perLon_), world.z + origin_.altM};
+}
+
+ig::Pose DeadReckoning::at(double t) const {
+    const double dt = t - time;
+    ig::Pose p = pose;
+    p.position += velocity * dt;
+    p.yaw += yawRate * dt;
+    p.pitch = std::clamp(p.pitch + pitchRate * dt, -0.5 * std::numbers::pi, 0.5 * std::numbers::pi);
+    p.roll += rollRate * dt;
+    return p;
+}
+
+CigiSession::CigiSession(const ig::TerrainMap& map, const CigiOptions& options)
+    : map_(map), options_(options), geo_(options.origin) {
+    in_.resize(65536);
+    out_.reserve(65536);
+    pending_.reserve(options_.maxPendingRequests);
+    repeating_.reserve(kMaxRepeating);
+    message_.packets.reserve(64);
+    stats_.firstErrors.reserve(CigiStats::kReportedErrors);
+    ownship_.time = options_.startTime;
+    ownship_.pose = options_.startPose;
+}
+
+int CigiSession::open(std::string* error) {
+    const int rc = socket_.open(options_.bind);
+    if (rc != 0 && error) {
+        *error = "cannot bind UDP " + io::toString(options_.bind) + ": " + std::strerror(-rc);
+    }
+    return rc;
+}
+
+void CigiSession::noteError(const std::string& message) {
+    if (stats_.firstErrors.size() < CigiStats::kReportedErrors) {
+        stats_.firstErrors.push_back(message);
+    }
+}
+
+void CigiSession::setRates(double t) {
+    // Re-based at t: the pose reached with the old rates, the new rates from here.
+    ownship_.pose = ownship_.at(t);
+    ownship_.time = t;
+    const cigi::RateControl& r = rates_;
+    const double x = r.xRate, y = r.yRate, z = r.zRate;
+    const double rollRate = r.rollRateDeg * kDeg, pitchRate = r.pitchRateDeg * kDeg,
+                 yawRate = r.yawRateDeg * kDeg;
+    if (!r.localCoordinates) {
+        // World rates of a top-level entity: x north, y east, z down (CIGI's axes).
+        ownship_.velocity = {y, x, -z};
+        ownship_.rollRate = rollRate;
+        ownship_.pitchRate = pitchRate;
+        ownship_.yawRate = yawRate;
+        return;
+    }
+    // Body rates: x forward, y right, z down, turned into world axes at the pose of time t (the
+    // velocity is then held until the next update: linear dead reckoning).
+    ownship_.velocity = worldFromBody(ownship_.pose, {x, y, z});
+    const double cp = std::cos(ownship_.pose.pitch);
+    const double cr = std::cos(ownship_.pose.roll), sr = std::sin(ownship_.pose.roll);
+    // Body angular rates (p roll, q pitch, r yaw) to Euler angle rates.
+    const double tp = std::tan(ownship_.pose.pitch);
+    const double safeCp = std::max(std::abs(cp), 1e-6);
+    ownship_.rollRate = rollRate + (pitchRate * sr + yawRate * cr) * tp;
+    ownship_.pitchRate = pitchRate * cr - yawRate * sr;
+    ownship_.yawRate = (pitchRate * sr + yawRate * cr) / safeCp;
+}
+
+void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn) {
+    const bool operating = igMode_ != cigi::IgMode::Reset;
+    if (const auto* ig = std::get_if<cigi::IgControl>(&packet)) {
+        ++stats_.igControls;
+        stats_.hostSeen = true;
+        stats_.lastHostFrame = ig->hostFrameNumber;
+        stats_.lastHostTimestamp = ig->timestamp;
+        lsn = static_cast<std::uint8_t>(ig->hostFrameNumber & 15u);
+        if (ig->igMode == cigi::IgMode::Reset) {
+            if (igMode_ != cigi::IgMode::Reset) ++stats_.resets;
+            // Reset: the ownship goes back to its start pose, still; requests are forgotten.
+            ownship_ = DeadReckoning{};
+            ownship_.time = t;
+            ownship_.pose = options_.startPose;
+            rates_ = {};
+            pending_.clear();
+            repeating_.clear();
+        }
+        igMode_ = ig->igMode;
+    } else if (const auto* e = std::get_if<cigi::EntityControl>(&packet)) {
+        if (!operating || e->entityId != 0 || e->attached) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        ++stats_.entityUpdates;
+        ownship_.time = t;
+        ownship_.pose.position = geo_.worldFromGeodetic(e->latOrX, e->lonOrY, e->altOrZ);
+        ownship_.pose.yaw = e->yawDeg * kDeg;
+        ownship_.pose.pitch = e->pitchDeg * kDeg;
+        ownship_.pose.roll = e->rollDeg * kDeg;
+        // Rates given in the entity's own axes turn with it.
+        if (rates_.localCoordinates) setRates(t);
+    } else if (const auto* r = std::get_if<cigi::RateControl>(&packet)) {
+        if (!operating || r->entityId != 0 || r->applyToPart) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        ++stats_.rateUpdates;
+        rates_ = *r;
+        setRates(t);
+    } else if (std::holds_alternative<cigi::HatHotRequest>(packet) ||
+               std::holds_alternative<cigi::LosSegmentRequest>(packet) ||
+               std::holds_alternative<cigi::LosVectorRequest>(packet)) {
+        if (std::holds_alternative<cigi::HatHotRequest>(packet)) {
+            ++stats_.hatHotRequests;
+        } else {
+            ++stats_.losRequests;
+        }
+        if (!operating) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        // A request with an update period is answered every that many fields until a request
+        // of the same kind and id replaces it (period 0: once, and the repeating one ends).
+        const auto [id, period] = std::visit(
+            [](const auto& q) -> std::pair<std::uint16_t, std::uint8_t> {
+                if constexpr (requires { q.updatePeriod; }) {
+                    return {q.requestId, q.updatePeriod};
+                } else {
+                    return {0, 0};
+                }
+            },
+            packet);
+        std::erase_if(repeating_, [&, id = id](const Repeating& old) {
+            return old.request.index() == packet.index() && old.requestId == id;
+        });
+        if (period > 0) {
+            if (repeating_.size() >= kMaxRepeating) {
+                ++stats_.droppedRequests;
+            } else {
+                repeating_.push_back({packet, id, period, igFrame_});
+            }
+        } else if (pending_.size() >= options_.maxPendingRequests) {
+            ++stats_.droppedRequests;
+        } else {
+            pending_.push_back({packet, lsn});
+        }
+    } else {
+        ++stats_.ignoredPackets;  // views: not yet
+    }
+}
+
+cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
+    // A point of a request: geodetic, or an offset from the ownship in its axes.
+    const ig::Pose ownship = ownship_.at(t);
+    const auto point = [&](bool entity, std::uint16_t entityId, double a, double b, double c,
+                           bool& ok) {
+        if (!entity) return geo_.worldFromGeodetic(a, b, c);
+        ok = ok && entityId == 0;
+        return ownship.position + worldFromBody(ownship, {a, b, c});
+    };
+    if (const auto* q = std::get_if<cigi::HatHotRequest>(&request)) {
+        bool known = true;
+        const glm::dvec3 p =
+            point(q->entityCoordinates, q->entityId, q->latOrX, q->lonOrY, q->altOrZ, known);
+        const bool valid = known && onMap(map_, p.x, p.y);
+        const double hot = valid ? map_.surfaceHeight(p.x, p.y) + options_.origin.altM : 0.0;
+        const double hat = valid ? (p.z + options_.origin.altM) - hot : 0.0;
+        if (q->type == cigi::HatHotType::Extended) {
+            cigi::HatHotExtendedResponse a;
+            a.requestId = q->requestId;
+            a.valid = valid;
+            a.hostFrameLsn = lsn;
+            if (valid) {
+                a.hatM = hat;
+                a.hotM = hot;
+                normalAngles(map_, p.x, p.y, a.normalAzimuthDeg, a.normalElevationDeg);
+            }
+            return a;
+        }
+        cigi::HatHotResponse a;
+        a.requestId = q->requestId;
+        a.valid = valid;
+        a.isHot = q->type == cigi::HatHotType::Hot;
+        a.hostFrameLsn = lsn;
+        a.heightM = a.isHot ? hot : hat;
+        return a;
+    }
+    // Line of sight: a ray from the source, its first hit on the bilinear surface within the
+    // range (the reference model of ig::intersectTerrain).
+    std::uint16_t requestId = 0;
+    bool extended = false, valid = false, segment = false;
+    glm::dvec3 source{0.0}, dir{0.0};
+    double minRange = 0.0, maxRange = 0.0;
+    if (const auto* s = std::get_if<cigi::LosSegmentRequest>(&request)) {
+        requestId = s->requestId;
+        extended = s->extended;
+        segment = true;
+        bool known = true;
+        source = point(s->sourceEntityCoordinates, s->entityId, s->sourceLatOrX, s->sourceLonOrY,
+                       s->sourceAltOrZ, known);
+        // The destination's entity is the request's unless it names one of its own.
+        dir = point(s->destinationEntityCoordinates,
+                    s->destinationEntityIdValid ? s->destinationEntityId : s->entityId,
+                    s->destinationLatOrX, s->destinationLonOrY, s->destinationAltOrZ, known) -
+              source;
+        maxRange = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
+        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
+    } else if (const auto* v = std::get_if<cigi::LosVectorRequest>(&request)) {
+        requestId = v->requestId;
+        extended = v->extended;
+        bool known = true;
+        source = point(v->sourceEntityCoordinates, v->entityId, v->sourceLatOrX, v->sourceLonOrY,
+                       v->sourceAltOrZ, known);
+        const double az = v->azimuthDeg * kDeg, el = v->elevationDeg * kDeg;
+        dir = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
+        minRange = v->minRangeM;
+        maxRange = v->maxRangeM;
+        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
+    } else {
+        CHECK(false) << "not a request: " << cigi::packetName(request);
+    }
+    double range = -1.0;
+    if (valid) {
+        const ig::TerrainRay ray(map_, source, dir);
+        range = ig::exactHitInRange(map_, ray, minRange, maxRange);
+        valid = range >= 0.0 && std::isfinite(range);
+    }
+    if (!extended) {
+        cigi::LosResponse a;
+        a.requestId = requestId;
+        a.valid = valid;
+        a.visible = segment && !valid;  // the destination is seen when nothing is in the way
+        a.hostFrameLsn = lsn;
+        a.responseCount = 1;
+        a.rangeM = valid ? range : 0.0;
+        return a;
+    }
+    cigi::LosExtendedResponse a;
+    a.requestId = requestId;
+    a.valid = valid;
+    a.rangeValid = valid;
+    a.visible = segment && !valid;
+    a.hostFrameLsn = lsn;
+    a.responseCount = 1;
+    if (valid) {
+        const ig::TerrainRay ray(map_, source, dir);
+        const glm::dvec3 hit = ray.at(range);
+        const glm::dvec3 geo = geo_.geodeticFromWorld(hit);
+        a.rangeM = range;
+        a.latOrX = geo.x;
+        a.lonOrY = geo.y;
+        a.altOrZ = geo.z;
+        float rgb[3];
+        map_.surfaceColor(hit.x, hit.y, rgb);
+        a.red = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[0], 0.0f, 255.0f)));
+        a.green = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[1], 0.0f, 255.0f)));
+        a.blue = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[2], 0.0f, 255.0f)));
+        a.alpha = 255;
+        normalAngles(map_, hit.x, hit.y, a.normalAzimuthDeg, a.normalElevationDeg);
+    }
+    return a;
+}
+
+void CigiSession::poll(double t) {
+    std::uint8_t lsn = static_cast<std::uint8_t>(stats_.lastHostFrame & 15u);
+    for (int i = 0; i < options_.maxDatagramsPerField && socket_.isOpen(); ++i) {
+        const long n = socket_.receive(in_);
+        if (n == -EAGAIN) break;
+        if (n < 0) {
+            ++stats_.receiveErrors;
+            noteError(std::string("receiving: ") + std::strerror(static_cast<int>(-n)));
+            break;
+        }
+        ++stats_.datagrams;
+        if (static_cast<std::size_t>(n) > in_.size()) {
+            ++stats_.badDatagrams;
+            noteError("a datagram of " + std::to_string(n) +
+                      " bytes is longer than any CIGI "
+                      "message this image generator takes");
+            continue;
+        }
+        // The codec words its refusal only while there is room to report it.
+        std::string error;
+        const bool report = stats_.firstErrors.size() < CigiStats::kReportedErrors;
+        const bool ok = cigi::decodeMessage(
+            std::span<const std::uint8_t>(in_.data(), static_cast<std::size_t>(n)),
+            cigi::Sender::Host, message_, report ? &error : nullptr);
+        stats_.skippedPackets += message_.skippedPackets;
+        if (!ok) {
+            // The whole datagram is refused: a host message is applied entirely or not at all.
+            ++stats_.badDatagrams;
+            if (report) noteError(error);
+            continue;
+        }
+        for (const cigi::Packet& packet : message_.packets)
+            apply(packet, t, lsn);
+    }
+
+    // Start of Frame, then the answers of up to maxAnswersPerField requests.
+    out_.clear();
+    cigi::StartOfFrame sof;
+    sof.igMode = igMode_;
+    sof.igFrameNumber = igFrame_;
+    sof.timestampValid = true;
+    const double ticks = std::max(0.0, (t - options_.startTime) * 1e5);
+    sof.timestamp = static_cast<std::uint32_t>(
+        static_cast<std::uint64_t>(std::llround(std::min(ticks, 1e18))) & 0xffffffffu);
+    sof.lastHostFrameNumber = stats_.lastHostFrame;
+    cigi::encodePacket(sof, cigi::ByteOrder::Big, out_);
+    const std::size_t answered =
+        std::min(pending_.size(), static_cast<std::size_t>(options_.maxAnswersPerField));
+    for (std::size_t i = 0; i < answered; ++i) {
+        cigi::encodePacket(answer(pending_[i].request, pending_[i].hostFrameLsn, t),
+                           cigi::ByteOrder::Big, out_);
+    }
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(answered));
+    stats_.answers += answered;
+    const std::uint8_t lastLsn = static_cast<std::uint8_t>(stats_.lastHostFrame & 15u);
+    for (const Repeating& r : repeating_) {
+        if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
+        cigi::encodePacket(answer(r.request, lastLsn, t), cigi::ByteOrder::Big, out_);
+        ++stats_.answers;
+    }
+    ++igFrame_;
+    if (socket_.isOpen()) {
+        const int rc = socket_.sendTo(out_, options_.host);
+        if (rc == 0) {
+            ++stats_.framesSent;
+        } else {
+            ++stats_.sendErrors;
+            if (stats_.sendErrors == 1) {
+                noteError("sending Start of Frame to " + io::toString(options_.host) + ": " +
+                          std::strerror(-rc));
+            }
+        }
+    }
+}
+
+CigiPoseSource::CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& options,
+                               double clearance)
+    : map_(map), session_(map, options), startTime_(options.startTime), clearance_(clearance) {
+    latest_.back() = session_.ownship();
+    latest_.publish();
+}
+
+ig::Pose CigiPoseSource::clamped(ig::Pose pose, bool count) {
+    // The renderer refuses a camera on or under the surface; a host that flies into the ground
+    // (or sends a position off the database) gets the ownship held just above it.
+    const double floor = map_.surfaceHeight(pose.position.x, pose.position.y) + clearance_;
+    if (!(pose.position.z >= floor)) {
+        pose.position.z = floor;
+        if (count) ++session_.stats().clampedPoses;
+    }
+    return pose;
+}
+
+ig::Pose CigiPoseSource::advanceTo(double t) {
+    session_.poll(t);
+    latest_.back() = session_.ownship();
+    latest_.publish();
+    return clamped(session_.ownship().at(t), true);
+}
+
+bool CigiPoseSource::waitForHost(double seconds) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (true) {
+        advanceTo(startTime_);
+        if (session_.stats().entityUpdates > 0) return true;
+        if (std::chrono::steady_clock::now() >= until) return false;
+        std::this_thread::sleep_for(std::chrono::microseconds(16683));
+    }
+}
+
+ig::Pose CigiPoseSource::predict(double t) {
+    latest_.fetch();
+    return clamped(latest_.front().at(t), false);
+}
+
+}  // namespace sim

@@ -1,0 +1,187 @@
+// The image generator's side of a CIGI 3.3 session: a host drives the ownship and asks about the
+// terrain over UDP; each field drains the socket without waiting, dead-reckons the ownship to
+// the field's instant and answers with Start of Frame (docs/design/cigi_session.md).
+#pragma once
+
+#include "ig/camera.hpp"
+#include "ig/terrain.hpp"
+#include "io/cigi.hpp"
+#include "io/udp_socket.hpp"
+#include "sim/mailbox.hpp"
+#include "sim/pose_source.hpp"
+
+#include <glm/vec3.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace sim {
+
+// --- Database origin: geodetic <-> world
+
+// The geodetic position of the world's origin (x = y = z = 0: the map's south-west sample at
+// height 0). World x east, y north, z up, metres.
+struct GeoOrigin {
+    double latDeg = 0.0, lonDeg = 0.0, altM = 0.0;
+};
+
+// "LAT,LON[,ALT]" in degrees and metres; latitude within +-85 degrees, longitude within +-180.
+// Throws base::InputError naming `flag` and what is wrong.
+GeoOrigin parseGeoOrigin(std::string_view text, std::string_view flag);
+
+// A local tangent plane about the origin (equirectangular on the WGS 84 ellipsoid): one degree
+// of latitude is the meridian's radius of curvature at the origin's latitude times pi/180 metres,
+// one degree of longitude the prime vertical's times cos(latitude) times pi/180. Exact and
+// invertible (linear), accurate to the curvature of the earth: the error grows as the square
+// of the distance from the origin (about 0.1 % of the distance at 100 km).
+class GeoFrame {
+  public:
+    explicit GeoFrame(const GeoOrigin& origin);
+    glm::dvec3 worldFromGeodetic(double latDeg, double lonDeg, double altM) const;
+    // Latitude, longitude (wrapped to [-180, 180]) and altitude of a world point.
+    glm::dvec3 geodeticFromWorld(const glm::dvec3& world) const;
+    double metresPerDegreeLat() const { return perLat_; }
+    double metresPerDegreeLon() const { return perLon_; }
+    const GeoOrigin& origin() const { return origin_; }
+
+  private:
+    GeoOrigin origin_;
+    double perLat_ = 0.0, perLon_ = 0.0;
+};
+
+// --- Ownship state
+
+// The ownship as last told, and how it moves from there: pose(t) = pose + rates * (t - time).
+struct DeadReckoning {
+    double time = 0.0;
+    ig::Pose pose;
+    glm::dvec3 velocity{0.0};                               // world, m/s
+    double yawRate = 0.0, pitchRate = 0.0, rollRate = 0.0;  // rad/s of the pose's angles
+    ig::Pose at(double t) const;
+};
+
+// --- Session
+
+struct CigiOptions {
+    io::UdpEndpoint bind;  // where host messages arrive
+    io::UdpEndpoint host;  // where Start of Frame goes
+    GeoOrigin origin;
+    ig::Pose startPose;      // held until the first Entity Control for entity 0
+    double startTime = 0.0;  // simulation time of the first field (Start of Frame timestamp 0)
+    int maxDatagramsPerField = 256;  // more wait for the next field (or the kernel drops them)
+    // One-time HAT/HOT and LOS answers in one Start of Frame datagram (the rest wait); requests
+    // with an update period (at most 64) are answered on top.
+    int maxAnswersPerField = 64;
+    std::size_t maxPendingRequests = 1024;  // beyond, requests are dropped and counted
+};
+
+struct CigiStats {
+    static constexpr std::size_t kReportedErrors = 4;
+    std::uint64_t datagrams = 0;       // received
+    std::uint64_t badDatagrams = 0;    // refused by the codec, or cut (longer than 64 KiB)
+    std::uint64_t skippedPackets = 0;  // of ids the codec does not know
+    std::uint64_t ignoredPackets = 0;  // known but not acted on (other entities, views, Reset)
+    std::uint64_t igControls = 0, entityUpdates = 0, rateUpdates = 0;
+    std::uint64_t hatHotRequests = 0, losRequests = 0;
+    std::uint64_t answers = 0, droppedRequests = 0;
+    std::uint64_t framesSent = 0, sendErrors = 0, receiveErrors = 0;
+    std::uint64_t clampedPoses = 0;  // fields whose pose was lifted above the terrain
+    std::uint64_t resets = 0;
+    bool hostSeen = false;
+    std::uint32_t lastHostFrame = 0, lastHostTimestamp = 0;
+    std::vector<std::string> firstErrors;  // the first kReportedErrors problems, as messages
+};
+
+// One host, one ownship. Everything happens in poll(), on the field thread, without waiting.
+class CigiSession {
+  public:
+    // The map must outlive the session. Nothing is opened before open().
+    CigiSession(const ig::TerrainMap& map, const CigiOptions& options);
+    // Binds the socket: 0, or -errno with `*error` saying what failed.
+    int open(std::string* error);
+    io::UdpEndpoint localEndpoint() const { return socket_.localEndpoint(); }
+
+    // The field at simulation time t: takes the datagrams waiting (at most
+    // maxDatagramsPerField), applies them in order at t, answers pending requests and sends
+    // Start of Frame. Never throws for what the network sends; never blocks.
+    void poll(double t);
+
+    const DeadReckoning& ownship() const { return ownship_; }
+    io::cigi::IgMode igMode() const { return igMode_; }
+    std::uint32_t igFrame() const { return igFrame_; }
+    const CigiStats& stats() const { return stats_; }
+    CigiStats& stats() { return stats_; }
+    const GeoFrame& geo() const { return geo_; }
+
+    // The answer to one request at simulation time t, as sent (public for tests and tools).
+    // Entity coordinates are offsets from the ownship (entity 0) in its own axes: x forward,
+    // y right, z down; other entities' answer invalid.
+    io::cigi::Packet answer(const io::cigi::Packet& request, std::uint8_t hostFrameLsn,
+                            double t) const;
+
+  private:
+    struct Pending {
+        io::cigi::Packet request;
+        std::uint8_t hostFrameLsn = 0;
+    };
+    struct Repeating {
+        io::cigi::Packet request;
+        std::uint16_t requestId = 0;
+        std::uint8_t period = 1;
+        std::uint32_t firstFrame = 0;
+    };
+    // Requests with an update period answered at once, each field (beyond, dropped).
+    static constexpr std::size_t kMaxRepeating = 64;
+
+    void apply(const io::cigi::Packet& packet, double t, std::uint8_t& lsn);
+    void setRates(double t);
+    void noteError(const std::string& message);
+
+    const ig::TerrainMap& map_;
+    CigiOptions options_;
+    GeoFrame geo_;
+    io::UdpSocket socket_;
+    io::cigi::Message message_;
+    std::vector<std::uint8_t> in_, out_;
+    std::vector<Pending> pending_;
+    std::vector<Repeating> repeating_;
+    DeadReckoning ownship_;
+    io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
+    io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;
+    std::uint32_t igFrame_ = 0;
+    CigiStats stats_;
+};
+
+// The session as the pipeline's pose source: advanceTo(t) polls the session (field thread) and
+// returns the ownship dead-reckoned to t; predict(t) extrapolates the latest state (any one
+// other thread). A pose on or under the terrain is lifted to `clearance` above it.
+class CigiPoseSource final : public PoseSource {
+  public:
+    CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& options, double clearance = 1.0);
+    int open(std::string* error) { return session_.open(error); }
+
+    ig::Pose advanceTo(double t) override;
+    ig::Pose predict(double t) override;
+    double startTime() const override { return startTime_; }
+
+    // Before a run (never during one): polls at the start time once a field period of wall
+    // time, each poll sending Start of Frame (a synchronous host answers those), until the
+    // host's first Entity Control arrives or `seconds` pass. Whether it arrived.
+    bool waitForHost(double seconds);
+
+    CigiSession& session() { return session_; }
+    const CigiSession& session() const { return session_; }
+
+  private:
+    ig::Pose clamped(ig::Pose pose, bool count);
+
+    const ig::TerrainMap& map_;
+    CigiSession session_;
+    double startTime_, clearance_;
+    Mailbox<DeadReckoning> latest_;  // field loop -> predict()
+};
+
+}  // namespace sim

@@ -1,0 +1,97 @@
+#include "io/udp_socket.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+namespace {
+
+constexpr std::uint32_t kLoopback = 0x7f000001;
+
+// Loopback delivery is immediate on Linux, but allow the kernel a moment anyway.
+long receiveWithin(io::UdpSocket& s, std::span<std::uint8_t> buffer, io::UdpEndpoint* from) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    long n = -EAGAIN;
+    while (n == -EAGAIN && std::chrono::steady_clock::now() < until)
+        n = s.receive(buffer, from);
+    return n;
+}
+
+TEST(UdpEndpoint, ParsesAddressAndPort) {
+    io::UdpEndpoint e;
+    EXPECT_EQ(io::parseUdpEndpoint("127.0.0.1:8004", false, false, e), "");
+    EXPECT_EQ(e, (io::UdpEndpoint{kLoopback, 8004}));
+    EXPECT_EQ(io::toString(e), "127.0.0.1:8004");
+    EXPECT_EQ(io::parseUdpEndpoint("8005", true, false, e), "");
+    EXPECT_EQ(e, (io::UdpEndpoint{0, 8005}));
+    EXPECT_EQ(io::parseUdpEndpoint("localhost:0", true, true, e), "");
+    EXPECT_EQ(e, (io::UdpEndpoint{kLoopback, 0}));
+}
+
+TEST(UdpEndpoint, RefusesWhatIsNotAnEndpoint) {
+    io::UdpEndpoint e{1, 2};
+    for (const char* bad : {"", "8004", ":8004", "1.2.3:80", "1.2.3.4:", "1.2.3.4:65536",
+                            "1.2.3.4:-1", "1.2.3.4:80x", "host.example:80", "1.2.3.4:0"}) {
+        EXPECT_NE(io::parseUdpEndpoint(bad, false, false, e), "") << bad;
+    }
+    EXPECT_NE(io::parseUdpEndpoint("x", true, false, e), "");
+    EXPECT_EQ(e, (io::UdpEndpoint{1, 2})) << "a refused text leaves the endpoint as it was";
+}
+
+TEST(UdpSocket, SendsAndReceivesOverLoopbackWithoutWaiting) {
+    io::UdpSocket a, b;
+    ASSERT_EQ(a.open({kLoopback, 0}), 0);
+    ASSERT_EQ(b.open({kLoopback, 0}), 0);
+    const io::UdpEndpoint aEnd = a.localEndpoint(), bEnd = b.localEndpoint();
+    EXPECT_EQ(aEnd.address, kLoopback);
+    EXPECT_NE(aEnd.port, 0);
+
+    std::vector<std::uint8_t> buffer(64);
+    // Nothing waiting: answered at once.
+    const auto before = std::chrono::steady_clock::now();
+    EXPECT_EQ(b.receive(buffer), -EAGAIN);
+    EXPECT_LT(std::chrono::steady_clock::now() - before, std::chrono::milliseconds(100));
+
+    for (std::uint8_t i = 0; i < 5; ++i) {
+        const std::uint8_t bytes[3] = {i, 7, 9};
+        ASSERT_EQ(a.sendTo(bytes, bEnd), 0);
+    }
+    for (std::uint8_t i = 0; i < 5; ++i) {
+        io::UdpEndpoint from;
+        ASSERT_EQ(receiveWithin(b, buffer, &from), 3);
+        EXPECT_EQ(buffer[0], i);
+        EXPECT_EQ(from, aEnd);
+    }
+    EXPECT_EQ(b.receive(buffer), -EAGAIN);
+}
+
+TEST(UdpSocket, ReportsTheLengthOfACutDatagram) {
+    io::UdpSocket a, b;
+    ASSERT_EQ(a.open({kLoopback, 0}), 0);
+    ASSERT_EQ(b.open({kLoopback, 0}), 0);
+    const std::vector<std::uint8_t> big(1000, 0xab);
+    ASSERT_EQ(a.sendTo(big, b.localEndpoint()), 0);
+    std::vector<std::uint8_t> small(16);
+    EXPECT_EQ(receiveWithin(b, small, nullptr), 1000);
+    EXPECT_EQ(small[15], 0xab);
+}
+
+TEST(UdpSocket, ErrorsAreReturnedNotThrown) {
+    io::UdpSocket a, b;
+    std::vector<std::uint8_t> buffer(8);
+    EXPECT_EQ(a.receive(buffer), -EBADF);
+    EXPECT_EQ(a.sendTo(buffer, {kLoopback, 9}), -EBADF);
+    ASSERT_EQ(a.open({kLoopback, 0}), 0);
+    // The same port twice: refused with EADDRINUSE.
+    EXPECT_EQ(b.open(a.localEndpoint()), -EADDRINUSE);
+    EXPECT_FALSE(b.isOpen());
+    // A moved socket keeps its descriptor.
+    io::UdpSocket c = std::move(a);
+    EXPECT_TRUE(c.isOpen());
+    EXPECT_FALSE(a.isOpen());
+}
+
+}  // namespace

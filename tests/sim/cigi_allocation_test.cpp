@@ -1,0 +1,143 @@
+// Once warmed up, a CIGI session's field (receive, decode, apply, answer, send) allocates
+// nothing: every allocation in this test binary goes through the counting operator new below
+// (it only counts; the memory comes from malloc as before).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "ig/synthetic.hpp"
+#include "io/cigi.hpp"
+#include "io/udp_socket.hpp"
+#include "sim/cigi_session.hpp"
+
+namespace {
+std::atomic<std::size_t> gAllocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+    gAllocations.fetch_add(1, std::memory_order_relaxed);
+    if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+    throw std::bad_alloc();
+}
+
+void* operator new[](std::size_t size) {
+    return ::operator new(size);
+}
+
+void* operator new(std::size_t size, std::align_val_t align) {
+    gAllocations.fetch_add(1, std::memory_order_relaxed);
+    const auto a = static_cast<std::size_t>(align);
+    if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
+    throw std::bad_alloc();
+}
+
+void* operator new[](std::size_t size, std::align_val_t align) {
+    return ::operator new(size, align);
+}
+
+void operator delete(void* p) noexcept {
+    std::free(p);
+}
+void operator delete[](void* p) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+    std::free(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::align_val_t) noexcept {
+    std::free(p);
+}
+void operator delete[](void* p, std::align_val_t) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept {
+    std::free(p);
+}
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
+    std::free(p);
+}
+
+namespace {
+
+namespace cigi = io::cigi;
+
+TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
+    const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
+    io::UdpSocket host;
+    ASSERT_EQ(host.open({0x7f000001, 0}), 0);
+    sim::CigiOptions options;
+    options.bind = {0x7f000001, 0};
+    options.host = host.localEndpoint();
+    options.origin = {47.0, -122.0, 0.0};
+    options.startPose.position = {100.0, 100.0, map.maxHeight() + 100.0};
+    sim::CigiPoseSource source(map, options);
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    const io::UdpEndpoint ig = source.session().localEndpoint();
+    const sim::GeoFrame& geo = source.session().geo();
+
+    // What the host sends every field: ownship, rates, a HAT/HOT and a LOS question. (A refused
+    // datagram does allocate: the codec words its refusal as it finds it, and the session asks
+    // for the wording of the first four only, so the rest cost a few small strings each.)
+    const glm::dvec3 g = geo.geodeticFromWorld({900.0, 800.0, map.maxHeight() + 50.0});
+    cigi::IgControl control;
+    cigi::EntityControl e;
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    cigi::RateControl r;
+    r.xRate = 50.0f;
+    cigi::HatHotRequest hat;
+    hat.type = cigi::HatHotType::Extended;
+    hat.latOrX = g.x;
+    hat.lonOrY = g.y;
+    cigi::LosVectorRequest los;
+    los.extended = true;
+    los.elevationDeg = -45.0f;
+    los.maxRangeM = 5000.0f;
+    los.sourceLatOrX = g.x;
+    los.sourceLonOrY = g.y;
+    los.sourceAltOrZ = g.z;
+    const std::vector<cigi::Packet> packets{control, e, r, hat, los};
+    const std::vector<std::uint8_t> good = cigi::encodeMessage(packets, cigi::ByteOrder::Big);
+    const std::vector<std::uint8_t> bad(good.begin(), good.begin() + 30);
+    std::vector<std::uint8_t> answers(65536);
+
+    bool sendBad = false;
+    auto field = [&](int n) {
+        ASSERT_EQ(host.sendTo(good, ig), 0);
+        if (sendBad) {
+            ASSERT_EQ(host.sendTo(bad, ig), 0);
+        }
+        source.advanceTo(n * 1001.0 / 60000.0);
+        (void)source.predict(n * 1001.0 / 60000.0 + 0.05);
+        while (host.receive(answers) > 0) {
+        }
+    };
+    for (int n = 0; n < 10; ++n)
+        field(n);
+    const std::size_t before = gAllocations.load();
+    for (int n = 10; n < 110; ++n)
+        field(n);
+    EXPECT_EQ(gAllocations.load() - before, 0u);
+    const sim::CigiStats& stats = source.session().stats();
+    EXPECT_EQ(stats.entityUpdates, 110u);
+    EXPECT_EQ(stats.answers, 220u);
+    EXPECT_EQ(stats.badDatagrams, 0u);
+
+    // Refused datagrams are counted whatever they cost.
+    sendBad = true;
+    for (int n = 110; n < 120; ++n)
+        field(n);
+    EXPECT_EQ(stats.badDatagrams, 10u);
+}
+
+}  // namespace
