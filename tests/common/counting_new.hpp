@@ -1,6 +1,7 @@
-// Counts every allocation of a test program: include this header in exactly one source file of
-// the program (it replaces the global operator new and delete), then compare gAllocations
-// before and after the code that must not allocate.
+// Counts every allocation of a test program: the program is linked with
+// tests/common/counting_new.cpp (it replaces the global operator new and delete; see
+// tests/CMakeLists.txt), and a test compares gAllocations before and after the code that must
+// not allocate.
 #pragma once
 
 #include <atomic>
@@ -8,49 +9,3 @@
 #include <new>
 
 inline std::atomic<std::size_t> gAllocations{0};
-
-void* operator new(std::size_t size) {
-    gAllocations.fetch_add(1, std::memory_order_relaxed);
-    if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-    throw std::bad_alloc();
-}
-
-void* operator new[](std::size_t size) {
-    return ::operator new(size);
-}
-
-void* operator new(std::size_t size, std::align_val_t align) {
-    gAllocations.fetch_add(1, std::memory_order_relaxed);
-    const auto a = static_cast<std::size_t>(align);
-    if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
-    throw std::bad_alloc();
-}
-
-void* operator new[](std::size_t size, std::align_val_t align) {
-    return ::operator new(size, align);
-}
-
-void operator delete(void* p) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
-    std::free(p);
-}

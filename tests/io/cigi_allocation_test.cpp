@@ -1,6 +1,6 @@
 // Decoding a CIGI datagram into a Message that has grown once allocates nothing: every
 // allocation in this test binary goes through the counting operator new
-// (tests/common/counting_new.hpp).
+// (tests/common/counting_new.cpp).
 #include <gtest/gtest.h>
 
 #include "common/counting_new.hpp"

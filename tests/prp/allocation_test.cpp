@@ -1,5 +1,5 @@
 // After its first field the processor allocates nothing: every allocation in this test binary
-// goes through the counting operator new (tests/common/counting_new.hpp), and a run of fields must
+// goes through the counting operator new (tests/common/counting_new.cpp), and a run of fields must
 // not move the count.
 #include "prp/processor.hpp"
 

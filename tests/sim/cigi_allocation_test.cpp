@@ -1,7 +1,9 @@
 // Once warmed up, a CIGI session's field (receive, decode, apply, answer, send) allocates
-// nothing: every allocation in this test binary goes through the counting operator new below
-// (it only counts; the memory comes from malloc as before).
+// nothing: every allocation in this test binary goes through the counting operator new
+// (tests/common/counting_new.cpp).
 #include <gtest/gtest.h>
+
+#include "common/counting_new.hpp"
 
 #include <atomic>
 #include <cerrno>
@@ -14,56 +16,6 @@
 #include "io/cigi.hpp"
 #include "io/udp_socket.hpp"
 #include "sim/cigi_session.hpp"
-
-namespace {
-std::atomic<std::size_t> gAllocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-    gAllocations.fetch_add(1, std::memory_order_relaxed);
-    if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-    throw std::bad_alloc();
-}
-
-void* operator new[](std::size_t size) {
-    return ::operator new(size);
-}
-
-void* operator new(std::size_t size, std::align_val_t align) {
-    gAllocations.fetch_add(1, std::memory_order_relaxed);
-    const auto a = static_cast<std::size_t>(align);
-    if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
-    throw std::bad_alloc();
-}
-
-void* operator new[](std::size_t size, std::align_val_t align) {
-    return ::operator new(size, align);
-}
-
-void operator delete(void* p) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept {
-    std::free(p);
-}
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
-    std::free(p);
-}
 
 namespace {
 

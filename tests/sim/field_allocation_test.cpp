@@ -1,5 +1,5 @@
 // The field process allocates nothing per field once it has warmed up: every allocation in this
-// test program goes through the counting operator new (tests/common/counting_new.hpp), and a
+// test program goes through the counting operator new (tests/common/counting_new.cpp), and a
 // wall-clock run with the renderer process must not move the count between its 60th field and
 // its last (field thread, supervisor thread and everything they call).
 #include "sim/pipeline.hpp"
