@@ -51,8 +51,9 @@ struct RenderOptions {
     // kLevelsAuto: as many as the map has; 0: single level (exact on the bilinear surface, the
     // default, matching the reference caster); n > 0: at most n coarser levels.
     int levels = 0;
-    // Fast caster: rays per pixel stacked vertically (1..8), averaged; for shallow pitch, where a
-    // pixel's footprint stretches along the view. Depth is the nearest of them.
+    // Fast caster: rays per pixel stacked vertically (1..8), averaged; a fixed setting, the same
+    // at every pitch (it helps most at shallow pitch, where a pixel's footprint stretches along
+    // the view). Depth is the nearest of them.
     int supersample = 1;
     // Fast caster: its kernel (the image is bit for bit the same with each). A kernel the
     // processor lacks is refused with InputError when the caster is built.

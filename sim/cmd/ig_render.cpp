@@ -216,7 +216,8 @@ int main(int argc, char** argv) {
                    "(all) | 0 (single level, exact) | N (at most N)")
         ->capture_default_str();
     app.add_option("--supersample", supersample,
-                   "Fast caster: rays per pixel stacked vertically, 1..8 (for shallow pitch)")
+                   "Fast caster: rays per pixel stacked vertically and averaged, 1..8 (a fixed "
+                   "setting; it helps most at shallow pitch)")
         ->capture_default_str();
     app.add_option("--kernel", kernelText,
                    "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
