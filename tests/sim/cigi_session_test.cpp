@@ -194,8 +194,10 @@ class NullSink final : public io::FrameSink {
     io::VideoFormat format_;
 };
 
-sim::PipelineResult runPipeline(World& world, sim::PoseSource& poses, double seconds) {
-    NullSink sink;
+// A simulated-clock run of `seconds` into `sink` (opened here at 128 x 96 UYVY), renders
+// modelled at `renderHz`.
+sim::PipelineResult runSimulated(World& world, sim::PoseSource& poses, io::FrameSink& sink,
+                                 double seconds, double renderHz) {
     std::string error;
     sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
     sim::RenderGeometry geometry;
@@ -205,11 +207,16 @@ sim::PipelineResult runPipeline(World& world, sim::PoseSource& poses, double sec
     sim::PipelineOptions options;
     options.clock = sim::ClockMode::Simulated;
     options.duration = seconds;
-    options.simulatedRenderHz = 6.0;
+    options.simulatedRenderHz = renderHz;
     auto clock = io::makeSimulatedClock();
     sim::Pipeline pipeline(poses, sim::makeCasterRenderer(world.map, geometry), sink, *clock,
                            options);
-    sim::PipelineResult result = pipeline.run();
+    return pipeline.run();
+}
+
+sim::PipelineResult runPipeline(World& world, sim::PoseSource& poses, double seconds) {
+    NullSink sink;
+    sim::PipelineResult result = runSimulated(world, poses, sink, seconds, 6.0);
     EXPECT_EQ(sink.fields, static_cast<int>(result.stats.fields));
     return result;
 }
@@ -799,29 +806,16 @@ class CapturingSink final : public io::FrameSink {
 std::vector<std::vector<std::uint8_t>> captureFields(World& world, sim::PoseSource& poses,
                                                      double seconds) {
     CapturingSink sink;
-    std::string error;
-    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 128;
-    geometry.windowHeight = 96;
-    geometry.margin = 8;
-    sim::PipelineOptions options;
-    options.clock = sim::ClockMode::Simulated;
-    options.duration = seconds;
-    options.simulatedRenderHz = 12.0;
-    auto clock = io::makeSimulatedClock();
-    sim::Pipeline pipeline(poses, sim::makeCasterRenderer(world.map, geometry), sink, *clock,
-                           options);
-    const sim::PipelineResult result = pipeline.run();
+    const sim::PipelineResult result = runSimulated(world, poses, sink, seconds, 12.0);
     EXPECT_TRUE(result.ok()) << result.error;
     return sink.fields;
 }
 
 }  // namespace
 
-// The key comparison: a host flying a straight line (Entity Control at 20 Hz, one Rate
-// Control) against the same line from a trajectory, under the simulated clock. Angles travel as
-// float degrees and are chosen representable, so they arrive bit for bit; positions go through
+// The host path against the CSV path: a host flying a straight line (Entity Control at 20 Hz, one
+// Rate Control) against the same line from a trajectory, under the simulated clock. Angles travel
+// as float degrees and are chosen representable, so they arrive bit for bit; positions go through
 // latitude and longitude and come back to within rounding (not bit for bit in general).
 TEST(CigiSession, HostDrivenFieldsAgainstTheSameTrajectoryFromCsv) {
     World world;
