@@ -10,12 +10,6 @@ namespace {
 
 constexpr std::int64_t kNsPerSecond = 1000000000;
 
-std::int64_t monotonicNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * kNsPerSecond + ts.tv_nsec;
-}
-
 class WallClock final : public FieldClock {
   public:
     WallClock() : originNs_(monotonicNs()) {}
@@ -37,6 +31,12 @@ class WallClock final : public FieldClock {
 };
 
 }  // namespace
+
+std::int64_t monotonicNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * kNsPerSecond + ts.tv_nsec;
+}
 
 std::unique_ptr<FieldClock> makeWallClock() {
     return std::make_unique<WallClock>();

@@ -17,6 +17,10 @@ class FieldClock {
     virtual void sleepUntil(double t) = 0;
 };
 
+// CLOCK_MONOTONIC in integer nanoseconds (the wall clock's time base, and the one the renderer
+// process stamps its frames with).
+std::int64_t monotonicNs();
+
 // CLOCK_MONOTONIC; sleepUntil uses clock_nanosleep(TIMER_ABSTIME) and resumes after signals.
 std::unique_ptr<FieldClock> makeWallClock();
 // now() starts at 0 and jumps to the deadline in sleepUntil (never backwards); no wall time.

@@ -298,8 +298,7 @@ void Pipeline::startProcess() {
 }
 
 Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, std::string& why) {
-    timespec start{};
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    const std::int64_t start = io::monotonicNs();
     for (;;) {
         const FrameRing::Fetch f = ring_->fetch(into, &why);
         if (f == FrameRing::Fetch::New) return Await::Frame;
@@ -311,10 +310,7 @@ Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, st
             why = *ended;
             return Await::Ended;
         }
-        timespec now{};
-        clock_gettime(CLOCK_MONOTONIC, &now);
-        const double waited = static_cast<double>(now.tv_sec - start.tv_sec) +
-                              static_cast<double>(now.tv_nsec - start.tv_nsec) * 1e-9;
+        const double waited = static_cast<double>(io::monotonicNs() - start) * 1e-9;
         if (waited > timeout) {
             why = "silent for " + std::to_string(std::lround(waited * 1e3)) + " ms";
             return Await::Silent;
@@ -330,12 +326,9 @@ void Pipeline::restartProcess(const std::string& cause) {
     r.detected = clock_.now();
     r.cause = cause;
     restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
-    timespec before{}, after{};
-    clock_gettime(CLOCK_MONOTONIC, &before);
+    const std::int64_t before = io::monotonicNs();
     process_->start();
-    clock_gettime(CLOCK_MONOTONIC, &after);
-    r.startSeconds = static_cast<double>(after.tv_sec - before.tv_sec) +
-                     static_cast<double>(after.tv_nsec - before.tv_nsec) * 1e-9;
+    r.startSeconds = static_cast<double>(io::monotonicNs() - before) * 1e-9;
     {
         std::lock_guard lock(restartMutex_);
         stats_.restarts().push_back(std::move(r));
@@ -368,10 +361,7 @@ void Pipeline::superviseLoop() {
                 if (std::optional<std::string> ended = process_->checkEnded()) cause = *ended;
             }
             if (cause.empty()) {
-                timespec now{};
-                clock_gettime(CLOCK_MONOTONIC, &now);
-                const std::int64_t nowNs =
-                    static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+                const std::int64_t nowNs = io::monotonicNs();
                 const std::int64_t since = std::max(ring_->lastPublishNs(), processStartNs_);
                 const double silent = static_cast<double>(nowNs - since) * 1e-9;
                 if (silent > renderTimeout()) {
@@ -380,9 +370,7 @@ void Pipeline::superviseLoop() {
             }
             if (!cause.empty()) {
                 restartProcess(cause);
-                timespec now{};
-                clock_gettime(CLOCK_MONOTONIC, &now);
-                processStartNs_ = static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+                processStartNs_ = io::monotonicNs();
             }
         }
     } catch (...) {
@@ -428,7 +416,6 @@ PipelineResult Pipeline::run() {
     if (process) {
         CHECK_GT(options_.maxFramePixels, 0u) << "a renderer process needs the largest frame size";
         startProcess();
-        processStartNs_ = ring_->lastPublishNs();
         ring_->postRequest(poses_.predict(t0_), t0_, 0);
         std::string why;
         ig::RenderedFrame& first = frames_.back();
@@ -462,9 +449,7 @@ PipelineResult Pipeline::run() {
     } renderer{stop_, {}};
     if (!simulated) {
         if (process) {
-            timespec now{};
-            clock_gettime(CLOCK_MONOTONIC, &now);
-            processStartNs_ = static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+            processStartNs_ = io::monotonicNs();
             renderer.thread = std::thread([this] { superviseLoop(); });
         } else {
             renderer.thread = std::thread([this] { renderLoop(); });
@@ -496,9 +481,9 @@ PipelineResult Pipeline::run() {
             requested_.store(requestSequence++, std::memory_order_relaxed);
         }
         frames_.fetch();
-        const ig::RenderedFrame* frame = &frames_.front();
-        noteFrameShown(*frame, clock_.now());
-        processor.process(*frame, pose, t, n, field);
+        const ig::RenderedFrame& frame = frames_.front();
+        noteFrameShown(frame, clock_.now());
+        processor.process(frame, pose, t, n, field);
         noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);
         const int rc = sink_.writeField(buffer);

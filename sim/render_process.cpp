@@ -2,6 +2,7 @@
 
 #include "base/error.hpp"
 #include "base/text.hpp"
+#include "io/field_clock.hpp"
 
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/task_arena.h>
@@ -20,12 +21,6 @@
 
 namespace sim {
 namespace {
-
-std::int64_t monotonicNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
-}
 
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
@@ -152,7 +147,7 @@ void RendererProcess::childMain() {
     try {
         tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
         std::uint64_t lastGeneration = skipGeneration_;
-        std::int64_t nextSlotNs = monotonicNs();
+        std::int64_t nextSlotNs = io::monotonicNs();
         const std::int64_t periodNs =
             options_.renderHz > 0.0 ? static_cast<std::int64_t>(1e9 / options_.renderHz) : 0;
         while (!ring_.stopRequested()) {
@@ -162,7 +157,7 @@ void RendererProcess::childMain() {
                 continue;
             }
             if (options_.paced && periodNs > 0) {
-                const std::int64_t now = monotonicNs();
+                const std::int64_t now = io::monotonicNs();
                 if (nextSlotNs > now) {
                     sleepSeconds(static_cast<double>(nextSlotNs - now) * 1e-9);
                     continue;  // render the newest request once the slot comes
@@ -205,7 +200,7 @@ void RendererProcess::childMain() {
             }
             ig::RenderedFrame frame;
             arena.execute([&] { frame = renderer_(r.pose, r.time, r.sequence); });
-            if (!ring_.publish(frame, monotonicNs())) {
+            if (!ring_.publish(frame, io::monotonicNs())) {
                 throw std::runtime_error("frame " + std::to_string(frame.sequence) + " of " +
                                          std::to_string(frame.color.size()) +
                                          " pixels does not fit the frame ring");

@@ -514,8 +514,8 @@ int main(int argc, char** argv) {
             j["width"] = opened.width;
             j["height"] = opened.height;
             j["render_width_level"] = level.width;
-            j["renderer"] = rendererText;
             j["render_height_level"] = level.height;
+            j["renderer"] = rendererText;
             j["margin"] = margin;
             j["roll_margin"] = geometry.coverRoll;
             j["warp"] = warpText;
