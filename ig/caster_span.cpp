@@ -1,0 +1,516 @@
+// Span renderer: cost per terrain sample, not per pixel. See docs/design/span_renderer.md.
+//
+// The frame is drawn on a vertical image plane (the same eye, heading and focal length, no
+// pitch): each of its columns is a vertical plane through the eye, in which the height field is
+// drawn exactly front to back with a y-buffer. The column's ground line is sampled at the major
+// grid lines of the display level that matches the distance (the multiresolution caster's bands
+// and blend), at minor grid-line crossings on level 0, and the rows between the y-buffer and a
+// sample's projection are filled by intersecting each row's ray with the straight segment
+// between consecutive samples (the surface is piecewise linear along the column, exact on the
+// grid lines). The rows of the vertical plane are not its own pixel rows but the pitched image's
+// rows: a rotation about the camera's horizontal axis maps rows to rows, so each output row has
+// one elevation per vertical column and only a horizontal resample remains (linear, identity at
+// pitch 0). Where that stretch is too large (steep views) the frame goes to the fast caster.
+#include "base/check.hpp"
+#include "ig/caster_impl.hpp"
+#include "ig/error.hpp"
+#include "ig/pyramid.hpp"
+#include "ig/shading.hpp"
+
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace ig {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Per-frame geometry shared by all columns.
+struct SpanFrame {
+    int width = 0, height = 0;  // output image
+    int columns = 0;            // vertical-plane columns
+    double focal = 0.0, cx = 0.0;
+    double half = 0.0;              // columns / 2
+    std::vector<double> up;         // per output row: elevation offset in vertical-plane px
+    std::vector<double> stretch;    // per output row: vertical-plane columns per output px
+    std::vector<int> rowLo, rowHi;  // per column: rows the resample reads (inclusive)
+    glm::dvec3 eye{0.0};
+    double headingX = 0.0, headingY = 0.0;  // unit heading
+    double rightX = 0.0, rightY = 0.0;      // unit right, horizontal
+};
+
+// Fractional vertical-plane column read for output pixel x of a row with the given stretch.
+inline double columnAt(const SpanFrame& sf, int x, double stretch) {
+    return (x + 0.5 - sf.cx) * stretch + sf.half - 0.5;
+}
+
+// Per-frame buffers (column-major colour and depth), reused across frames.
+struct SpanBuffers {
+    std::vector<std::uint32_t> color;
+    std::vector<float> depth;
+};
+
+inline std::uint32_t pack(Rgb8 c) {
+    return static_cast<std::uint32_t>(c.r) | static_cast<std::uint32_t>(c.g) << 8 |
+           static_cast<std::uint32_t>(c.b) << 16;
+}
+
+// Bilinear height (raw units) and colour of display level `l` at its own grid coordinates,
+// clamped to its edge.
+inline double sampleBilinear(const PyramidLevel& l, double gx, double gy, float rgb[3]) {
+    const double x = std::clamp(gx, 0.0, l.width - 1.0), y = std::clamp(gy, 0.0, l.height - 1.0);
+    const int ix = std::min(static_cast<int>(x), l.width - 2);
+    const int iy = std::min(static_cast<int>(y), l.height - 2);
+    const double fx = x - ix, fy = y - iy;
+    const std::size_t i00 = l.index(ix, iy), i01 = i00 + static_cast<std::size_t>(l.width);
+    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
+    const Rgb8 c00 = l.colors[i00], c10 = l.colors[i00 + 1], c01 = l.colors[i01],
+               c11 = l.colors[i01 + 1];
+    rgb[0] = static_cast<float>(w00 * c00.r + w10 * c10.r + w01 * c01.r + w11 * c11.r);
+    rgb[1] = static_cast<float>(w00 * c00.g + w10 * c10.g + w01 * c01.g + w11 * c11.g);
+    rgb[2] = static_cast<float>(w00 * c00.b + w10 * c10.b + w01 * c01.b + w11 * c11.b);
+    return w00 * l.heights[i00] + w10 * l.heights[i00 + 1] + w01 * l.heights[i01] +
+           w11 * l.heights[i01 + 1];
+}
+
+class SpanCaster final : public Caster {
+  public:
+    SpanCaster(const TerrainMap& map, const RenderOptions& options) : map_(map), options_(options) {
+        if (options_.supersample != 1) {
+            throw InputError("supersample " + std::to_string(options_.supersample) +
+                             ": the span caster draws one sample per pixel (use --caster fast)");
+        }
+        if (!(options_.spanMaxStretch >= 1.0 && options_.spanMaxStretch <= 16.0)) {
+            throw InputError("span stretch limit " + std::to_string(options_.spanMaxStretch) +
+                             ": expected 1..16");
+        }
+        pyramid_ = std::make_unique<TerrainPyramid>(
+            map, options_.levels == 0 ? kLevelsAuto : options_.levels);
+    }
+    CasterKind kind() const override { return CasterKind::Span; }
+
+    void render(const Camera& camera, RenderedFrame& frame) const override {
+        UnitCounters c;
+        renderUnit(camera, frame, 0, c);
+        frame.stats.steps = c.steps;
+        frame.stats.restarts = c.restarts;
+        frame.stats.rays =
+            static_cast<std::uint64_t>(camera.intrinsics().width) * camera.intrinsics().height;
+    }
+
+    // One unit: the whole frame (the resample reads across columns); columns and rows inside it
+    // go to the library's workers.
+    int workUnits(const Camera&) const override { return 1; }
+
+    void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                    UnitCounters& counters) const override {
+        CHECK(unit == 0) << "the span caster renders a frame as one unit";
+        CHECK(camera.pose().roll == 0.0)
+            << "span caster renders roll = 0 (the PRP applies roll); use naive or reference";
+        const double stretch = spanStretch(camera);
+        if (!(stretch <= options_.spanMaxStretch)) {
+            frame.stats.path = "fast";
+            fallback().renderUnitsInto(camera, frame, counters);
+            return;
+        }
+        frame.stats.path = "span";
+        renderSpans(camera, frame, counters);
+    }
+
+  private:
+    // The fast caster the steep frames go to, built on first use.
+    struct Fallback {
+        std::unique_ptr<Caster> caster;
+        void renderUnitsInto(const Camera& camera, RenderedFrame& frame,
+                             UnitCounters& counters) const {
+            caster->render(camera, frame);
+            counters.steps += frame.stats.steps;
+            counters.restarts += frame.stats.restarts;
+        }
+    };
+    const Fallback& fallback() const {
+        std::call_once(fallbackOnce_, [&] {
+            RenderOptions o = options_;
+            o.levels = options_.levels == 0 ? kLevelsAuto : options_.levels;
+            fallback_.caster = makeFastCaster(map_, o);
+        });
+        return fallback_;
+    }
+
+    std::unique_ptr<SpanBuffers> takeBuffers() const {
+        std::lock_guard lock(poolMutex_);
+        if (pool_.empty()) return std::make_unique<SpanBuffers>();
+        auto b = std::move(pool_.back());
+        pool_.pop_back();
+        return b;
+    }
+    void giveBuffers(std::unique_ptr<SpanBuffers> b) const {
+        std::lock_guard lock(poolMutex_);
+        pool_.push_back(std::move(b));
+    }
+
+    SpanFrame setUp(const Camera& camera) const;
+    std::uint64_t renderColumn(const SpanFrame& sf, int j, std::uint32_t* __restrict__ color,
+                               float* __restrict__ depth) const;
+    void renderSpans(const Camera& camera, RenderedFrame& frame, UnitCounters& counters) const;
+
+    const TerrainMap& map_;
+    RenderOptions options_;
+    std::unique_ptr<TerrainPyramid> pyramid_;
+    mutable std::once_flag fallbackOnce_;
+    mutable Fallback fallback_;
+    mutable std::mutex poolMutex_;
+    mutable std::vector<std::unique_ptr<SpanBuffers>> pool_;
+};
+
+SpanFrame SpanCaster::setUp(const Camera& camera) const {
+    const Intrinsics& in = camera.intrinsics();
+    const Pose& pose = camera.pose();
+    SpanFrame sf;
+    sf.width = in.width;
+    sf.height = in.height;
+    sf.focal = in.focal;
+    sf.cx = in.cx();
+    const double f = in.focal, cy = in.cy();
+    const double sp = std::sin(pose.pitch), cp = std::cos(pose.pitch);
+    sf.up.resize(in.height);
+    sf.stretch.resize(in.height);
+    double smax = 0.0;
+    for (int y = 0; y < in.height; ++y) {
+        // Output pixel row y seen on the vertical plane: forward component D, up component U
+        // (per unit of the pixel's focal-plane offsets); the vertical plane sees it at the
+        // elevation offset f U / D and at columns stretched by f / D.
+        const double yc = y + 0.5 - cy;
+        const double D = f * cp + yc * sp;
+        const double U = f * sp - yc * cp;
+        sf.up[y] = f * U / D;
+        sf.stretch[y] = f / D;
+        smax = std::max(smax, sf.stretch[y]);
+    }
+    const int pad = static_cast<int>(std::ceil(0.5 * in.width * (smax - 1.0))) + 2;
+    sf.columns = in.width + 2 * pad;
+    sf.half = 0.5 * sf.columns;
+    // Columns each row reads, then rows each column must hold (two rows of margin).
+    sf.rowLo.assign(sf.columns, in.height);
+    sf.rowHi.assign(sf.columns, -1);
+    for (int y = 0; y < in.height; ++y) {
+        const int j0 = std::max(0, static_cast<int>(std::floor(columnAt(sf, 0, sf.stretch[y]))));
+        const int j1 =
+            std::min(sf.columns - 1,
+                     static_cast<int>(std::floor(columnAt(sf, in.width - 1, sf.stretch[y]))) + 1);
+        for (int j = j0; j <= j1; ++j) {
+            sf.rowLo[j] = std::min(sf.rowLo[j], y);
+            sf.rowHi[j] = std::max(sf.rowHi[j], y);
+        }
+    }
+    for (int j = 0; j < sf.columns; ++j) {
+        if (sf.rowLo[j] > sf.rowHi[j]) continue;
+        sf.rowLo[j] = std::max(0, sf.rowLo[j] - 2);
+        sf.rowHi[j] = std::min(in.height - 1, sf.rowHi[j] + 2);
+    }
+    sf.eye = pose.position;
+    sf.headingX = std::sin(pose.yaw);
+    sf.headingY = std::cos(pose.yaw);
+    sf.rightX = std::cos(pose.yaw);
+    sf.rightY = -std::sin(pose.yaw);
+    return sf;
+}
+
+}  // namespace
+
+double spanStretch(const Camera& camera) {
+    const Intrinsics& in = camera.intrinsics();
+    const double f = in.focal, cy = in.cy();
+    const double sp = std::sin(camera.pose().pitch), cp = std::cos(camera.pose().pitch);
+    double smax = 0.0;
+    for (const double y : {0.5, in.height - 0.5}) {
+        const double D = f * cp + (y - cy) * sp;
+        if (!(D > 1e-6 * f)) return kInf;
+        smax = std::max(smax, f / D);
+    }
+    return smax;
+}
+
+namespace {
+
+// One vertical-plane column: front to back along its ground line, filling rows from the bottom
+// of its row range up. Returns the number of terrain samples taken.
+std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
+                                       std::uint32_t* __restrict__ color,
+                                       float* __restrict__ depth) const {
+    const int yLo = sf.rowLo[j];
+    int yb = sf.rowHi[j];
+    if (yb < yLo) return 0;
+    const SkyModel& sky = options_.sky;
+    const double* __restrict__ up = sf.up.data();
+    const double uc = j + 0.5 - sf.half;
+    // Ground direction of the column (unit) and the column's horizontal length per focal unit:
+    // a row with elevation offset up[y] climbs up[y] / L metres per metre along the ground.
+    const double gx = sf.focal * sf.headingX + uc * sf.rightX;
+    const double gy = sf.focal * sf.headingY + uc * sf.rightY;
+    const double L = std::sqrt(gx * gx + gy * gy), invL = 1.0 / L;
+    const double dx = gx * invL, dy = gy * invL;
+    const double ez = sf.eye.z;
+    const double scale = map_.heightScale(), offset = map_.heightOffset();
+    std::uint64_t samples = 0;
+
+    // The previous sample: ground distance, height over the eye, colour.
+    double pd = 0.0, ph = 0.0;
+    float pc[3] = {0.0f, 0.0f, 0.0f};
+
+    auto writeSky = [&](int y) {
+        const double t = up[y] * invL;
+        color[y] = pack(skyColor(sky, t / std::sqrt(1.0 + t * t)));
+        depth[y] = kSkyDepth;
+    };
+    // Fills the rows whose rays pass under sample (d, h) between the previous sample and it.
+    auto emit = [&](double d, double h, const float c[3]) {
+        ++samples;
+        const double lim = h * L;
+        while (yb >= yLo && up[yb] * d <= lim) {
+            const double t = up[yb] * invL;
+            const double ga = t * pd - ph, gb = t * d - h;
+            const double den = ga - gb;
+            const double fr = den > 0.0 ? std::clamp(ga / den, 0.0, 1.0) : 1.0;
+            const float w = static_cast<float>(fr);
+            const double dh = pd + fr * (d - pd);
+            const double dist = dh * std::sqrt(1.0 + t * t);
+            float rgb[3] = {pc[0] + (c[0] - pc[0]) * w, pc[1] + (c[1] - pc[1]) * w,
+                            pc[2] + (c[2] - pc[2]) * w};
+            applyHaze(sky, rgb, dist);
+            color[yb] = pack(quantizeColor(rgb));
+            depth[yb] = static_cast<float>(dist);
+            --yb;
+        }
+        pd = d;
+        ph = h;
+        pc[0] = c[0];
+        pc[1] = c[1];
+        pc[2] = c[2];
+    };
+
+    // The ground line inside the map box: [dIn, dOut].
+    double dIn = 0.0, dOut = kInf;
+    auto clip = [&](double e, double dir, double hi) {
+        if (dir == 0.0) {
+            if (e < 0.0 || e > hi) dOut = -1.0;
+            return;
+        }
+        double a = (0.0 - e) / dir, b = (hi - e) / dir;
+        if (a > b) std::swap(a, b);
+        dIn = std::max(dIn, a);
+        dOut = std::min(dOut, b);
+    };
+    clip(sf.eye.x, dx, map_.extentX());
+    clip(sf.eye.y, dy, map_.extentY());
+    const double topLimit = (map_.maxHeight() - ez) * L;  // up * d at or above this: sky
+    if (dIn <= dOut) {
+        // First sample: the bilinear surface where the line enters (under the eye when inside).
+        {
+            const double x = sf.eye.x + dIn * dx, y = sf.eye.y + dIn * dy;
+            float c[3];
+            map_.surfaceColor(x, y, c);
+            const double h = map_.surfaceHeight(x, y) - ez;
+            // Rows under the surface already at the map's edge see that edge.
+            while (yb >= yLo && up[yb] * dIn <= h * L) {
+                const double t = up[yb] * invL;
+                const double dist = dIn * std::sqrt(1.0 + t * t);
+                float rgb[3] = {c[0], c[1], c[2]};
+                applyHaze(sky, rgb, dist);
+                color[yb] = pack(quantizeColor(rgb));
+                depth[yb] = static_cast<float>(dist);
+                --yb;
+            }
+            pd = dIn;
+            ph = h;
+            pc[0] = c[0];
+            pc[1] = c[1];
+            pc[2] = c[2];
+            ++samples;
+        }
+        const bool majorX = std::abs(dx / map_.spacingX()) >= std::abs(dy / map_.spacingY());
+        const double spMaj0 = majorX ? map_.spacingX() : map_.spacingY();
+        const double spMin0 = majorX ? map_.spacingY() : map_.spacingX();
+        const double eMaj = majorX ? sf.eye.x : sf.eye.y, eMin = majorX ? sf.eye.y : sf.eye.x;
+        const double dMaj = majorX ? dx : dy, dMin = majorX ? dy : dx;
+        const int sgn = dMaj > 0.0 ? 1 : -1;
+        const int top = pyramid_->levelCount() - 1;
+        const double d0 = top > 0 ? sf.focal * std::max(map_.spacingX(), map_.spacingY()) : kInf;
+
+        bool done = false;
+        for (int k = 0; k <= top && yb >= yLo && !done; ++k) {
+            const PyramidLevel& lk = pyramid_->level(k);
+            const PyramidLevel* lk1 = k < top ? &pyramid_->level(k + 1) : nullptr;
+            const double bandEnd = k < top ? d0 * std::ldexp(1.0, k + 1) : kInf;
+            const double blendFrom = d0 * std::ldexp(1.0, k);  // w = d / blendFrom - 1 past it
+            if (pd >= bandEnd) continue;
+            const double spMaj = std::ldexp(spMaj0, k), spMin = std::ldexp(spMin0, k);
+            const int nMaj = majorX ? lk.width : lk.height, nMin = majorX ? lk.height : lk.width;
+            const std::size_t sMaj = majorX ? 1 : static_cast<std::size_t>(lk.width);
+            const std::size_t sMin = majorX ? static_cast<std::size_t>(lk.width) : 1;
+            // The first line strictly past the previous sample.
+            const double gm = (eMaj + pd * dMaj) / spMaj;
+            long m = sgn > 0 ? static_cast<long>(std::floor(gm)) + 1
+                             : static_cast<long>(std::ceil(gm)) - 1;
+            const double invSpMin = 1.0 / spMin;
+            // Minor cell of the previous sample (level 0 only: minor-line crossings).
+            double pn = (eMin + pd * dMin) * invSpMin;
+            for (;; m += sgn) {
+                if (m < 0 || m >= nMaj) break;
+                const double d = (m * spMaj - eMaj) / dMaj;
+                if (d > dOut || d >= bandEnd) break;
+                const double n = (eMin + d * dMin) * invSpMin;
+                if (k == 0) {
+                    // The track crosses a minor grid line between the previous sample and
+                    // this line: sample the surface there (linear along that line).
+                    const double fa = std::floor(pn), fb = std::floor(n);
+                    if (fa != fb) {
+                        const double nI = fb > fa ? fb : fa;
+                        const double frac = (nI - pn) / (n - pn);
+                        const double dN = pd + frac * (d - pd);
+                        if (dN > pd && dN < d) {
+                            const double x = sf.eye.x + dN * dx, y = sf.eye.y + dN * dy;
+                            float c[3];
+                            map_.surfaceColor(x, y, c);
+                            double h = map_.surfaceHeight(x, y);
+                            if (dN > d0) {
+                                // Past d0 level 0 blends toward level 1 (as on the lines).
+                                const double w = std::min(1.0, dN / blendFrom - 1.0);
+                                const double gxl = x / map_.spacingX(), gyl = y / map_.spacingY();
+                                float c1[3];
+                                const double h1 = sampleBilinear(*lk1, gxl * 0.5, gyl * 0.5, c1);
+                                h = (1.0 - w) * h + w * (h1 * scale + offset);
+                                for (int i = 0; i < 3; ++i)
+                                    c[i] += (c1[i] - c[i]) * static_cast<float>(w);
+                            }
+                            emit(dN, h - ez, c);
+                            if (yb < yLo) {
+                                done = true;
+                                break;
+                            }
+                        }
+                    }
+                }
+                pn = n;
+                // Level k along the line: linear between the two samples either side.
+                const double nc = std::clamp(n, 0.0, nMin - 1.0);
+                const int i0 = std::min(static_cast<int>(nc), nMin - 2);
+                const double fr = nc - i0;
+                const std::size_t a = static_cast<std::size_t>(m) * sMaj + i0 * sMin;
+                const std::size_t b = a + sMin;
+                double h =
+                    lk.heights[a] + fr * (static_cast<double>(lk.heights[b]) - lk.heights[a]);
+                const Rgb8 ca = lk.colors[a], cb = lk.colors[b];
+                const float ff = static_cast<float>(fr);
+                float c[3] = {ca.r + (cb.r - ca.r) * ff, ca.g + (cb.g - ca.g) * ff,
+                              ca.b + (cb.b - ca.b) * ff};
+                if (lk1 && d > blendFrom) {
+                    const double w = std::min(1.0, d / blendFrom - 1.0);
+                    const double gMaj1 = 0.5 * m, gMin1 = 0.5 * n;
+                    float c1[3];
+                    const double h1 = majorX ? sampleBilinear(*lk1, gMaj1, gMin1, c1)
+                                             : sampleBilinear(*lk1, gMin1, gMaj1, c1);
+                    h += w * (h1 - h);
+                    for (int i = 0; i < 3; ++i)
+                        c[i] += (c1[i] - c[i]) * static_cast<float>(w);
+                }
+                emit(d, h * scale + offset - ez, c);
+                if (yb < yLo) {
+                    done = true;
+                    break;
+                }
+                // Nothing further can rise over the next row's ray.
+                if (up[yb] >= 0.0 && up[yb] * d >= topLimit) {
+                    done = true;
+                    break;
+                }
+            }
+        }
+    }
+    for (; yb >= yLo; --yb)
+        writeSky(yb);
+    return samples;
+}
+
+void SpanCaster::renderSpans(const Camera& camera, RenderedFrame& frame,
+                             UnitCounters& counters) const {
+    const SpanFrame sf = setUp(camera);
+    const int H = sf.height, W = sf.width;
+    std::unique_ptr<SpanBuffers> buf = takeBuffers();
+    const std::size_t n = static_cast<std::size_t>(sf.columns) * H;
+    if (buf->color.size() < n) {
+        buf->color.resize(n);
+        buf->depth.resize(n);
+    }
+    std::uint32_t* const colColor = buf->color.data();
+    float* const colDepth = buf->depth.data();
+    tbb::combinable<std::uint64_t> samples([] { return std::uint64_t{0}; });
+    runWithThreads(options_.threads, [&] {
+        // Columns are independent: the image does not depend on the thread count.
+        tbb::parallel_for(tbb::blocked_range<int>(0, sf.columns, 16),
+                          [&](const tbb::blocked_range<int>& r) {
+                              std::uint64_t s = 0;
+                              for (int j = r.begin(); j < r.end(); ++j) {
+                                  const std::size_t o = static_cast<std::size_t>(j) * H;
+                                  s += renderColumn(sf, j, colColor + o, colDepth + o);
+                              }
+                              samples.local() += s;
+                          });
+        // Rows, in strips whose column runs stay in cache: each output pixel reads the two
+        // vertical-plane columns either side of where it falls (one at pitch 0).
+        constexpr int kStrip = 16;
+        tbb::parallel_for(0, (H + kStrip - 1) / kStrip, [&](int strip) {
+            const int y1 = std::min(H, (strip + 1) * kStrip);
+            for (int y = strip * kStrip; y < y1; ++y) {
+                Rgb8* __restrict__ outC = frame.color.data() + static_cast<std::size_t>(y) * W;
+                float* __restrict__ outD = frame.depth.data() + static_cast<std::size_t>(y) * W;
+                const double s = sf.stretch[y];
+                for (int x = 0; x < W; ++x) {
+                    const double jf = columnAt(sf, x, s);
+                    const int j0 = std::clamp(static_cast<int>(std::floor(jf)), 0, sf.columns - 2);
+                    const float w = static_cast<float>(std::clamp(jf - j0, 0.0, 1.0));
+                    const std::size_t a = static_cast<std::size_t>(j0) * H + y, b = a + H;
+                    const std::uint32_t ca = colColor[a], cb = colColor[b];
+                    const float da = colDepth[a], db = colDepth[b];
+                    if (w == 0.0f) {
+                        outC[x] =
+                            Rgb8{static_cast<std::uint8_t>(ca), static_cast<std::uint8_t>(ca >> 8),
+                                 static_cast<std::uint8_t>(ca >> 16)};
+                        outD[x] = da;
+                        continue;
+                    }
+                    auto mix = [w](std::uint32_t p, std::uint32_t q, int sh) {
+                        const float u = static_cast<float>((p >> sh) & 255u);
+                        const float v = static_cast<float>((q >> sh) & 255u);
+                        return static_cast<std::uint8_t>(u + (v - u) * w + 0.5f);
+                    };
+                    outC[x] = Rgb8{mix(ca, cb, 0), mix(ca, cb, 8), mix(ca, cb, 16)};
+                    // Depth: linear on a smooth surface, the nearer column's across an edge.
+                    const float lo = std::min(da, db), hi = std::max(da, db);
+                    outD[x] = lo < kSkyDepth && hi <= 1.05f * lo ? da + (db - da) * w
+                                                                 : (w < 0.5f ? da : db);
+                }
+            }
+        });
+    });
+    giveBuffers(std::move(buf));
+    counters.steps += samples.combine([](std::uint64_t a, std::uint64_t b) { return a + b; });
+}
+
+}  // namespace
+
+std::unique_ptr<Caster> makeSpanCaster(const TerrainMap& map, const RenderOptions& options) {
+    return std::make_unique<SpanCaster>(map, options);
+}
+
+}  // namespace ig
