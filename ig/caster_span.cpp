@@ -347,6 +347,8 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
         const int top = pyramid_->levelCount() - 1;
         const double d0 = top > 0 ? sf.focal * std::max(map_.spacingX(), map_.spacingY()) : kInf;
 
+        const int topNode = pyramid_->nodeLevelCount() - 1;
+        const double nodeScale = scale * L, nodeOffset = (offset - ez) * L;
         bool done = false;
         for (int k = 0; k <= top && yb >= yLo && !done; ++k) {
             const PyramidLevel& lk = pyramid_->level(k);
@@ -358,21 +360,21 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             const int nMaj = majorX ? lk.width : lk.height, nMin = majorX ? lk.height : lk.width;
             const std::size_t sMaj = majorX ? 1 : static_cast<std::size_t>(lk.width);
             const std::size_t sMin = majorX ? static_cast<std::size_t>(lk.width) : 1;
+            const double invDMaj = 1.0 / dMaj, invSpMaj = 1.0 / spMaj, invSpMin = 1.0 / spMin;
+            const double dEnd = std::min(dOut, bandEnd);
             // The first line strictly past the previous sample.
-            const double gm = (eMaj + pd * dMaj) / spMaj;
+            const double gm = (eMaj + pd * dMaj) * invSpMaj;
             long m = sgn > 0 ? static_cast<long>(std::floor(gm)) + 1
                              : static_cast<long>(std::ceil(gm)) - 1;
-            const double invSpMin = 1.0 / spMin;
-            // Minor cell of the previous sample (level 0 only: minor-line crossings).
+            // Minor coordinate of the previous sample (level 0: minor-line crossings).
             double pn = (eMin + pd * dMin) * invSpMin;
-            for (;; m += sgn) {
-                if (m < 0 || m >= nMaj) break;
-                const double d = (m * spMaj - eMaj) / dMaj;
-                if (d > dOut || d >= bandEnd) break;
+
+            // Samples level k where the line crosses major line m (and, on level 0, where it
+            // crossed a minor line since the previous sample) and fills the rows under them.
+            // False when the column is finished.
+            auto line = [&](long mm, double d) -> bool {
                 const double n = (eMin + d * dMin) * invSpMin;
                 if (k == 0) {
-                    // The track crosses a minor grid line between the previous sample and
-                    // this line: sample the surface there (linear along that line).
                     const double fa = std::floor(pn), fb = std::floor(n);
                     if (fa != fb) {
                         const double nI = fb > fa ? fb : fa;
@@ -383,21 +385,18 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                             float c[3];
                             map_.surfaceColor(x, y, c);
                             double h = map_.surfaceHeight(x, y);
-                            if (dN > d0) {
+                            if (lk1 && dN > blendFrom) {
                                 // Past d0 level 0 blends toward level 1 (as on the lines).
                                 const double w = std::min(1.0, dN / blendFrom - 1.0);
-                                const double gxl = x / map_.spacingX(), gyl = y / map_.spacingY();
                                 float c1[3];
-                                const double h1 = sampleBilinear(*lk1, gxl * 0.5, gyl * 0.5, c1);
+                                const double h1 = sampleBilinear(*lk1, 0.5 * x / map_.spacingX(),
+                                                                 0.5 * y / map_.spacingY(), c1);
                                 h = (1.0 - w) * h + w * (h1 * scale + offset);
                                 for (int i = 0; i < 3; ++i)
                                     c[i] += (c1[i] - c[i]) * static_cast<float>(w);
                             }
                             emit(dN, h - ez, c);
-                            if (yb < yLo) {
-                                done = true;
-                                break;
-                            }
+                            if (yb < yLo) return false;
                         }
                     }
                 }
@@ -406,7 +405,7 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                 const double nc = std::clamp(n, 0.0, nMin - 1.0);
                 const int i0 = std::min(static_cast<int>(nc), nMin - 2);
                 const double fr = nc - i0;
-                const std::size_t a = static_cast<std::size_t>(m) * sMaj + i0 * sMin;
+                const std::size_t a = static_cast<std::size_t>(mm) * sMaj + i0 * sMin;
                 const std::size_t b = a + sMin;
                 double h =
                     lk.heights[a] + fr * (static_cast<double>(lk.heights[b]) - lk.heights[a]);
@@ -416,7 +415,7 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                               ca.b + (cb.b - ca.b) * ff};
                 if (lk1 && d > blendFrom) {
                     const double w = std::min(1.0, d / blendFrom - 1.0);
-                    const double gMaj1 = 0.5 * m, gMin1 = 0.5 * n;
+                    const double gMaj1 = 0.5 * static_cast<double>(mm), gMin1 = 0.5 * n;
                     float c1[3];
                     const double h1 = majorX ? sampleBilinear(*lk1, gMaj1, gMin1, c1)
                                              : sampleBilinear(*lk1, gMin1, gMaj1, c1);
@@ -425,15 +424,75 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                         c[i] += (c1[i] - c[i]) * static_cast<float>(w);
                 }
                 emit(d, h * scale + offset - ez, c);
-                if (yb < yLo) {
-                    done = true;
-                    break;
-                }
+                if (yb < yLo) return false;
                 // Nothing further can rise over the next row's ray.
-                if (up[yb] >= 0.0 && up[yb] * d >= topLimit) {
-                    done = true;
-                    break;
+                return !(up[yb] >= 0.0 && up[yb] * d >= topLimit);
+            };
+
+            // Max-height nodes: a stretch of the line over a node whose bound stays under the
+            // lowest row still to fill is passed without samples, but for the last line in it
+            // (below that row too), which starts the next segment. Coarser nodes after a pass,
+            // finer where a node may reach the row; at the finest, the lines inside are sampled.
+            const int jMin = std::max(1, k);
+            int nl = std::min(topNode, jMin + 2);
+            double cursor = pd;  // where the node search stands
+            while (!done) {
+                const double dm = (m * spMaj - eMaj) * invDMaj;
+                if (m < 0 || m >= nMaj || dm > dEnd) break;
+                double until = dm;  // sample the lines up to here
+                if (topNode >= jMin) {
+                    for (;;) {
+                        const double sx = std::ldexp(map_.spacingX(), nl);
+                        const double sy = std::ldexp(map_.spacingY(), nl);
+                        const double px = sf.eye.x + cursor * dx, py = sf.eye.y + cursor * dy;
+                        const double gxn = px / sx, gyn = py / sy;
+                        const int nx = std::clamp(
+                            static_cast<int>(dx >= 0.0 ? std::floor(gxn) : std::ceil(gxn) - 1.0), 0,
+                            pyramid_->nodesX(nl) - 1);
+                        const int ny = std::clamp(
+                            static_cast<int>(dy >= 0.0 ? std::floor(gyn) : std::ceil(gyn) - 1.0), 0,
+                            pyramid_->nodesY(nl) - 1);
+                        const double tx =
+                            dx != 0.0 ? ((dx > 0.0 ? nx + 1 : nx) * sx - sf.eye.x) / dx : kInf;
+                        const double ty =
+                            dy != 0.0 ? ((dy > 0.0 ? ny + 1 : ny) * sy - sf.eye.y) / dy : kInf;
+                        const double exitD = std::min({tx, ty, dEnd});
+                        const double u = up[yb];
+                        const double low = u * (u >= 0.0 ? cursor : exitD);
+                        const bool below =
+                            pyramid_->nodeMaxRaw(nl, nx, ny) * nodeScale + nodeOffset < low;
+                        if (exitD > cursor && below) {
+                            // Pass the node: jump to the last line in it.
+                            const double ge = (eMaj + exitD * dMaj) * invSpMaj;
+                            const long last = sgn > 0 ? static_cast<long>(std::floor(ge))
+                                                      : static_cast<long>(std::ceil(ge));
+                            if ((last - m) * sgn > 0) m = last;
+                            cursor = exitD;
+                            nl = std::min(topNode, nl + 1);
+                            until = (m * spMaj - eMaj) * invDMaj;
+                            break;
+                        }
+                        if (nl > jMin && exitD > cursor) {
+                            --nl;
+                            continue;
+                        }
+                        // At the finest node: sample every line up to its exit.
+                        until = std::max(dm, exitD);
+                        cursor = std::max(cursor, exitD);
+                        nl = std::min(topNode, jMin + 1);
+                        break;
+                    }
                 }
+                for (;;) {
+                    const double d = (m * spMaj - eMaj) * invDMaj;
+                    if (m < 0 || m >= nMaj || d > dEnd || d > until) break;
+                    if (!line(m, d)) {
+                        done = true;
+                        break;
+                    }
+                    m += sgn;
+                }
+                cursor = std::max(cursor, pd);
             }
         }
     }
