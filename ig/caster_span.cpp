@@ -65,23 +65,70 @@ inline std::uint32_t pack(Rgb8 c) {
            static_cast<std::uint32_t>(c.b) << 16;
 }
 
-// Bilinear height (raw units) and colour of display level `l` at its own grid coordinates,
-// clamped to its edge.
-inline double sampleBilinear(const PyramidLevel& l, double gx, double gy, float rgb[3]) {
+// floor() of a double as an integer, without the library call a generic x86-64 build makes.
+inline long floorL(double x) {
+    const long i = static_cast<long>(x);
+    return i - (x < static_cast<double>(i));
+}
+
+// Cell and weights of display level `l` at its own grid coordinates, clamped to its edge.
+struct BilinearAt {
+    std::size_t i00, i01;
+    double fx, fy;
+};
+inline BilinearAt bilinearAt(const PyramidLevel& l, double gx, double gy) {
     const double x = std::clamp(gx, 0.0, l.width - 1.0), y = std::clamp(gy, 0.0, l.height - 1.0);
     const int ix = std::min(static_cast<int>(x), l.width - 2);
     const int iy = std::min(static_cast<int>(y), l.height - 2);
-    const double fx = x - ix, fy = y - iy;
-    const std::size_t i00 = l.index(ix, iy), i01 = i00 + static_cast<std::size_t>(l.width);
-    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
-    const Rgb8 c00 = l.colors[i00], c10 = l.colors[i00 + 1], c01 = l.colors[i01],
-               c11 = l.colors[i01 + 1];
-    rgb[0] = static_cast<float>(w00 * c00.r + w10 * c10.r + w01 * c01.r + w11 * c11.r);
-    rgb[1] = static_cast<float>(w00 * c00.g + w10 * c10.g + w01 * c01.g + w11 * c11.g);
-    rgb[2] = static_cast<float>(w00 * c00.b + w10 * c10.b + w01 * c01.b + w11 * c11.b);
-    return w00 * l.heights[i00] + w10 * l.heights[i00 + 1] + w01 * l.heights[i01] +
-           w11 * l.heights[i01 + 1];
+    const std::size_t i00 = l.index(ix, iy);
+    return {i00, i00 + static_cast<std::size_t>(l.width), x - ix, y - iy};
 }
+// Bilinear height, raw units.
+inline double bilinearHeight(const PyramidLevel& l, const BilinearAt& p) {
+    const double h0 = l.heights[p.i00] + p.fx * (l.heights[p.i00 + 1] - l.heights[p.i00]);
+    const double h1 = l.heights[p.i01] + p.fx * (l.heights[p.i01 + 1] - l.heights[p.i01]);
+    return h0 + p.fy * (h1 - h0);
+}
+// Bilinear colour, 0..255 per channel.
+inline void bilinearColor(const PyramidLevel& l, const BilinearAt& p, float rgb[3]) {
+    const Rgb8 c00 = l.colors[p.i00], c10 = l.colors[p.i00 + 1], c01 = l.colors[p.i01],
+               c11 = l.colors[p.i01 + 1];
+    const float fx = static_cast<float>(p.fx), fy = static_cast<float>(p.fy);
+    auto mix = [fx, fy](float a, float b, float c, float d) {
+        const float u = a + fx * (b - a), v = c + fx * (d - c);
+        return u + fy * (v - u);
+    };
+    rgb[0] = mix(c00.r, c10.r, c01.r, c11.r);
+    rgb[1] = mix(c00.g, c10.g, c01.g, c11.g);
+    rgb[2] = mix(c00.b, c10.b, c01.b, c11.b);
+}
+
+// A sample's colour, worked out only when the sample draws a row: linear between two samples
+// `a`, `b` of level `l` (weight fr toward b), blended toward level `l1` (bilinear at p1) by w.
+struct ColorSource {
+    const PyramidLevel* l = nullptr;  // nullptr: rgb holds the colour
+    std::size_t a = 0, b = 0;
+    float fr = 0.0f;
+    const PyramidLevel* l1 = nullptr;
+    float w = 0.0f;
+    BilinearAt p1{};
+    float rgb[3] = {0.0f, 0.0f, 0.0f};
+
+    void resolve() {
+        if (!l) return;
+        const Rgb8 ca = l->colors[a], cb = l->colors[b];
+        rgb[0] = ca.r + (cb.r - ca.r) * fr;
+        rgb[1] = ca.g + (cb.g - ca.g) * fr;
+        rgb[2] = ca.b + (cb.b - ca.b) * fr;
+        if (l1) {
+            float c1[3];
+            bilinearColor(*l1, p1, c1);
+            for (int i = 0; i < 3; ++i)
+                rgb[i] += (c1[i] - rgb[i]) * w;
+        }
+        l = nullptr;
+    }
+};
 
 class SpanCaster final : public Caster {
   public:
@@ -96,6 +143,12 @@ class SpanCaster final : public Caster {
         }
         pyramid_ = std::make_unique<TerrainPyramid>(
             map, options_.levels == 0 ? kLevelsAuto : options_.levels);
+        for (int j = 0; j < pyramid_->nodeLevelCount(); ++j) {
+            nodeSizeX_.push_back(std::ldexp(map.spacingX(), j));
+            nodeSizeY_.push_back(std::ldexp(map.spacingY(), j));
+            nodeInvX_.push_back(1.0 / nodeSizeX_.back());
+            nodeInvY_.push_back(1.0 / nodeSizeY_.back());
+        }
     }
     CasterKind kind() const override { return CasterKind::Span; }
 
@@ -167,6 +220,8 @@ class SpanCaster final : public Caster {
     const TerrainMap& map_;
     RenderOptions options_;
     std::unique_ptr<TerrainPyramid> pyramid_;
+    // Node sizes in metres per node level, and their inverses.
+    std::vector<double> nodeSizeX_, nodeSizeY_, nodeInvX_, nodeInvY_;
     mutable std::once_flag fallbackOnce_;
     mutable Fallback fallback_;
     mutable std::mutex poolMutex_;
@@ -203,16 +258,28 @@ SpanFrame SpanCaster::setUp(const Camera& camera) const {
     // Columns each row reads, then rows each column must hold (two rows of margin).
     sf.rowLo.assign(sf.columns, in.height);
     sf.rowHi.assign(sf.columns, -1);
+    // The rows' column intervals are nested (the stretch is monotonic in y), so their union
+    // grows one end at a time: each column's first row from the top, its last from the bottom.
+    std::vector<int> c0(in.height), c1(in.height);
     for (int y = 0; y < in.height; ++y) {
-        const int j0 = std::max(0, static_cast<int>(std::floor(columnAt(sf, 0, sf.stretch[y]))));
-        const int j1 =
+        c0[y] = std::max(0, static_cast<int>(std::floor(columnAt(sf, 0, sf.stretch[y]))));
+        c1[y] =
             std::min(sf.columns - 1,
                      static_cast<int>(std::floor(columnAt(sf, in.width - 1, sf.stretch[y]))) + 1);
-        for (int j = j0; j <= j1; ++j) {
-            sf.rowLo[j] = std::min(sf.rowLo[j], y);
-            sf.rowHi[j] = std::max(sf.rowHi[j], y);
-        }
     }
+    auto sweep = [&](int yFirst, int yStep, std::vector<int>& rows) {
+        int lo = sf.columns, hi = -1;  // union so far
+        for (int y = yFirst; y >= 0 && y < in.height; y += yStep) {
+            for (int j = c0[y]; j <= c1[y] && j < lo; ++j)
+                rows[j] = y;
+            for (int j = std::max(c0[y], hi + 1); j <= c1[y]; ++j)
+                rows[j] = y;
+            lo = std::min(lo, c0[y]);
+            hi = std::max(hi, c1[y]);
+        }
+    };
+    sweep(0, 1, sf.rowLo);
+    sweep(in.height - 1, -1, sf.rowHi);
     for (int j = 0; j < sf.columns; ++j) {
         if (sf.rowLo[j] > sf.rowHi[j]) continue;
         sf.rowLo[j] = std::max(0, sf.rowLo[j] - 2);
@@ -266,37 +333,44 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
 
     // The previous sample: ground distance, height over the eye, colour.
     double pd = 0.0, ph = 0.0;
-    float pc[3] = {0.0f, 0.0f, 0.0f};
+    ColorSource slot[2];
+    int prev = 0;  // slot[prev]: the previous sample's colour; slot[prev ^ 1]: the next one's
 
     auto writeSky = [&](int y) {
         const double t = up[y] * invL;
         color[y] = pack(skyColor(sky, t / std::sqrt(1.0 + t * t)));
         depth[y] = kSkyDepth;
     };
-    // Fills the rows whose rays pass under sample (d, h) between the previous sample and it.
-    auto emit = [&](double d, double h, const float c[3]) {
+    // Takes the sample (d, h) whose colour is in slot[prev ^ 1]: fills the rows whose rays pass
+    // under it, between the previous sample and it (colours worked out only then).
+    auto emit = [&](double d, double h) {
         ++samples;
         const double lim = h * L;
-        while (yb >= yLo && up[yb] * d <= lim) {
-            const double t = up[yb] * invL;
-            const double ga = t * pd - ph, gb = t * d - h;
-            const double den = ga - gb;
-            const double fr = den > 0.0 ? std::clamp(ga / den, 0.0, 1.0) : 1.0;
-            const float w = static_cast<float>(fr);
-            const double dh = pd + fr * (d - pd);
-            const double dist = dh * std::sqrt(1.0 + t * t);
-            float rgb[3] = {pc[0] + (c[0] - pc[0]) * w, pc[1] + (c[1] - pc[1]) * w,
-                            pc[2] + (c[2] - pc[2]) * w};
-            applyHaze(sky, rgb, dist);
-            color[yb] = pack(quantizeColor(rgb));
-            depth[yb] = static_cast<float>(dist);
-            --yb;
+        ColorSource& cur = slot[prev ^ 1];
+        if (yb >= yLo && up[yb] * d <= lim) {
+            ColorSource& last = slot[prev];
+            last.resolve();
+            cur.resolve();
+            do {
+                const double t = up[yb] * invL;
+                const double ga = t * pd - ph, gb = t * d - h;
+                const double den = ga - gb;
+                const double fr = den > 0.0 ? std::clamp(ga / den, 0.0, 1.0) : 1.0;
+                const float w = static_cast<float>(fr);
+                const double dh = pd + fr * (d - pd);
+                const double dist = dh * std::sqrt(1.0 + t * t);
+                float rgb[3] = {last.rgb[0] + (cur.rgb[0] - last.rgb[0]) * w,
+                                last.rgb[1] + (cur.rgb[1] - last.rgb[1]) * w,
+                                last.rgb[2] + (cur.rgb[2] - last.rgb[2]) * w};
+                applyHaze(sky, rgb, dist);
+                color[yb] = pack(quantizeColor(rgb));
+                depth[yb] = static_cast<float>(dist);
+                --yb;
+            } while (yb >= yLo && up[yb] * d <= lim);
         }
         pd = d;
         ph = h;
-        pc[0] = c[0];
-        pc[1] = c[1];
-        pc[2] = c[2];
+        prev ^= 1;
     };
 
     // The ground line inside the map box: [dIn, dOut].
@@ -333,9 +407,9 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             }
             pd = dIn;
             ph = h;
-            pc[0] = c[0];
-            pc[1] = c[1];
-            pc[2] = c[2];
+            slot[prev].l = nullptr;
+            for (int i = 0; i < 3; ++i)
+                slot[prev].rgb[i] = c[i];
             ++samples;
         }
         const bool majorX = std::abs(dx / map_.spacingX()) >= std::abs(dy / map_.spacingY());
@@ -348,6 +422,8 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
         const double d0 = top > 0 ? sf.focal * std::max(map_.spacingX(), map_.spacingY()) : kInf;
 
         const int topNode = pyramid_->nodeLevelCount() - 1;
+        const double invDx = dx != 0.0 ? 1.0 / dx : kInf, invDy = dy != 0.0 ? 1.0 / dy : kInf;
+        const double invSpX = 1.0 / map_.spacingX(), invSpY = 1.0 / map_.spacingY();
         const double nodeScale = scale * L, nodeOffset = (offset - ez) * L;
         bool done = false;
         for (int k = 0; k <= top && yb >= yLo && !done; ++k) {
@@ -375,27 +451,36 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             auto line = [&](long mm, double d) -> bool {
                 const double n = (eMin + d * dMin) * invSpMin;
                 if (k == 0) {
-                    const double fa = std::floor(pn), fb = std::floor(n);
+                    const long fa = floorL(pn), fb = floorL(n);
                     if (fa != fb) {
-                        const double nI = fb > fa ? fb : fa;
+                        const long nI = fb > fa ? fb : fa;
                         const double frac = (nI - pn) / (n - pn);
                         const double dN = pd + frac * (d - pd);
                         if (dN > pd && dN < d) {
-                            const double x = sf.eye.x + dN * dx, y = sf.eye.y + dN * dy;
-                            float c[3];
-                            map_.surfaceColor(x, y, c);
-                            double h = map_.surfaceHeight(x, y);
+                            // On the minor line: linear between its two grid samples.
+                            const double gmN = (eMaj + dN * dMaj) * invSpMaj;
+                            const int m0 = std::clamp(static_cast<int>(gmN), 0, nMaj - 2);
+                            const int iN = std::clamp(static_cast<int>(nI), 0, nMin - 1);
+                            const double fm = std::clamp(gmN - m0, 0.0, 1.0);
+                            ColorSource& cs = slot[prev ^ 1];
+                            cs.l = &lk;
+                            cs.a = static_cast<std::size_t>(m0) * sMaj + iN * sMin;
+                            cs.b = cs.a + sMaj;
+                            cs.fr = static_cast<float>(fm);
+                            cs.l1 = nullptr;
+                            double h =
+                                lk.heights[cs.a] +
+                                fm * (static_cast<double>(lk.heights[cs.b]) - lk.heights[cs.a]);
                             if (lk1 && dN > blendFrom) {
                                 // Past d0 level 0 blends toward level 1 (as on the lines).
                                 const double w = std::min(1.0, dN / blendFrom - 1.0);
-                                float c1[3];
-                                const double h1 = sampleBilinear(*lk1, 0.5 * x / map_.spacingX(),
-                                                                 0.5 * y / map_.spacingY(), c1);
-                                h = (1.0 - w) * h + w * (h1 * scale + offset);
-                                for (int i = 0; i < 3; ++i)
-                                    c[i] += (c1[i] - c[i]) * static_cast<float>(w);
+                                cs.p1 = bilinearAt(*lk1, 0.5 * (sf.eye.x + dN * dx) * invSpX,
+                                                   0.5 * (sf.eye.y + dN * dy) * invSpY);
+                                cs.l1 = lk1;
+                                cs.w = static_cast<float>(w);
+                                h += w * (bilinearHeight(*lk1, cs.p1) - h);
                             }
-                            emit(dN, h - ez, c);
+                            emit(dN, h * scale + offset - ez);
                             if (yb < yLo) return false;
                         }
                     }
@@ -405,25 +490,24 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                 const double nc = std::clamp(n, 0.0, nMin - 1.0);
                 const int i0 = std::min(static_cast<int>(nc), nMin - 2);
                 const double fr = nc - i0;
-                const std::size_t a = static_cast<std::size_t>(mm) * sMaj + i0 * sMin;
-                const std::size_t b = a + sMin;
-                double h =
-                    lk.heights[a] + fr * (static_cast<double>(lk.heights[b]) - lk.heights[a]);
-                const Rgb8 ca = lk.colors[a], cb = lk.colors[b];
-                const float ff = static_cast<float>(fr);
-                float c[3] = {ca.r + (cb.r - ca.r) * ff, ca.g + (cb.g - ca.g) * ff,
-                              ca.b + (cb.b - ca.b) * ff};
+                ColorSource& cs = slot[prev ^ 1];
+                cs.l = &lk;
+                cs.a = static_cast<std::size_t>(mm) * sMaj + i0 * sMin;
+                cs.b = cs.a + sMin;
+                cs.fr = static_cast<float>(fr);
+                cs.l1 = nullptr;
+                double h = lk.heights[cs.a] +
+                           fr * (static_cast<double>(lk.heights[cs.b]) - lk.heights[cs.a]);
                 if (lk1 && d > blendFrom) {
                     const double w = std::min(1.0, d / blendFrom - 1.0);
                     const double gMaj1 = 0.5 * static_cast<double>(mm), gMin1 = 0.5 * n;
-                    float c1[3];
-                    const double h1 = majorX ? sampleBilinear(*lk1, gMaj1, gMin1, c1)
-                                             : sampleBilinear(*lk1, gMin1, gMaj1, c1);
-                    h += w * (h1 - h);
-                    for (int i = 0; i < 3; ++i)
-                        c[i] += (c1[i] - c[i]) * static_cast<float>(w);
+                    cs.p1 =
+                        majorX ? bilinearAt(*lk1, gMaj1, gMin1) : bilinearAt(*lk1, gMin1, gMaj1);
+                    cs.l1 = lk1;
+                    cs.w = static_cast<float>(w);
+                    h += w * (bilinearHeight(*lk1, cs.p1) - h);
                 }
-                emit(d, h * scale + offset - ez, c);
+                emit(d, h * scale + offset - ez);
                 if (yb < yLo) return false;
                 // Nothing further can rise over the next row's ray.
                 return !(up[yb] >= 0.0 && up[yb] * d >= topLimit);
@@ -433,7 +517,7 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             // lowest row still to fill is passed without samples, but for the last line in it
             // (below that row too), which starts the next segment. Coarser nodes after a pass,
             // finer where a node may reach the row; at the finest, the lines inside are sampled.
-            const int jMin = std::max(1, k);
+            const int jMin = std::max(1, k + 2);
             int nl = std::min(topNode, jMin + 2);
             double cursor = pd;  // where the node search stands
             while (!done) {
@@ -442,20 +526,19 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
                 double until = dm;  // sample the lines up to here
                 if (topNode >= jMin) {
                     for (;;) {
-                        const double sx = std::ldexp(map_.spacingX(), nl);
-                        const double sy = std::ldexp(map_.spacingY(), nl);
+                        const double sx = nodeSizeX_[nl], sy = nodeSizeY_[nl];
                         const double px = sf.eye.x + cursor * dx, py = sf.eye.y + cursor * dy;
-                        const double gxn = px / sx, gyn = py / sy;
-                        const int nx = std::clamp(
-                            static_cast<int>(dx >= 0.0 ? std::floor(gxn) : std::ceil(gxn) - 1.0), 0,
-                            pyramid_->nodesX(nl) - 1);
-                        const int ny = std::clamp(
-                            static_cast<int>(dy >= 0.0 ? std::floor(gyn) : std::ceil(gyn) - 1.0), 0,
-                            pyramid_->nodesY(nl) - 1);
+                        const double gxn = px * nodeInvX_[nl], gyn = py * nodeInvY_[nl];
+                        const int nx = static_cast<int>(
+                            std::clamp(dx >= 0.0 ? floorL(gxn) : -floorL(-gxn) - 1, 0L,
+                                       static_cast<long>(pyramid_->nodesX(nl) - 1)));
+                        const int ny = static_cast<int>(
+                            std::clamp(dy >= 0.0 ? floorL(gyn) : -floorL(-gyn) - 1, 0L,
+                                       static_cast<long>(pyramid_->nodesY(nl) - 1)));
                         const double tx =
-                            dx != 0.0 ? ((dx > 0.0 ? nx + 1 : nx) * sx - sf.eye.x) / dx : kInf;
+                            dx != 0.0 ? ((dx > 0.0 ? nx + 1 : nx) * sx - sf.eye.x) * invDx : kInf;
                         const double ty =
-                            dy != 0.0 ? ((dy > 0.0 ? ny + 1 : ny) * sy - sf.eye.y) / dy : kInf;
+                            dy != 0.0 ? ((dy > 0.0 ? ny + 1 : ny) * sy - sf.eye.y) * invDy : kInf;
                         const double exitD = std::min({tx, ty, dEnd});
                         const double u = up[yb];
                         const double low = u * (u >= 0.0 ? cursor : exitD);
