@@ -631,12 +631,14 @@ void SpanCaster::renderSpans(const Camera& camera, RenderedFrame& frame,
                         outD[x] = da;
                         continue;
                     }
-                    auto mix = [w](std::uint32_t p, std::uint32_t q, int sh) {
-                        const float u = static_cast<float>((p >> sh) & 255u);
-                        const float v = static_cast<float>((q >> sh) & 255u);
-                        return static_cast<std::uint8_t>(u + (v - u) * w + 0.5f);
-                    };
-                    outC[x] = Rgb8{mix(ca, cb, 0), mix(ca, cb, 8), mix(ca, cb, 16)};
+                    // Colour: 8-bit weights, two channels per 32-bit lane pair.
+                    const std::uint32_t w8 = static_cast<std::uint32_t>(w * 256.0f + 0.5f);
+                    const std::uint32_t rb =
+                        ((ca & 0xff00ffu) * (256u - w8) + (cb & 0xff00ffu) * w8 + 0x800080u) >> 8;
+                    const std::uint32_t g =
+                        (((ca >> 8) & 0xffu) * (256u - w8) + ((cb >> 8) & 0xffu) * w8 + 0x80u) >> 8;
+                    outC[x] = Rgb8{static_cast<std::uint8_t>(rb), static_cast<std::uint8_t>(g),
+                                   static_cast<std::uint8_t>(rb >> 16)};
                     // Depth: linear on a smooth surface, the nearer column's across an edge.
                     const float lo = std::min(da, db), hi = std::max(da, db);
                     outD[x] = lo < kSkyDepth && hi <= 1.05f * lo ? da + (db - da) * w
