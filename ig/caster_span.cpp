@@ -351,20 +351,25 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             ColorSource& last = slot[prev];
             last.resolve();
             cur.resolve();
+            // Float from here: colours and depths need no more (the y-buffer test above is
+            // double); every colour is a convex mix of 0..255 values, so no clamp.
+            const float fpd = static_cast<float>(pd), fph = static_cast<float>(ph);
+            const float fd = static_cast<float>(d), fh = static_cast<float>(h);
+            const float fInvL = static_cast<float>(invL);
             do {
-                const double t = up[yb] * invL;
-                const double ga = t * pd - ph, gb = t * d - h;
-                const double den = ga - gb;
-                const double fr = den > 0.0 ? std::clamp(ga / den, 0.0, 1.0) : 1.0;
-                const float w = static_cast<float>(fr);
-                const double dh = pd + fr * (d - pd);
-                const double dist = dh * std::sqrt(1.0 + t * t);
+                const float t = static_cast<float>(up[yb]) * fInvL;
+                const float ga = t * fpd - fph, gb = t * fd - fh;
+                const float den = ga - gb;
+                const float w = den > 0.0f ? std::clamp(ga / den, 0.0f, 1.0f) : 1.0f;
+                const float dist = (fpd + w * (fd - fpd)) * std::sqrt(1.0f + t * t);
                 float rgb[3] = {last.rgb[0] + (cur.rgb[0] - last.rgb[0]) * w,
                                 last.rgb[1] + (cur.rgb[1] - last.rgb[1]) * w,
                                 last.rgb[2] + (cur.rgb[2] - last.rgb[2]) * w};
                 applyHaze(sky, rgb, dist);
-                color[yb] = pack(quantizeColor(rgb));
-                depth[yb] = static_cast<float>(dist);
+                color[yb] = static_cast<std::uint32_t>(rgb[0] + 0.5f) |
+                            static_cast<std::uint32_t>(rgb[1] + 0.5f) << 8 |
+                            static_cast<std::uint32_t>(rgb[2] + 0.5f) << 16;
+                depth[yb] = dist;
                 --yb;
             } while (yb >= yLo && up[yb] * d <= lim);
         }
