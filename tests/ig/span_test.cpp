@@ -4,6 +4,7 @@
 // of steep frames to the fast caster.
 #include "ig/caster.hpp"
 #include "ig/error.hpp"
+#include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/synthetic.hpp"
@@ -229,6 +230,28 @@ TEST(SpanCaster, SteepFramesGoToTheFastCaster) {
     // Straight down the vertical plane sees nothing of the window.
     pose.pitch = ig::degToRad(-90.0);
     EXPECT_TRUE(std::isinf(ig::spanStretch(ig::Camera(pose, in))));
+}
+
+// Overlapped frames (FrameStream, one unit a frame) are renderFrame's, on both paths.
+TEST(SpanCaster, FrameStreamGivesRenderFramesImages) {
+    const TerrainMap& map = synthetic512();
+    const Intrinsics in = Intrinsics::fromFov(80, 48, ig::degToRad(60));
+    const auto span = makeWith(CasterKind::Span, map, ig::kLevelsAuto, 2);
+    std::vector<Pose> poses = ig::sweepPoses(map, 6);
+    ig::FrameStream stream(*span, map, 2);
+    stream.submit(poses[0], in);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+        stream.help();
+        if (i + 1 < poses.size()) stream.submit(poses[i + 1], in);
+        const ig::RenderedFrame got = stream.take();
+        const ig::RenderedFrame want = ig::renderFrame(*span, map, poses[i], in);
+        EXPECT_TRUE(got.color == want.color) << "pose " << i;
+        EXPECT_EQ(0, std::memcmp(got.depth.data(), want.depth.data(), got.depth.size() * 4));
+        EXPECT_EQ(got.stats.path, want.stats.path);
+    }
+    Pose rolled = poses[0];
+    rolled.roll = 0.1;
+    EXPECT_THROW(stream.submit(rolled, in), ig::InputError);
 }
 
 TEST(SpanCaster, RefusesWhatItCannotDraw) {
