@@ -3,7 +3,8 @@
 // supersampling, huge pages, and the frame-to-frame difference along a slow flight.
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
-//                [--cache DIR] [--caster K] [--levels auto|N] [--json FILE]
+//                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
+//                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
 //             frame stream span
 //             (default: speed)
@@ -57,7 +58,8 @@ std::string gCache;
 ig::CasterKernel gKernel = ig::CasterKernel::Auto;  // RenderOptions::kernel (--kernel)
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 double gPitchDeg = -10.0;   // its pitch; --pitch changes it (frame section)
-nlohmann::json gJson = nlohmann::json::object();  // each section's figures, for --json
+double gSpanMaxStretch = ig::RenderOptions{}.spanMaxStretch;  // --span-max-stretch
+nlohmann::json gJson = nlohmann::json::object();              // each section's figures, for --json
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -153,6 +155,7 @@ std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& ma
     o.threads = threads;
     o.supersample = supersample;
     o.kernel = kernel;
+    o.spanMaxStretch = gSpanMaxStretch;
     const auto start = Clock::now();
     auto c = ig::makeCaster(kind, map, o);
     if (kind == ig::CasterKind::Fast && levels != 0) {
@@ -853,6 +856,12 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "bench-render: --pitch: expected degrees in [-90, 90]\n");
                 return 2;
             }
+        } else if (a == "--span-max-stretch") {
+            gSpanMaxStretch = std::atof(next().c_str());
+            if (!(gSpanMaxStretch >= 1.0 && gSpanMaxStretch <= 16.0)) {
+                std::fprintf(stderr, "bench-render: --span-max-stretch: expected 1..16\n");
+                return 2;
+            }
         } else if (a == "--kernel") {
             try {
                 c.kernel = ig::parseCasterKernel(next());
@@ -874,7 +883,7 @@ int main(int argc, char** argv) {
                 "[stream] [headings] [pitches] [span] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
-                "DEG] [--pitch DEG] [--cache DIR] "
+                "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
                 "[--caster fast|span|naive|reference] [--levels auto|N] [--json FILE]\n",
                 a.c_str());
             return 2;
