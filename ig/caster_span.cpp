@@ -623,9 +623,10 @@ void SpanCaster::renderSpans(const Camera& camera, RenderedFrame& frame,
                 float* __restrict__ outD = frame.depth.data() + static_cast<std::size_t>(y) * W;
                 const double s = sf.stretch[y];
                 for (int x = 0; x < W; ++x) {
+                    // jf >= 0 (the plane's padding), so truncation is its floor.
                     const double jf = columnAt(sf, x, s);
-                    const int j0 = std::clamp(static_cast<int>(std::floor(jf)), 0, sf.columns - 2);
-                    const float w = static_cast<float>(std::clamp(jf - j0, 0.0, 1.0));
+                    const int j0 = std::min(static_cast<int>(jf), sf.columns - 2);
+                    const float w = static_cast<float>(std::min(jf - j0, 1.0));
                     const std::size_t a = static_cast<std::size_t>(j0) * H + y, b = a + H;
                     const std::uint32_t ca = colColor[a], cb = colColor[b];
                     const float da = colDepth[a], db = colDepth[b];
