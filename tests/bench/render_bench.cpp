@@ -6,7 +6,7 @@
 //                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
 //                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream span
+//             frame stream span span-threads
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -19,6 +19,7 @@
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
+#include <tbb/global_control.h>
 #include <nlohmann/json.hpp>
 
 #include <sched.h>
@@ -789,25 +790,35 @@ void spanSection(const Config& c) {
                         {"mae_pct_multires", maeMulti},
                         {"mae_pct_comanche", maeCom}});
     }
-    // Two threads against one on the issue camera.
-    const auto two = caster(ig::CasterKind::Span, big, ig::kLevelsAuto, 2);
-    const std::vector<int> all = allowedCpus();
-    runOn(all);
-    const std::vector<Timed> t =
-        timeInTurn({casters[&big].first.get(), two.get()}, big, issuePose(big), in, c.repeat + 2);
-    const bool same = t[0].frame.color == t[1].frame.color && t[0].frame.depth == t[1].frame.depth;
-    std::printf(
-        "span, issue camera: 1 thread %.2f ns/px, 2 threads %.2f ns/px (%.2fx); images %s\n",
-        t[0].ms * 1e6 / pixels, t[1].ms * 1e6 / pixels, t[0].ms / t[1].ms,
-        same ? "identical" : "DIFFER");
-    if (!all.empty()) runOn({all.front()});
     nlohmann::json j = sectionJson(c, c.size);
     j["error_image"] = std::to_string(qw) + "x" + std::to_string(qh);
     j["rows"] = rows;
-    j["threads"] = {{"one", timedJson("span, 1 thread", t[0], pixels)},
-                    {"two", timedJson("span, 2 threads", t[1], pixels)},
-                    {"identical", same}};
     gJson["span"] = j;
+}
+
+// The span caster on two threads against one on the issue camera, frames in turn.
+void spanThreads(const Config& c) {
+    const ig::TerrainMap& big = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    // The library may have started while the process ran on one core: allow two workers.
+    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);
+    const auto one = caster(ig::CasterKind::Span, big, ig::kLevelsAuto, 1);
+    const auto two = caster(ig::CasterKind::Span, big, ig::kLevelsAuto, 2);
+    const std::vector<Timed> t =
+        timeInTurn({one.get(), two.get()}, big, issuePose(big), in, c.repeat + 2);
+    const bool same = t[0].frame.color == t[1].frame.color && t[0].frame.depth == t[1].frame.depth;
+    std::printf(
+        "\n## span threads: issue camera, %dx%d, synthetic %d^2: 1 thread %.2f ns/px, 2 threads "
+        "%.2f ns/px (%.2fx); images %s\n",
+        c.width, c.height, c.size, t[0].ms * 1e6 / pixels, t[1].ms * 1e6 / pixels,
+        t[0].ms / t[1].ms, same ? "identical" : "DIFFER");
+    nlohmann::json j = sectionJson(c, c.size);
+    j["repeat"] = c.repeat + 2;
+    j["one"] = timedJson("span, 1 thread", t[0], pixels);
+    j["two"] = timedJson("span, 2 threads", t[1], pixels);
+    j["identical"] = same;
+    gJson["span_threads"] = j;
 }
 
 }  // namespace
@@ -873,14 +884,15 @@ int main(int argc, char** argv) {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
-                   a == "headings" || a == "pitches" || a == "packets" || a == "span") {
+                   a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
+                   a == "span-threads") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                "[stream] [headings] [pitches] [span] [--size N] "
+                "[stream] [headings] [pitches] [span] [span-threads] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
@@ -897,7 +909,7 @@ int main(int argc, char** argv) {
         // cores need not be equally fast); threads and stream use every core allowed.
         const std::vector<int> all = allowedCpus();
         for (const std::string& s : c.sections) {
-            const bool parallel = s == "threads" || s == "stream";
+            const bool parallel = s == "threads" || s == "stream" || s == "span-threads";
             if (!all.empty()) runOn(parallel ? all : std::vector<int>{all.front()});
             if (s == "speed") speed(c);
             if (s == "packets") packets(c);
@@ -911,6 +923,7 @@ int main(int argc, char** argv) {
             if (s == "stream") stream(c);
             if (s == "frame") frame(c);
             if (s == "span") spanSection(c);
+            if (s == "span-threads") spanThreads(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());
