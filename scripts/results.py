@@ -56,7 +56,8 @@ class Page:
         sections are kept (results.sh runs them all in one process)."""
         words = self.commands.get(name, "").split()
         if sections and words and words[0].endswith("bench-render"):
-            rest = [w for w in words[1:] if not w.isalpha()]
+            rest = [w for w in words[1:]
+                    if not w.isalpha() and not (w[0].isalpha() and w.replace("-", "").isalpha())]
             words = [words[0]] + sections.split() + rest
         shown, i = [], 0
         while i < len(words):
@@ -309,17 +310,24 @@ def span(p):
     image = s["image"].replace("x", "×")
     err_image = s["error_image"].replace("x", "×")
     issue = rows[0]
+    view = issue["view"].replace("^2", "²")
     r = ratios(issue["span"]["ms_runs"], issue["comanche"]["ms_runs"])
     px = issue["span"]["ns_per_pixel"] / issue["span"]["ms"]  # ns per pixel per ms
-    p.row(f"Span caster vs a Comanche-style span renderer, {issue['view']}, {image}, 1 thread "
+    p.row(f"Span caster vs a Comanche-style span renderer, {view}, {image}, 1 thread "
           f"(frames in turn, best of {s['repeat']})", "≤ 1× (≤ 4 ns/px)",
           f"{spread(r, 2, '×')}; {spread(issue['span']['ms_runs'], 1, ' ns/px', px)} vs "
           f"{spread(issue['comanche']['ms_runs'], 1, ' ns/px', px)}; samples/px "
           f"{fmt(issue['span']['steps_per_pixel'], 2)} vs "
           f"{fmt(issue['comanche']['samples_per_pixel'], 2)}",
           status(statistics.median(r) <= 1.0 and issue["span"]["ns_per_pixel"] <= 4.0), cmd)
+    rm = ratios(issue["span"]["ms_runs"], issue["multires"]["ms_runs"])
+    p.row(f"Span caster vs the multiresolution fast caster (levels auto), {view}, {image}, "
+          "1 thread (frames in turn)", "—",
+          f"{spread(rm, 2, '×')}; {spread(issue['multires']['ms_runs'], 1, ' ns/px', px)}",
+          NO_TARGET, cmd)
     spans = [row for row in rows if row["path"] == "span"]
-    worse = [row["view"] for row in spans if row["mae_pct_span"] > row["mae_pct_multires"] * 1.1 + 0.02]
+    worse = [row["view"].replace("^2", "²") for row in spans
+             if row["mae_pct_span"] > row["mae_pct_multires"] * 1.1 + 0.02]
     p.row(f"Span caster colour error against a 4×4 supersampled reference ({err_image}), "
           f"{len(spans)} views drawn on the span path", "≤ multiresolution caster's",
           f"{fmt(min(r_['mae_pct_span'] for r_ in spans), 3)}–"
@@ -327,14 +335,17 @@ def span(p):
           f"{fmt(min(r_['mae_pct_multires'] for r_ in spans), 3)}–"
           f"{fmt(max(r_['mae_pct_multires'] for r_ in spans), 3)} %; peer "
           f"{fmt(min(r_['mae_pct_comanche'] for r_ in spans), 3)}–"
-          f"{fmt(max(r_['mae_pct_comanche'] for r_ in spans), 3)} %",
+          f"{fmt(max(r_['mae_pct_comanche'] for r_ in spans), 3)} %"
+          + (f"; worse than 1.1× the multiresolution caster's + 0.02 on: {', '.join(worse)}"
+             if worse else ""),
           status(not worse), cmd)
-    t = s.get("threads")
+    t = doc.get("span_threads")
     if t:
         tr = ratios(t["one"]["ms_runs"], t["two"]["ms_runs"])
-        p.row(f"Span caster, two threads vs one, {issue['view']}, {image}", "—",
+        p.row(f"Span caster, two threads vs one, {view}, {image} (frames in turn, "
+              f"{t['repeat']} each)", "—",
               f"{spread(tr, 2, '×')}; images {'identical' if t['identical'] else 'DIFFER'}",
-              NO_TARGET, cmd)
+              NO_TARGET, p.command("span_bench", "span-threads"))
     lines = ["| view | path | span ns/px | samples/px | peer ns/px | peer samples/px | span / peer | "
              "multires ns/px | MAE span % | MAE multires % | MAE peer % |",
              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
