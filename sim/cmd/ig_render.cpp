@@ -204,7 +204,8 @@ int main(int argc, char** argv) {
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
     app.add_option("--margin", margin, "Extra pixels rendered on every side")
         ->capture_default_str();
-    app.add_option("--caster", casterText, "fast | span | naive | reference")->capture_default_str();
+    app.add_option("--caster", casterText, "fast | span | naive | reference")
+        ->capture_default_str();
     app.add_option("--out", outPath, "Colour PNG")->capture_default_str();
     app.add_option("--depth", depthPath, "Depth PFM (metres from the eye, +inf for sky)");
     app.add_option("--json", jsonPath, "Stats and control points as JSON");
