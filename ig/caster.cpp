@@ -19,6 +19,8 @@ std::string_view casterName(CasterKind kind) {
             return "naive";
         case CasterKind::Fast:
             return "fast";
+        case CasterKind::Span:
+            return "span";
     }
     return "?";
 }
@@ -27,7 +29,8 @@ CasterKind parseCasterKind(std::string_view name) {
     if (name == "reference") return CasterKind::Reference;
     if (name == "naive") return CasterKind::Naive;
     if (name == "fast") return CasterKind::Fast;
-    throw InputError("caster '" + std::string(name) + "': expected fast, naive or reference");
+    if (name == "span") return CasterKind::Span;
+    throw InputError("caster '" + std::string(name) + "': expected fast, span, naive or reference");
 }
 
 std::string_view casterKernelName(CasterKernel kernel) {
@@ -75,6 +78,8 @@ std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
             return makeNaiveCaster(map, options);
         case CasterKind::Fast:
             return makeFastCaster(map, options);
+        case CasterKind::Span:
+            return makeSpanCaster(map, options);
     }
     return nullptr;
 }

@@ -11,10 +11,11 @@
 
 namespace ig {
 
-enum class CasterKind { Reference, Naive, Fast };
+// Span: cost per terrain sample (docs/design/span_renderer.md); steep frames go to Fast.
+enum class CasterKind { Reference, Naive, Fast, Span };
 
 std::string_view casterName(CasterKind kind);
-// Parses "reference" | "naive" | "fast"; throws InputError otherwise.
+// Parses "reference" | "naive" | "fast" | "span"; throws InputError otherwise.
 CasterKind parseCasterKind(std::string_view name);
 
 // Appearance of what is not terrain.
@@ -61,7 +62,19 @@ struct RenderOptions {
     // Fast caster, multiresolution: a long march passes max-height nodes the rays stay above
     // instead of sampling every grid line in them. Same image; off for tests and measurement.
     bool skipNodes = true;
+    // Span caster: a frame is drawn on the vertical image plane when the pitched window's rows
+    // stretch over at most this many vertical-plane columns per pixel, else by the fast caster.
+    double spanMaxStretch = 2.0;
 };
+
+// Columns of the vertical image plane per output pixel at the pitched window's most stretched
+// row (1 at pitch 0; +inf where a row looks behind the vertical plane).
+double spanStretch(const Camera& camera);
+
+// Whether a caster renders roll = 0 only (the fast and span casters: the PRP applies roll).
+inline bool casterNeedsLevelRoll(CasterKind kind) {
+    return kind == CasterKind::Fast || kind == CasterKind::Span;
+}
 
 // Parses --levels: "auto" or a count >= 0; throws InputError otherwise.
 int parseLevels(std::string_view text);

@@ -10,6 +10,7 @@ namespace ig {
 std::unique_ptr<Caster> makeReferenceCaster(const TerrainMap& map, const RenderOptions& options);
 std::unique_ptr<Caster> makeNaiveCaster(const TerrainMap& map, const RenderOptions& options);
 std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options);
+std::unique_ptr<Caster> makeSpanCaster(const TerrainMap& map, const RenderOptions& options);
 
 // Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.
 void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);

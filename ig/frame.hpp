@@ -31,6 +31,9 @@ struct RenderStats {
     std::uint64_t rays = 0;              // rays cast (may exceed pixels with supersampling)
     std::uint64_t restarts = 0;          // coherence starts abandoned for a fresh march
     std::string_view kernel = "scalar";  // the caster's kernel (Caster::kernelName)
+    // The span caster's path for this frame: "span" (vertical plane) or "fast" (steep view
+    // handed to the fast caster); empty for the other casters.
+    std::string_view path;
 };
 
 // A rendered image with margins, per-pixel depth and nine control points. Immutable once

@@ -56,8 +56,9 @@ FrameStream::~FrameStream() {
 
 void FrameStream::submit(const Pose& pose, const Intrinsics& intrinsics, double time,
                          std::uint64_t sequence) {
-    if (caster_.kind() == CasterKind::Fast && pose.roll != 0.0) {
-        throw InputError("pose: the fast caster renders roll = 0 (the PRP applies roll)");
+    if (casterNeedsLevelRoll(caster_.kind()) && pose.roll != 0.0) {
+        throw InputError("pose: the " + std::string(casterName(caster_.kind())) +
+                         " caster renders roll = 0 (the PRP applies roll)");
     }
     auto job = std::make_shared<Job>(pose, intrinsics);
     job->frame = newFrame(map_, pose, intrinsics, time, sequence);

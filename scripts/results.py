@@ -56,7 +56,8 @@ class Page:
         sections are kept (results.sh runs them all in one process)."""
         words = self.commands.get(name, "").split()
         if sections and words and words[0].endswith("bench-render"):
-            rest = [w for w in words[1:] if not w.isalpha()]
+            rest = [w for w in words[1:]
+                    if not w.isalpha() and not (w[0].isalpha() and w.replace("-", "").isalpha())]
             words = [words[0]] + sections.split() + rest
         shown, i = [], 0
         while i < len(words):
@@ -294,6 +295,78 @@ def renderer(p):
               f"levels auto {fmt(ratios_[1][0], 2)} (median {fmt(ratios_[1][1], 3)} %), "
               f"levels 0 {fmt(ratios_[0][0], 2)} (median {fmt(ratios_[0][1], 3)} %)",
               NO_TARGET, cmd)
+
+
+def span(p):
+    """The span caster against the Comanche-style peer and the multiresolution caster, per view
+    (bench-render span)."""
+    p.group = "Span caster"
+    doc = p.load("span_bench.json")
+    if not doc or "span" not in doc:
+        return
+    s = doc["span"]
+    cmd = p.command("span_bench", "span")
+    rows = s["rows"]
+    image = s["image"].replace("x", "×")
+    err_image = s["error_image"].replace("x", "×")
+    issue = rows[0]
+    view = issue["view"].replace("^2", "²")
+    r = ratios(issue["span"]["ms_runs"], issue["comanche"]["ms_runs"])
+    px = issue["span"]["ns_per_pixel"] / issue["span"]["ms"]  # ns per pixel per ms
+    p.row(f"Span caster vs a Comanche-style span renderer, {view}, {image}, 1 thread "
+          f"(frames in turn, best of {s['repeat']})", "≤ 1× (≤ 4 ns/px)",
+          f"{spread(r, 2, '×')}; {spread(issue['span']['ms_runs'], 1, ' ns/px', px)} vs "
+          f"{spread(issue['comanche']['ms_runs'], 1, ' ns/px', px)}; samples/px "
+          f"{fmt(issue['span']['steps_per_pixel'], 2)} vs "
+          f"{fmt(issue['comanche']['samples_per_pixel'], 2)}",
+          status(statistics.median(r) <= 1.0 and issue["span"]["ns_per_pixel"] <= 4.0), cmd)
+    rm = ratios(issue["span"]["ms_runs"], issue["multires"]["ms_runs"])
+    p.row(f"Span caster vs the multiresolution fast caster (levels auto), {view}, {image}, "
+          "1 thread (frames in turn)", "—",
+          f"{spread(rm, 2, '×')}; {spread(issue['multires']['ms_runs'], 1, ' ns/px', px)}",
+          NO_TARGET, cmd)
+    spans = [row for row in rows if row["path"] == "span"]
+    worse = [row["view"].replace("^2", "²") for row in spans
+             if row["mae_pct_span"] > row["mae_pct_multires"] * 1.1 + 0.02]
+    p.row(f"Span caster colour error against a 4×4 supersampled reference ({err_image}), "
+          f"{len(spans)} views drawn on the span path", "≤ multiresolution caster's",
+          f"{fmt(min(r_['mae_pct_span'] for r_ in spans), 3)}–"
+          f"{fmt(max(r_['mae_pct_span'] for r_ in spans), 3)} % vs "
+          f"{fmt(min(r_['mae_pct_multires'] for r_ in spans), 3)}–"
+          f"{fmt(max(r_['mae_pct_multires'] for r_ in spans), 3)} %; peer "
+          f"{fmt(min(r_['mae_pct_comanche'] for r_ in spans), 3)}–"
+          f"{fmt(max(r_['mae_pct_comanche'] for r_ in spans), 3)} %"
+          + (f"; worse than 1.1× the multiresolution caster's + 0.02 on: {', '.join(worse)}"
+             if worse else ""),
+          status(not worse), cmd)
+    t = doc.get("span_threads")
+    if t:
+        tr = ratios(t["one"]["ms_runs"], t["two"]["ms_runs"])
+        p.row(f"Span caster, two threads vs one, {view}, {image} (frames in turn, "
+              f"{t['repeat']} each)", "—",
+              f"{spread(tr, 2, '×')}; images {'identical' if t['identical'] else 'DIFFER'}",
+              NO_TARGET, p.command("span_bench", "span-threads"))
+    lines = ["| view | path | span ns/px | samples/px | peer ns/px | peer samples/px | span / peer | "
+             "multires ns/px | MAE span % | MAE multires % | MAE peer % |",
+             "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for row in rows:
+        a, m, c = row["span"], row["multires"], row["comanche"]
+        lines.append(f"| {row['view'].replace('^2', '²')} | {row['path']} | "
+                     f"{fmt(a['ns_per_pixel'], 1)} | {fmt(a['steps_per_pixel'], 2)} | "
+                     f"{fmt(c['ns_per_pixel'], 1)} | {fmt(c['samples_per_pixel'], 2)} | "
+                     f"{fmt(row['span_over_comanche'], 2)} | {fmt(m['ns_per_pixel'], 1)} | "
+                     f"{fmt(row['mae_pct_span'], 3)} | {fmt(row['mae_pct_multires'], 3)} | "
+                     f"{fmt(row['mae_pct_comanche'], 3)} |")
+    load = p.loads.get("span_bench")
+    p.section(*(
+        "Span caster per view",
+        f"Best of {s['repeat']} frames at {image} on one thread, the three renderers' frames "
+        f"taken in turn; colour error at {err_image} against a 4×4 supersampled reference. "
+        "\"path\": which renderer drew the span caster's frame (steep views go to the fast "
+        "caster). The peer is a Comanche-style renderer written for the benchmark "
+        "(`docs/design/span_renderer.md`). Command: " + cmd + "."
+        + (f" Load average {fmt(load, 1)} when it started." if load is not None else ""),
+        "\n".join(lines)))
 
 
 def callgrind(p):
@@ -597,6 +670,7 @@ def render(data_dir):
     p = Page(data_dir)
     casters(p)
     renderer(p)
+    span(p)
     callgrind(p)
     warp(p)
     warp_eval(p)

@@ -115,6 +115,9 @@ if wanted render; then
         quality flight stream --size 16384 --repeat 3 --cache "$cache" \
         --json "$data/render_bench.json"
     scripts/plot-speed-error.sh "$data/render_bench.json" docs/results/speed_error.png
+    # The span caster against a Comanche-style peer and the multiresolution caster, per view.
+    run span_bench "$bin/bench-render" span span-threads --size 16384 --repeat 3 --cache "$cache" \
+        --json "$data/span_bench.json"
 fi
 
 if wanted warp; then

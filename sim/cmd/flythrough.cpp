@@ -133,6 +133,7 @@ int main(int argc, char** argv) {
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     std::string faultText;
     std::string levelsText = "auto";
+    std::string casterText = "fast";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false, overwrite = false;
     std::string cigiBind, cigiHost, cigiOrigin;
@@ -198,6 +199,10 @@ int main(int argc, char** argv) {
     app.add_option("--inject-renderer-fault", faultText,
                    "Test a renderer failure once: crash@T | segv@T | exception@T | hang@T | "
                    "stall@T:MS | garbage@T (T seconds into the run; renderer process only)");
+    app.add_option("--caster", casterText,
+                   "Renderer: fast (per-ray column caster) | span (per terrain sample; steep "
+                   "frames by the fast caster)")
+        ->capture_default_str();
     app.add_option("--levels", levelsText,
                    "Renderer: coarser levels where a voxel shrinks below a pixel, auto (the "
                    "multiresolution caster) | 0 (single level, exact)")
@@ -285,6 +290,10 @@ int main(int argc, char** argv) {
         }
         ig::RenderOptions renderOptions;
         renderOptions.levels = ig::parseLevels(levelsText);
+        const ig::CasterKind casterKind = ig::parseCasterKind(casterText);
+        if (!ig::casterNeedsLevelRoll(casterKind)) {
+            throw ig::InputError("--caster " + casterText + ": expected fast or span");
+        }
         const auto [width, height] = ig::parseSize(sizeText);
         const std::optional<prp::PixelFormat> prpFormat = prp::parsePixelFormat(formatText);
         if (!prpFormat) {
@@ -456,7 +465,7 @@ int main(int argc, char** argv) {
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions);
+            sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
 

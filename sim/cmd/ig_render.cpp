@@ -41,8 +41,9 @@ constexpr const char* kConventions = R"(Conventions:
   horizontal field of view of the WxH window; --margin PX adds PX pixels on every side at the
   same focal length (the written image is (W+2PX) x (H+2PX)).
   Depth (PFM): Euclidean distance from the eye in metres, +inf for sky.
-  The fast caster renders roll = 0 (the post-rendering processor applies roll as a 2D rotation);
-  the naive and reference casters honour any roll.
+  The fast and span casters render roll = 0 (the post-rendering processor applies roll as a 2D
+  rotation); the naive and reference casters honour any roll. The span caster hands steep frames
+  to the fast caster (its JSON "path" says which drew the frame).
   A path of '-' writes to standard output.)";
 
 // ---- Stereo (--stereo): left eye by the fast caster, right eye reprojected or cast. ----------
@@ -203,7 +204,8 @@ int main(int argc, char** argv) {
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
     app.add_option("--margin", margin, "Extra pixels rendered on every side")
         ->capture_default_str();
-    app.add_option("--caster", casterText, "fast | naive | reference")->capture_default_str();
+    app.add_option("--caster", casterText, "fast | span | naive | reference")
+        ->capture_default_str();
     app.add_option("--out", outPath, "Colour PNG")->capture_default_str();
     app.add_option("--depth", depthPath, "Depth PFM (metres from the eye, +inf for sky)");
     app.add_option("--json", jsonPath, "Stats and control points as JSON");
@@ -257,9 +259,10 @@ int main(int argc, char** argv) {
         const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
                               : shippedMap      ? ig::parsePose(shippedPose, map)
                                                 : ig::defaultViewPose(map);
-        if (kind == ig::CasterKind::Fast && pose.roll != 0.0) {
+        if (ig::casterNeedsLevelRoll(kind) && pose.roll != 0.0) {
             throw ig::InputError(
-                "--pose: the fast caster renders roll = 0 (roll is applied by the post-rendering "
+                "--pose: the " + casterText +
+                " caster renders roll = 0 (roll is applied by the post-rendering "
                 "processor); use --caster naive or reference for a truly rolled view");
         }
         const ig::Intrinsics intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg), margin);
@@ -306,6 +309,7 @@ int main(int argc, char** argv) {
         j["levels"] = levelsText;
         j["supersample"] = supersample;
         j["kernel"] = std::string(frame.stats.kernel);
+        if (!frame.stats.path.empty()) j["path"] = std::string(frame.stats.path);
         j["pose"] = poseJson(pose);
         j["terrain"] = ig::describeTerrain(map);
         for (const ig::ControlPoint& cp : frame.controlPoints) {

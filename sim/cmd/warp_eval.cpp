@@ -133,7 +133,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> trajectories;
     std::string sizeText = "320x240", horizonsText = "1..8",
                 modelsText = "poly,affine,homography,depth,hold";
-    std::string jsonPath, csvPath, levelsText = "auto";
+    std::string jsonPath, csvPath, levelsText = "auto", casterText = "fast";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
     bool noSky = false;
@@ -146,6 +146,9 @@ int main(int argc, char** argv) {
     app.add_option("--models", modelsText, "Comma-separated warp models")->capture_default_str();
     app.add_option("--frames", frames, "Base frames per trajectory")->capture_default_str();
     app.add_option("--repeats", repeats, "Timing repeats per warp (fastest counts)")
+        ->capture_default_str();
+    app.add_option("--caster", casterText,
+                   "Caster of the base frames: fast | span (steep frames by the fast caster)")
         ->capture_default_str();
     app.add_option("--levels", levelsText,
                    "Fast caster: auto (the multiresolution caster) | 0 (single level, exact)")
@@ -176,6 +179,10 @@ int main(int argc, char** argv) {
         if (repeats < 1 || repeats > 1000) throw ig::InputError("--repeats: must be 1..1000");
         ig::RenderOptions renderOptions;
         renderOptions.levels = ig::parseLevels(levelsText);
+        const ig::CasterKind casterKind = ig::parseCasterKind(casterText);
+        if (!ig::casterNeedsLevelRoll(casterKind)) {
+            throw ig::InputError("--caster " + casterText + ": expected fast or span");
+        }
         prp::EvalConfig config;
         std::tie(config.width, config.height) = ig::parseSize(sizeText);
         if (config.width % 2 != 0) throw ig::InputError("--size: width must be even");
@@ -216,7 +223,7 @@ int main(int argc, char** argv) {
         }
         for (std::size_t i = 0; i < loaded.size(); ++i)
             sim::checkTrajectoryClearance(loaded[i], map, trajectories[i]);
-        const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, renderOptions);
+        const auto fast = ig::makeCaster(casterKind, map, renderOptions);
         const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
 
         std::vector<prp::EvalResult> parts;
@@ -240,6 +247,7 @@ int main(int argc, char** argv) {
             nlohmann::json j;
             j["size"] = {config.width, config.height};
             j["levels"] = levelsText;
+            j["caster"] = casterText;
             j["margin"] = config.margin;
             j["fov_deg"] = fovDeg;
             j["field_period_s"] = prp::kFieldPeriod;

@@ -3,9 +3,10 @@
 // supersampling, huge pages, and the frame-to-frame difference along a slow flight.
 //
 //   bench-render [sections...] [--size N] [--image WxH] [--repeat N] [--no-hugepages]
-//                [--cache DIR] [--caster K] [--levels auto|N] [--json FILE]
+//                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
+//                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream
+//             frame stream span span-threads
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -14,8 +15,11 @@
 #include "ig/caster.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/shading.hpp"
 #include "ig/synthetic.hpp"
+#include "ig/terrain_io.hpp"
 
+#include <tbb/global_control.h>
 #include <nlohmann/json.hpp>
 
 #include <sched.h>
@@ -55,7 +59,8 @@ std::string gCache;
 ig::CasterKernel gKernel = ig::CasterKernel::Auto;  // RenderOptions::kernel (--kernel)
 double gHeadingDeg = 45.0;  // the issue camera's heading; --heading changes it (frame section)
 double gPitchDeg = -10.0;   // its pitch; --pitch changes it (frame section)
-nlohmann::json gJson = nlohmann::json::object();  // each section's figures, for --json
+double gSpanMaxStretch = ig::RenderOptions{}.spanMaxStretch;  // --span-max-stretch
+nlohmann::json gJson = nlohmann::json::object();              // each section's figures, for --json
 
 // Loads a raw copy of the map from the cache folder, if there is one.
 bool loadCached(const std::string& path, ig::TerrainMap& map) {
@@ -151,6 +156,7 @@ std::unique_ptr<ig::Caster> caster(ig::CasterKind kind, const ig::TerrainMap& ma
     o.threads = threads;
     o.supersample = supersample;
     o.kernel = kernel;
+    o.spanMaxStretch = gSpanMaxStretch;
     const auto start = Clock::now();
     auto c = ig::makeCaster(kind, map, o);
     if (kind == ig::CasterKind::Fast && levels != 0) {
@@ -610,6 +616,211 @@ void flight(const Config& c) {
                        {"mae_pct_frame_to_frame_auto", diffM}};
 }
 
+// ---- Span caster against a Comanche-style voxel-space renderer ------------------------------
+
+// The peer baseline, after the published description of the Comanche voxel-space renderer:
+// depth slices across the whole screen from front to back, the slice step growing by a tenth
+// of a cell per slice, one y-buffer entry per column, the nearest map sample, pitch as a
+// horizon shift, no depth. Returns the map samples it read.
+std::uint64_t comanche(const ig::TerrainMap& map, const ig::Pose& pose, const ig::Intrinsics& in,
+                       const ig::SkyModel& sky, std::vector<ig::Rgb8>& out,
+                       std::vector<int>& ybuf) {
+    const int W = in.width, H = in.height;
+    const double f = in.focal, horizon = in.cy() + f * std::tan(pose.pitch);
+    const double hx = std::sin(pose.yaw), hy = std::cos(pose.yaw);
+    const double rx = std::cos(pose.yaw), ry = -std::sin(pose.yaw);
+    const double tanHalf = 0.5 * W / f;
+    const double sp = map.spacingX(), invSp = 1.0 / sp, invSpY = 1.0 / map.spacingY();
+    const double ex = pose.position.x, ey = pose.position.y, ez = pose.position.z;
+    const double zmax = std::hypot(map.extentX(), map.extentY()) + std::hypot(ex, ey);
+    const double hs = map.heightScale(), ho = map.heightOffset();
+    const int mw = map.width(), mh = map.height();
+    const std::uint16_t* heights = map.rawHeights().data();
+    const ig::Rgb8* colors = map.colors().data();
+    out.resize(static_cast<std::size_t>(W) * H);
+    ybuf.assign(W, H);
+    std::uint64_t samples = 0;
+    double dz = sp;
+    for (double z = sp; z < zmax; z += dz, dz += 0.1 * sp) {
+        const double px0 = ex + z * (hx - rx * tanHalf), py0 = ey + z * (hy - ry * tanHalf);
+        const double stepX = 2.0 * tanHalf * z * rx / W, stepY = 2.0 * tanHalf * z * ry / W;
+        const double invz = f / z;
+        double px = px0 + 0.5 * stepX, py = py0 + 0.5 * stepY;
+        for (int i = 0; i < W; ++i, px += stepX, py += stepY) {
+            const int ix = static_cast<int>(px * invSp + 0.5),
+                      iy = static_cast<int>(py * invSpY + 0.5);
+            if (px < 0.0 || py < 0.0 || ix >= mw || iy >= mh) continue;
+            ++samples;
+            const std::size_t k = static_cast<std::size_t>(iy) * mw + ix;
+            const double h = heights[k] * hs + ho;
+            const int row = std::max(0, static_cast<int>(horizon + (ez - h) * invz));
+            if (row < ybuf[i]) {
+                const ig::Rgb8 c = colors[k];
+                for (int r = row; r < ybuf[i]; ++r)
+                    out[static_cast<std::size_t>(r) * W + i] = c;
+                ybuf[i] = row;
+            }
+        }
+    }
+    const double spit = std::sin(pose.pitch), cpit = std::cos(pose.pitch);
+    for (int r = 0; r < H; ++r) {
+        const double yc = r + 0.5 - in.cy();
+        const double uz = f * spit - yc * cpit, fw = f * cpit + yc * spit;
+        const ig::Rgb8 c = ig::skyColor(sky, uz / std::sqrt(uz * uz + fw * fw));
+        for (int i = 0; i < W; ++i)
+            if (r < ybuf[i]) out[static_cast<std::size_t>(r) * W + i] = c;
+    }
+    return samples;
+}
+
+struct SpanView {
+    std::string name;
+    const ig::TerrainMap* map;
+    ig::Pose pose;
+};
+
+// Puget Sound's flight view (bench-caster's): 300 m above the ground, heading north-east,
+// 5 degrees down.
+ig::Pose pugetFlightPose(const ig::TerrainMap& map) {
+    ig::Pose p;
+    p.position = {30000.0, 20000.0, 0.0};
+    p.position.z = map.surfaceHeight(p.position.x, p.position.y) + 300.0;
+    p.yaw = ig::degToRad(45.0);
+    p.pitch = ig::degToRad(-5.0);
+    return p;
+}
+
+// Per view: the span caster, the multiresolution fast caster and the Comanche-style renderer,
+// timed in turn at the full size on one thread; their colour error at an eighth of the size
+// against a 4x4 supersampled reference; then the span caster on two threads against one.
+void spanSection(const Config& c) {
+    const ig::TerrainMap& big = syntheticMap(c.size);
+    static const ig::TerrainMap puget = ig::loadPugetSound();
+    std::vector<SpanView> views;
+    const std::string syn = "synthetic " + std::to_string(c.size) + "^2";
+    views.push_back({"issue camera, " + syn, &big, issuePose(big)});
+    views.push_back({"Puget Sound flight view", &puget, pugetFlightPose(puget)});
+    for (double p : {0.0, -30.0, -60.0, -85.0})
+        views.push_back(
+            {"pitch " + std::to_string(static_cast<int>(p)) + ", " + syn, &big, issuePose(big, p)});
+    const double savedHeading = gHeadingDeg;
+    for (double h : {0.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0}) {
+        gHeadingDeg = h;
+        views.push_back(
+            {"heading " + std::to_string(static_cast<int>(h)) + ", " + syn, &big, issuePose(big)});
+    }
+    gHeadingDeg = savedHeading;
+
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const int qw = c.width / 8, qh = c.height / 8;
+    const ig::Intrinsics small = ig::Intrinsics::fromFov(qw, qh, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## span: %dx%d one thread, best of %d in turn; error at %dx%d vs 4x4 supersampled "
+        "reference\n",
+        c.width, c.height, c.repeat, qw, qh);
+    std::printf(
+        "| view | path | span ns/px | samples/px | comanche ns/px | samples/px | span / comanche "
+        "| multires ns/px | MAE span %% | MAE multires %% | MAE comanche %% |\n"
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    nlohmann::json rows = nlohmann::json::array();
+    std::map<const ig::TerrainMap*,
+             std::pair<std::unique_ptr<ig::Caster>, std::unique_ptr<ig::Caster>>>
+        casters;
+    for (const SpanView& v : views) {
+        auto& cs = casters[v.map];
+        if (!cs.first) {
+            cs.first = caster(ig::CasterKind::Span, *v.map, ig::kLevelsAuto, 1);
+            cs.second = caster(ig::CasterKind::Fast, *v.map, ig::kLevelsAuto, 1);
+        }
+        const ig::Caster& span = *cs.first;
+        const ig::Caster& multi = *cs.second;
+        const ig::SkyModel sky;
+        std::vector<ig::Rgb8> comImage;
+        std::vector<int> ybuf;
+        Timed s, m, k;
+        s.ms = m.ms = k.ms = 1e300;
+        std::uint64_t comSamples = 0;
+        for (int i = 0; i < c.repeat; ++i) {
+            for (int which = 0; which < 3; ++which) {
+                if (which == 2) {
+                    const auto start = Clock::now();
+                    comSamples = comanche(*v.map, v.pose, in, sky, comImage, ybuf);
+                    const double ms = 1e3 * secondsSince(start);
+                    k.runs.push_back(ms);
+                    k.ms = std::min(k.ms, ms);
+                    continue;
+                }
+                Timed& t = which == 0 ? s : m;
+                ig::RenderedFrame f =
+                    ig::renderFrame(which == 0 ? span : multi, *v.map, v.pose, in);
+                t.runs.push_back(f.stats.renderMs);
+                if (f.stats.renderMs < t.ms) {
+                    t.ms = f.stats.renderMs;
+                    t.frame = std::move(f);
+                }
+            }
+        }
+        const auto ref = supersampledReference(*v.map, v.pose, qw, qh, 4);
+        const double maeSpan =
+            ig::meanAbsErrorPct(ig::renderFrame(span, *v.map, v.pose, small).color, ref);
+        const double maeMulti =
+            ig::meanAbsErrorPct(ig::renderFrame(multi, *v.map, v.pose, small).color, ref);
+        std::vector<ig::Rgb8> comSmall;
+        comanche(*v.map, v.pose, small, sky, comSmall, ybuf);
+        const double maeCom = ig::meanAbsErrorPct(comSmall, ref);
+        const std::string path(s.frame.stats.path);
+        std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.3f | %.3f | %.3f |\n",
+                    v.name.c_str(), path.c_str(), s.ms * 1e6 / pixels,
+                    static_cast<double>(s.frame.stats.steps) / pixels, k.ms * 1e6 / pixels,
+                    comSamples / pixels, s.ms / k.ms, m.ms * 1e6 / pixels, maeSpan, maeMulti,
+                    maeCom);
+        std::fflush(stdout);
+        rows.push_back({{"view", v.name},
+                        {"path", path},
+                        {"span", timedJson("span", s, pixels)},
+                        {"multires", timedJson("levels auto", m, pixels)},
+                        {"comanche",
+                         {{"ms", k.ms},
+                          {"ms_runs", k.runs},
+                          {"ns_per_pixel", k.ms * 1e6 / pixels},
+                          {"samples_per_pixel", comSamples / pixels}}},
+                        {"span_over_comanche", s.ms / k.ms},
+                        {"mae_pct_span", maeSpan},
+                        {"mae_pct_multires", maeMulti},
+                        {"mae_pct_comanche", maeCom}});
+    }
+    nlohmann::json j = sectionJson(c, c.size);
+    j["error_image"] = std::to_string(qw) + "x" + std::to_string(qh);
+    j["rows"] = rows;
+    gJson["span"] = j;
+}
+
+// The span caster on two threads against one on the issue camera, frames in turn.
+void spanThreads(const Config& c) {
+    const ig::TerrainMap& big = syntheticMap(c.size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    // The library may have started while the process ran on one core: allow two workers.
+    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);
+    const auto one = caster(ig::CasterKind::Span, big, ig::kLevelsAuto, 1);
+    const auto two = caster(ig::CasterKind::Span, big, ig::kLevelsAuto, 2);
+    const std::vector<Timed> t =
+        timeInTurn({one.get(), two.get()}, big, issuePose(big), in, c.repeat + 2);
+    const bool same = t[0].frame.color == t[1].frame.color && t[0].frame.depth == t[1].frame.depth;
+    std::printf(
+        "\n## span threads: issue camera, %dx%d, synthetic %d^2: 1 thread %.2f ns/px, 2 threads "
+        "%.2f ns/px (%.2fx); images %s\n",
+        c.width, c.height, c.size, t[0].ms * 1e6 / pixels, t[1].ms * 1e6 / pixels,
+        t[0].ms / t[1].ms, same ? "identical" : "DIFFER");
+    nlohmann::json j = sectionJson(c, c.size);
+    j["repeat"] = c.repeat + 2;
+    j["one"] = timedJson("span, 1 thread", t[0], pixels);
+    j["two"] = timedJson("span, 2 threads", t[1], pixels);
+    j["identical"] = same;
+    gJson["span_threads"] = j;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -656,6 +867,12 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "bench-render: --pitch: expected degrees in [-90, 90]\n");
                 return 2;
             }
+        } else if (a == "--span-max-stretch") {
+            gSpanMaxStretch = std::atof(next().c_str());
+            if (!(gSpanMaxStretch >= 1.0 && gSpanMaxStretch <= 16.0)) {
+                std::fprintf(stderr, "bench-render: --span-max-stretch: expected 1..16\n");
+                return 2;
+            }
         } else if (a == "--kernel") {
             try {
                 c.kernel = ig::parseCasterKernel(next());
@@ -667,18 +884,19 @@ int main(int argc, char** argv) {
             ig::setHugePageAdvice(false);
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
-                   a == "headings" || a == "pitches" || a == "packets") {
+                   a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
+                   a == "span-threads") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                "[stream] [headings] [pitches] [--size N] "
+                "[stream] [headings] [pitches] [span] [span-threads] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
-                "DEG] [--pitch DEG] [--cache DIR] "
-                "[--caster fast|naive|reference] [--levels auto|N] [--json FILE]\n",
+                "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
+                "[--caster fast|span|naive|reference] [--levels auto|N] [--json FILE]\n",
                 a.c_str());
             return 2;
         }
@@ -691,7 +909,7 @@ int main(int argc, char** argv) {
         // cores need not be equally fast); threads and stream use every core allowed.
         const std::vector<int> all = allowedCpus();
         for (const std::string& s : c.sections) {
-            const bool parallel = s == "threads" || s == "stream";
+            const bool parallel = s == "threads" || s == "stream" || s == "span-threads";
             if (!all.empty()) runOn(parallel ? all : std::vector<int>{all.front()});
             if (s == "speed") speed(c);
             if (s == "packets") packets(c);
@@ -704,6 +922,8 @@ int main(int argc, char** argv) {
             if (s == "flight") flight(c);
             if (s == "stream") stream(c);
             if (s == "frame") frame(c);
+            if (s == "span") spanSection(c);
+            if (s == "span-threads") spanThreads(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());
