@@ -72,7 +72,9 @@ using namespace fast;
 
 class FastCaster final : public Caster {
   public:
-    FastCaster(const TerrainMap& map, const RenderOptions& options) : map_(map), options_(options) {
+    FastCaster(const TerrainMap& map, const RenderOptions& options,
+               std::shared_ptr<const TerrainPyramid> pyramid)
+        : map_(map), options_(options) {
         if (options_.supersample < 1 || options_.supersample > 8) {
             throw InputError("supersample " + std::to_string(options_.supersample) +
                              ": expected 1..8 rays per pixel");
@@ -82,7 +84,8 @@ class FastCaster final : public Caster {
                              ": expected auto or a count >= 0");
         }
         chooseKernel();
-        pyramid_ = std::make_unique<TerrainPyramid>(map, options_.levels);
+        pyramid_ = pyramid ? std::move(pyramid)
+                           : std::make_shared<const TerrainPyramid>(map, options_.levels);
         topLevel_ = pyramid_->levelCount() - 1;
         slopes_ = std::make_unique<SlopeBlocks>(map);
     }
@@ -2034,15 +2037,16 @@ class FastCaster final : public Caster {
     CasterKernel kernel_ = CasterKernel::Scalar;  // the kernel that runs (chooseKernel)
     UnitRenderer renderUnit_ = nullptr;
     int columnsPerUnit_ = 1;
-    std::unique_ptr<TerrainPyramid> pyramid_;
+    std::shared_ptr<const TerrainPyramid> pyramid_;
     std::unique_ptr<SlopeBlocks> slopes_;
     int topLevel_ = 0;
 };
 
 }  // namespace
 
-std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options) {
-    return std::make_unique<FastCaster>(map, options);
+std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options,
+                                       std::shared_ptr<const TerrainPyramid> pyramid) {
+    return std::make_unique<FastCaster>(map, options, std::move(pyramid));
 }
 
 }  // namespace ig

@@ -9,7 +9,12 @@ namespace ig {
 
 std::unique_ptr<Caster> makeReferenceCaster(const TerrainMap& map, const RenderOptions& options);
 std::unique_ptr<Caster> makeNaiveCaster(const TerrainMap& map, const RenderOptions& options);
-std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options);
+class TerrainPyramid;
+
+// `pyramid`, when given, is shared instead of built (it must have been built from `map` with
+// `options.levels`).
+std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options,
+                                       std::shared_ptr<const TerrainPyramid> pyramid = nullptr);
 std::unique_ptr<Caster> makeSpanCaster(const TerrainMap& map, const RenderOptions& options);
 
 // Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.

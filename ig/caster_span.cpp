@@ -141,8 +141,12 @@ class SpanCaster final : public Caster {
             throw InputError("span stretch limit " + std::to_string(options_.spanMaxStretch) +
                              ": expected 1..16");
         }
-        pyramid_ = std::make_unique<TerrainPyramid>(
-            map, options_.levels == 0 ? kLevelsAuto : options_.levels);
+        RenderOptions fast = options_;
+        fast.levels = options_.levels == 0 ? kLevelsAuto : options_.levels;
+        pyramid_ = std::make_shared<const TerrainPyramid>(map, fast.levels);
+        // Built now, on the span caster's pyramid: a steep frame in flight neither waits for a
+        // pyramid nor holds a second one.
+        fallback_.caster = makeFastCaster(map_, fast, pyramid_);
         for (int j = 0; j < pyramid_->nodeLevelCount(); ++j) {
             nodeSizeX_.push_back(std::ldexp(map.spacingX(), j));
             nodeSizeY_.push_back(std::ldexp(map.spacingY(), j));
@@ -173,7 +177,7 @@ class SpanCaster final : public Caster {
         const double stretch = spanStretch(camera);
         if (!(stretch <= options_.spanMaxStretch)) {
             frame.stats.path = "fast";
-            fallback().renderUnitsInto(camera, frame, counters);
+            fallback_.renderUnitsInto(camera, frame, counters);
             return;
         }
         frame.stats.path = "span";
@@ -181,7 +185,7 @@ class SpanCaster final : public Caster {
     }
 
   private:
-    // The fast caster the steep frames go to, built on first use.
+    // The fast caster the steep frames go to.
     struct Fallback {
         std::unique_ptr<Caster> caster;
         void renderUnitsInto(const Camera& camera, RenderedFrame& frame,
@@ -191,14 +195,6 @@ class SpanCaster final : public Caster {
             counters.restarts += frame.stats.restarts;
         }
     };
-    const Fallback& fallback() const {
-        std::call_once(fallbackOnce_, [&] {
-            RenderOptions o = options_;
-            o.levels = options_.levels == 0 ? kLevelsAuto : options_.levels;
-            fallback_.caster = makeFastCaster(map_, o);
-        });
-        return fallback_;
-    }
 
     std::unique_ptr<SpanBuffers> takeBuffers() const {
         std::lock_guard lock(poolMutex_);
@@ -219,11 +215,10 @@ class SpanCaster final : public Caster {
 
     const TerrainMap& map_;
     RenderOptions options_;
-    std::unique_ptr<TerrainPyramid> pyramid_;
+    std::shared_ptr<const TerrainPyramid> pyramid_;
     // Node sizes in metres per node level, and their inverses.
     std::vector<double> nodeSizeX_, nodeSizeY_, nodeInvX_, nodeInvY_;
-    mutable std::once_flag fallbackOnce_;
-    mutable Fallback fallback_;
+    Fallback fallback_;
     mutable std::mutex poolMutex_;
     mutable std::vector<std::unique_ptr<SpanBuffers>> pool_;
 };
