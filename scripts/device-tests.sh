@@ -9,11 +9,12 @@
 # Exit status: 0 every check passed, 1 a check failed or the VM gave no verdict, 77 skipped
 # (no qemu, no packages, no Debian archive: never counted as a pass).
 # VIG_DEVICE_CACHE: where packages and the built module are kept (default ~/.cache/vig-device).
-# VIG_DEVICE_ACCEL: kvm or tcg (default: kvm when /dev/kvm can be opened, else tcg).
+# VIG_DEVICE_ACCEL: tcg (default) or kvm. VIG_DEVICE_TIMEOUT: seconds the VM may run (300).
+# VIG_DEVICE_QEMU: the qemu program (default qemu-system-x86_64, installed when missing).
 set -euo pipefail
 
 skip() {
-    echo "device-tests: SKIP: $*"
+    echo "device-tests: SKIP: $*" >&2
     exit 77
 }
 fail() {
@@ -27,6 +28,11 @@ build=$(cd "${1:-$root/build/release}" 2>/dev/null && pwd) ||
 cache=${VIG_DEVICE_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/vig-device}
 started=$(date +%s)
 
+qemu=${VIG_DEVICE_QEMU:-qemu-system-x86_64}
+if [ -n "${VIG_DEVICE_QEMU:-}" ] && ! command -v "$qemu" >/dev/null; then
+    skip "VIG_DEVICE_QEMU=$qemu: no such program"
+fi
+
 programs=("$build/bin/io-check" "$build/tests/io_tests")
 [ -x "$build/bin/flythrough" ] && programs+=("$build/bin/flythrough")
 for p in "${programs[@]}"; do
@@ -35,8 +41,9 @@ done
 
 # --- host tools: Debian packages, installed only when missing (needs root and the archive) ---
 [ "$(uname -m)" = x86_64 ] || skip "needs an x86-64 host (qemu-system-x86_64 runs Debian's amd64 kernel)"
-command -v apt-cache >/dev/null && command -v dpkg-query >/dev/null ||
+if ! command -v apt-cache >/dev/null || ! command -v dpkg-query >/dev/null; then
     skip "not a Debian system: no apt-cache to find the kernel package"
+fi
 kernel_pkg=$(apt-cache depends linux-image-amd64 2>/dev/null |
     awk '/Depends: linux-image-[0-9]/ {print $2; exit}') || true
 [ -n "$kernel_pkg" ] || skip "apt-cache knows no linux-image-amd64 (run apt-get update)"
@@ -52,7 +59,7 @@ if [ ${#missing[@]} -gt 0 ]; then
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" \
         >/dev/null 2>&1 || skip "cannot install ${missing[*]} (no Debian archive reachable?)"
 fi
-command -v qemu-system-x86_64 >/dev/null || skip "no qemu-system-x86_64"
+command -v "$qemu" >/dev/null || skip "no $qemu"
 
 # --- the guest kernel: downloaded and unpacked in the cache, the host's packages untouched ---
 kdir="$cache/$kver"
@@ -86,7 +93,7 @@ trap 'rm -rf "$work"' EXIT
 ir="$work/root"
 mkdir -p "$ir"/{bin,sbin,dev,proc,sys,tmp,run,etc,vig,"lib/modules/$kver"}
 cp /bin/busybox "$ir/bin/busybox"
-for applet in sh; do ln -s busybox "$ir/bin/$applet"; done
+ln -s busybox "$ir/bin/sh"  # /init installs the other applets
 # Modules: vivid and what it needs, in load order, from the kernel package's own depmod.
 : >"$ir/vig/modules"
 while read -r _ ko _; do
@@ -115,7 +122,9 @@ chmod +x "$ir/init"
 # TCG by default: a nested KVM guest under a Firecracker host hung at boot here, while TCG is
 # the same everywhere. VIG_DEVICE_ACCEL=kvm asks for KVM.
 accel=${VIG_DEVICE_ACCEL:-tcg}
-[ "$accel" = kvm ] && { [ -r /dev/kvm ] && [ -w /dev/kvm ] || skip "VIG_DEVICE_ACCEL=kvm but /dev/kvm cannot be opened"; }
+if [ "$accel" = kvm ] && ! { [ -r /dev/kvm ] && [ -w /dev/kvm ]; }; then
+    skip "VIG_DEVICE_ACCEL=kvm but /dev/kvm cannot be opened"
+fi
 limit=${VIG_DEVICE_TIMEOUT:-300}
 cpu=max
 # host, less the one MSR a nested hypervisor (Firecracker) refuses to set
@@ -123,7 +132,7 @@ cpu=max
 log="$work/console.log"
 echo "device-tests: booting Debian $kver under qemu ($accel)"
 set +e
-timeout "$limit" qemu-system-x86_64 -accel "$accel" -cpu "$cpu" -smp 2 -m 1024 -nographic -no-reboot \
+timeout "$limit" "$qemu" -accel "$accel" -cpu "$cpu" -smp 2 -m 1024 -nographic -no-reboot \
     -kernel "$vmlinuz" -initrd "$work/initramfs.gz" \
     -append "console=ttyS0 panic=-1 loglevel=4" </dev/null >"$log" 2>&1
 qemu_rc=$?

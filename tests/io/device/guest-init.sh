@@ -8,7 +8,7 @@ mount -t sysfs sysfs /sys
 mount -t devtmpfs devtmpfs /dev
 mount -t debugfs debugfs /sys/kernel/debug
 mount -t tmpfs tmpfs /tmp
-cd /tmp
+cd /tmp || exit 1
 echo VIG-BEGIN
 passed=0
 failed=0
@@ -18,7 +18,7 @@ check() {  # check NAME COMMAND...: runs it, its output indented, counts the ver
     echo "== $name"
     if "$@" >/tmp/out 2>&1; then
         passed=$((passed + 1))
-        sed 's/^/   /' /tmp/out | tail -${VIG_TAIL:-15}
+        sed 's/^/   /' /tmp/out | tail -"${VIG_TAIL:-15}"
         echo "PASS $name"
     else
         failed=$((failed + 1))
@@ -66,7 +66,7 @@ compliance() {
 check "v4l2-compliance $out (streaming, mmap)" compliance
 
 # The same GoogleTest code paths as everywhere, now against the real drivers.
-export VIG_V4L2_OUTPUT=$out VIG_V4L2_CAPTURE=$cap VIG_GPIO_CHIP=vig-gpio-sim VIG_GPIO_PULL=$gpio
+export VIG_V4L2_OUTPUT="$out" VIG_V4L2_CAPTURE="$cap" VIG_GPIO_CHIP=vig-gpio-sim VIG_GPIO_PULL="$gpio"
 VIG_TAIL=30 check "io_tests against vivid and vig-gpio-sim" io_tests --gtest_brief=0 \
     --gtest_filter='V4l2Sink.Real*:GpiodChipPort.RealLibrary:GpioStick.RealChip*'
 if grep -q SKIPPED /tmp/out; then
