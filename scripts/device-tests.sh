@@ -9,7 +9,7 @@
 # Exit status: 0 every check passed, 1 a check failed or the VM gave no verdict, 77 skipped
 # (no qemu, no packages, no Debian archive: never counted as a pass).
 # VIG_DEVICE_CACHE: where packages and the built module are kept (default ~/.cache/vig-device).
-# VIG_DEVICE_ACCEL: tcg (default) or kvm. VIG_DEVICE_TIMEOUT: seconds the VM may run (300).
+# VIG_DEVICE_ACCEL: tcg (default) or kvm. VIG_DEVICE_TIMEOUT: seconds the VM may run (420).
 # VIG_DEVICE_QEMU: the qemu program (default qemu-system-x86_64, installed when missing).
 set -euo pipefail
 
@@ -125,7 +125,7 @@ accel=${VIG_DEVICE_ACCEL:-tcg}
 if [ "$accel" = kvm ] && ! { [ -r /dev/kvm ] && [ -w /dev/kvm ]; }; then
     skip "VIG_DEVICE_ACCEL=kvm but /dev/kvm cannot be opened"
 fi
-limit=${VIG_DEVICE_TIMEOUT:-300}
+limit=${VIG_DEVICE_TIMEOUT:-420}
 cpu=max
 # host, less the one MSR a nested hypervisor (Firecracker) refuses to set
 [ "$accel" = kvm ] && cpu=host,-arch-capabilities
