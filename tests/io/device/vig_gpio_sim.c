@@ -8,7 +8,9 @@
  * /sys/kernel/debug/vig-gpio-sim/pull; a level change raises the line's interrupt (from an
  * irq_work, so in hard-interrupt context as a real controller's would be) when its trigger
  * type asks for that edge, and gpiolib's character device turns it into a timestamped edge
- * event. A write returns once its interrupt has been handled, so no two edges merge into one. Reading `pull` gives the levels as a string of 0 and 1.
+ * event. A write returns once its interrupt has been handled, so each edge raises an interrupt
+ * of its own (gpiolib's threaded handler may still merge edges that come faster than it
+ * runs). Reading `pull` gives the levels as a string of 0 and 1.
  */
 #include <linux/bitmap.h>
 #include <linux/debugfs.h>
@@ -134,7 +136,7 @@ static ssize_t vsim_pull_write(struct file *file, const char __user *ubuf, size_
 	    (type & (value ? IRQ_TYPE_EDGE_RISING : IRQ_TYPE_EDGE_FALLING))) {
 		set_bit(offset, sim->pending);
 		irq_work_queue(&sim->work);
-		/* One interrupt per edge: the next write waits until this one has been handled. */
+		/* One interrupt per edge: the write waits until this one has been handled. */
 		irq_work_sync(&sim->work);
 	}
 	mutex_unlock(&sim->lock);
