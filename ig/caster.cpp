@@ -74,7 +74,8 @@ std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
         case CasterKind::Naive:
             return makeNaiveCaster(map, options);
         case CasterKind::Fast:
-            return makeFastCaster(map, options);
+            return options.supersample == kSupersampleAuto ? makeAutoSupersampleCaster(map, options)
+                                                           : makeFastCaster(map, options);
     }
     return nullptr;
 }
