@@ -120,7 +120,7 @@ fi
 if wanted appearance; then
     run render_autosample "$bin/bench-render" autosample --size 4096 --image 720x486 --repeat 3 \
         --cache "$cache" --json "$data/render_autosample.json"
-    run render_batch scripts/bench-batch.sh "$bin" "$data/render_batch.json" 24 3
+    run render_batch scripts/bench-batch.sh build/release/bin "$data/render_batch.json" 24 3
 fi
 
 if wanted warp; then
