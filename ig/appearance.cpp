@@ -205,8 +205,9 @@ double footprintStretch(const Pose& pose, const Intrinsics& intrinsics) {
 int autoSupersample(const Pose& pose, const Intrinsics& intrinsics, int maxRays) {
     const double stretch = footprintStretch(pose, intrinsics);
     if (!std::isfinite(stretch)) return 1;
-    const int rays = static_cast<int>(std::ceil(stretch / 2.0 - 1e-9));
-    return std::clamp(rays, 1, std::max(maxRays, 1));
+    const int most = std::max(maxRays, 1);
+    const double rays = std::ceil(stretch / 2.0 - 1e-9);
+    return rays >= most ? most : std::max(static_cast<int>(rays), 1);
 }
 
 }  // namespace ig

@@ -180,7 +180,7 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
     if (!o.sun.empty() && !o.sunTime.empty()) {
         throw InputError("--sun-time: give either --sun or --sun-time, not both");
     }
-    if (!o.sun.empty() && o.sun != "off") {
+    if (!o.sun.empty()) {
         const auto parts = split(o.sun, ',');
         if (parts.size() != 2) {
             throw InputError("--sun: expected AZ,EL in degrees, got " + base::quoted(o.sun));

@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -225,6 +226,12 @@ TEST(AutoSupersample, OneRayAtSteepPitchMoreAtShallow) {
     EXPECT_GE(rays(0.0), rays(-8.0));
     // Nothing below the horizon: nothing to supersample.
     EXPECT_EQ(rays(60.0), 1);
+    // The bottom row a hair below the horizon: an enormous stretch, capped; a NaN pitch: one.
+    ig::Pose grazing;
+    grazing.pitch = std::atan(0.5 * in.height / in.focal) - 1e-12;
+    EXPECT_EQ(ig::autoSupersample(grazing, in, 8), 8);
+    grazing.pitch = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_EQ(ig::autoSupersample(grazing, in, 8), 1);
     // Never more than asked.
     ig::Pose low;
     low.pitch = ig::degToRad(-1.0);
