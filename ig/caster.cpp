@@ -77,7 +77,8 @@ std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
         case CasterKind::Naive:
             return makeNaiveCaster(map, options);
         case CasterKind::Fast:
-            return makeFastCaster(map, options);
+            return options.supersample == kSupersampleAuto ? makeAutoSupersampleCaster(map, options)
+                                                           : makeFastCaster(map, options);
         case CasterKind::Span:
             return makeSpanCaster(map, options);
     }

@@ -28,6 +28,7 @@ struct SkyModel {
 };
 
 inline constexpr int kLevelsAuto = -1;
+inline constexpr int kSupersampleAuto = 0;
 
 // The fast caster's kernels (docs/design/ray_casting.md), chosen once when the caster is built;
 // every one gives the scalar kernel's image to the bit. Auto: the widest the processor has.
@@ -52,10 +53,12 @@ struct RenderOptions {
     // kLevelsAuto: as many as the map has; 0: single level (exact on the bilinear surface, the
     // default, matching the reference caster); n > 0: at most n coarser levels.
     int levels = 0;
-    // Fast caster: rays per pixel stacked vertically (1..8), averaged; a fixed setting, the same
-    // at every pitch (it helps most at shallow pitch, where a pixel's footprint stretches along
-    // the view). Depth is the nearest of them.
+    // Fast caster: rays per pixel stacked vertically (1..8), averaged; the same at every pitch
+    // (it helps most at shallow pitch, where a pixel's footprint stretches along the view).
+    // Depth is the nearest of them. kSupersampleAuto: chosen per frame from the pitch
+    // (autoSupersample in ig/appearance.hpp), at most supersampleMax.
     int supersample = 1;
+    int supersampleMax = 4;
     // Fast caster: its kernel (the image is bit for bit the same with each). A kernel the
     // processor lacks is refused with InputError when the caster is built.
     CasterKernel kernel = CasterKernel::Auto;
@@ -124,6 +127,10 @@ std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
 RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
                           const Intrinsics& intrinsics, double time = 0.0,
                           std::uint64_t sequence = 0);
+
+// Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain
+// (what renderFrame checks first).
+void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);
 
 // Nine pixels evenly spread over an image: a 3x3 grid at 1/6, 1/2, 5/6 of width and height.
 std::array<glm::dvec2, kControlPointCount> controlPointPixels(const Intrinsics& intrinsics);

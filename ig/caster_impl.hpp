@@ -16,9 +16,9 @@ class TerrainPyramid;
 std::unique_ptr<Caster> makeFastCaster(const TerrainMap& map, const RenderOptions& options,
                                        std::shared_ptr<const TerrainPyramid> pyramid = nullptr);
 std::unique_ptr<Caster> makeSpanCaster(const TerrainMap& map, const RenderOptions& options);
-
-// Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain.
-void validateView(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics);
+// Fast casters for 1..supersampleMax rays per pixel, one picked per frame by autoSupersample.
+std::unique_ptr<Caster> makeAutoSupersampleCaster(const TerrainMap& map,
+                                                  const RenderOptions& options);
 
 // A frame of the view's size, pose, time and sequence, pixels to be cast (validates the view).
 RenderedFrame newFrame(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,

@@ -112,6 +112,139 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     return loadTerrain(src);
 }
 
+void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
+    app.add_option("--haze", o.haze,
+                   "Distance haze: metres for a 63% blend to the horizon colour (0: off; auto: a "
+                   "quarter of the map's larger extent)")
+        ->capture_default_str();
+    app.add_option("--supersample", o.supersample,
+                   "Fast caster: vertical rays per pixel, N (1..8) or auto[:MAX] (per frame from "
+                   "the pitch, at most MAX, default 4)")
+        ->capture_default_str();
+    app.add_option("--colors", o.colors,
+                   "image (the colour image; without one, heights shaded at load) | ramp (the "
+                   "elevation colour ramp, lit by --sun) | auto (a --color image, else the ramp)")
+        ->capture_default_str();
+    app.add_option("--sun", o.sun,
+                   "Sun AZ,EL in degrees (azimuth clockwise from north): lights terrain without "
+                   "a colour image; with one only under --shade")
+        ->capture_default_str();
+    app.add_option("--sun-time", o.sunTime,
+                   "The sun at DATE,TIME (UTC, YYYY-MM-DD,HH:MM) from LAT,LON (degrees; the "
+                   "shipped map's centre when omitted over it): DATE,TIME[,LAT,LON]");
+    app.add_flag("--shade", o.shade,
+                 "The sun shades the colour image too (flat ground keeps its colour)");
+}
+
+bool terrainHasImage(const TerrainOptions& terrain) {
+    return !terrain.color.empty() || (terrain.height.empty() && terrain.synthetic.empty());
+}
+
+Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& terrain,
+                           const TerrainMap& map) {
+    Appearance a;
+    if (o.haze == "auto") {
+        a.hazeDistance = 0.25 * std::max(map.extentX(), map.extentY());
+    } else {
+        a.hazeDistance = parseNumber(o.haze, "--haze");
+        if (a.hazeDistance < 0.0 || a.hazeDistance > 1e7) {
+            throw InputError("--haze: " + base::quoted(o.haze) +
+                             " must be auto or 0..1e7 metres (0: off)");
+        }
+    }
+    if (o.supersample.rfind("auto", 0) == 0) {
+        a.supersample = kSupersampleAuto;
+        if (o.supersample.size() > 4) {
+            if (o.supersample[4] != ':') {
+                throw InputError("--supersample: expected N or auto[:MAX], got " +
+                                 base::quoted(o.supersample));
+            }
+            const double m = parseNumber(o.supersample.substr(5), "--supersample MAX");
+            if (m != std::floor(m) || m < 1 || m > 8) {
+                throw InputError("--supersample: MAX must be a whole number 1..8, got " +
+                                 base::quoted(o.supersample));
+            }
+            a.supersampleMax = static_cast<int>(m);
+        }
+    } else {
+        const double n = parseNumber(o.supersample, "--supersample");
+        if (n != std::floor(n) || n < 1 || n > 8) {
+            throw InputError("--supersample: must be 1..8 rays per pixel or auto[:MAX], got " +
+                             base::quoted(o.supersample));
+        }
+        a.supersample = static_cast<int>(n);
+    }
+    if (o.colors != "image" && o.colors != "ramp" && o.colors != "auto") {
+        throw InputError("--colors: expected image, ramp or auto, got " + base::quoted(o.colors));
+    }
+    if (!o.sun.empty() && !o.sunTime.empty()) {
+        throw InputError("--sun-time: give either --sun or --sun-time, not both");
+    }
+    if (!o.sun.empty()) {
+        const auto parts = split(o.sun, ',');
+        if (parts.size() != 2) {
+            throw InputError("--sun: expected AZ,EL in degrees, got " + base::quoted(o.sun));
+        }
+        Sun sun;
+        const double az = parseNumber(parts[0], "--sun azimuth");
+        const double el = parseNumber(parts[1], "--sun elevation");
+        if (az < -360.0 || az > 720.0 || el < -90.0 || el > 90.0) {
+            throw InputError("--sun: " + base::quoted(o.sun) +
+                             ": azimuth must be -360..720 and elevation -90..90 degrees");
+        }
+        sun.azimuth = degToRad(az);
+        sun.elevation = degToRad(el);
+        a.sun = sun;
+    } else if (!o.sunTime.empty()) {
+        const auto parts = split(o.sunTime, ',');
+        if (parts.size() != 2 && parts.size() != 4) {
+            throw InputError("--sun-time: expected DATE,TIME[,LAT,LON], got " +
+                             base::quoted(o.sunTime));
+        }
+        const double days = parseUtcDateTime(parts[0] + "," + parts[1], "--sun-time");
+        double lat = kPugetSoundLatitude, lon = kPugetSoundLongitude;
+        if (parts.size() == 4) {
+            lat = parseNumber(parts[2], "--sun-time latitude");
+            lon = parseNumber(parts[3], "--sun-time longitude");
+            if (lat < -90.0 || lat > 90.0 || lon < -180.0 || lon > 180.0) {
+                throw InputError(
+                    "--sun-time: latitude must be -90..90 and longitude -180..180 "
+                    "degrees, got " +
+                    base::quoted(o.sunTime));
+            }
+        } else if (!(terrain.height.empty() && terrain.synthetic.empty())) {
+            throw InputError(
+                "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
+        }
+        a.sun = sunAt(lat, lon, days);
+    }
+    a.shade = o.shade;
+    // auto: a colour image the user names; the ramp over the shipped map (whose image is a
+    // hypsometric tint, not a photograph) and over maps without one.
+    const bool image = o.colors == "image"  ? terrainHasImage(terrain)
+                       : o.colors == "auto" ? !terrain.color.empty()
+                                            : false;
+    if (a.shade && !(image && a.sun)) {
+        throw InputError(
+            "--shade: shades a colour image by the sun; give --sun or --sun-time and "
+            "a map with a colour image (--colors image)");
+    }
+    a.ramp = o.colors == "ramp" || (o.colors == "auto" && !image) || (a.sun && !image);
+    if (a.ramp && !a.sun) a.sun = Sun{degToRad(135.0), degToRad(30.0)};
+    return a;
+}
+
+void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render) {
+    render.sky.hazeDistance = a.hazeDistance;
+    render.supersample = a.supersample;
+    render.supersampleMax = a.supersampleMax;
+    if (a.ramp) {
+        TerrainLighting(map, TerrainLighting::Albedo::Ramp).relight(map, *a.sun);
+    } else if (a.shade) {
+        TerrainLighting(map, TerrainLighting::Albedo::Photo).relight(map, *a.sun);
+    }
+}
+
 Pose defaultViewPose(const TerrainMap& map) {
     Pose pose;
     const double x = 0.25 * map.extentX(), y = 0.25 * map.extentY();

@@ -1,7 +1,9 @@
 // Command-line pieces every program shares: terrain flags, image size and pose parsing.
 #pragma once
 
+#include "ig/appearance.hpp"
 #include "ig/camera.hpp"
+#include "ig/caster.hpp"
 #include "ig/terrain.hpp"
 
 #include <CLI/CLI.hpp>
@@ -32,6 +34,47 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& options);
 TerrainMap loadTerrainFromOptions(const TerrainOptions& options);
 // One line describing a loaded map, for logs.
 std::string describeTerrain(const TerrainMap& map);
+
+// Appearance flags every rendering program shares (docs/design/appearance.md):
+//   --haze METRES|auto         distance for a 63 % blend to the horizon colour (0: off; auto: a
+//                              quarter of the map's larger extent)
+//   --supersample N|auto[:MAX] vertical rays per pixel, fixed or chosen per frame from the pitch
+//   --colors image|ramp|auto   the colour image (or, without one, the heights shaded at load by
+//                              a fixed sun), or the elevation colour ramp lit by --sun (auto:
+//                              an image given with --color, else the ramp)
+//   --sun AZ,EL                sun azimuth (clockwise from north) and elevation, degrees; lights
+//                              terrain without a colour image (the ramp); with one, only --shade
+//   --sun-time DATE,TIME[,LAT,LON]  the sun at a UTC instant seen from LAT,LON (degrees; the
+//                              shipped map's centre when omitted over it)
+//   --shade                    the sun also shades the colour image (flat ground unchanged)
+// The defaults are the program's: `defaults` as given before parsing.
+struct AppearanceOptions {
+    std::string haze = "0";
+    std::string supersample = "1";
+    std::string colors = "image";
+    std::string sun;
+    std::string sunTime;
+    bool shade = false;
+};
+void addAppearanceOptions(CLI::App& app, AppearanceOptions& options);
+// What the flags asked for, parsed and checked (InputError naming the flag).
+struct Appearance {
+    double hazeDistance = 0.0;
+    int supersample = 1;  // kSupersampleAuto: per frame
+    int supersampleMax = 4;
+    bool ramp = false;       // colour by the elevation ramp
+    std::optional<Sun> sun;  // lighting on when set
+    bool shade = false;      // the sun shades the colour image too
+};
+Appearance parseAppearance(const AppearanceOptions& options, const TerrainOptions& terrain,
+                           const TerrainMap& map);
+// Applies it: lights `map` in place (ramp or shaded image) and sets the haze and supersampling
+// of `render`.
+void applyAppearance(const Appearance& appearance, TerrainMap& map, RenderOptions& render);
+// Whether the terrain flags give a colour image (the shipped map's included).
+bool terrainHasImage(const TerrainOptions& terrain);
+// The shipped map's centre, degrees (for --sun-time without LAT,LON).
+inline constexpr double kPugetSoundLatitude = 46.88, kPugetSoundLongitude = -122.36;
 
 // "WxH" -> {W, H}; throws InputError naming `what`.
 std::pair<int, int> parseSize(const std::string& text, const std::string& what = "--size");

@@ -368,6 +368,52 @@ def span(p):
         + (f" Load average {fmt(load, 1)} when it started." if load is not None else ""),
         "\n".join(lines)))
 
+def appearance(p):
+    p.group = "Appearance and batch rendering"
+    doc = p.load("render_autosample.json")
+    s = (doc or {}).get("autosample")
+    if s:
+        cmd = p.command("render_autosample", "autosample")
+        sweep = {r["variant"]: r for r in s["sweep"]}
+        one, auto, four = sweep["1 ray"], sweep["auto"], sweep["4 rays"]
+        p.row(f"`--supersample auto` over a pitch sweep (0° to −70°, synthetic "
+              f"{s['map'].split()[-1]}², {s['image'].replace('x', '×')}, 1 thread): sweep time "
+              f"and mean colour error against a 4×4 supersampled reference", "—",
+              f"auto {fmt(auto['sweep_ms'], 0)} ms, {fmt(auto['mean_mae_pct_vs_reference'], 3)} %; "
+              f"1 ray {fmt(one['sweep_ms'], 0)} ms, {fmt(one['mean_mae_pct_vs_reference'], 3)} %; "
+              f"4 rays {fmt(four['sweep_ms'], 0)} ms, "
+              f"{fmt(four['mean_mae_pct_vs_reference'], 3)} % (best of {s['repeat']} per view)",
+              NO_TARGET, cmd)
+        sh = s["shimmer"]
+        p.row(f"Shimmer along a slow flight ({sh['frames']} frames of 5 m, pitch "
+              f"{fmt(sh['pitch_deg'], 0)}°, {sh['image'].replace('x', '×')}): mean "
+              f"frame-to-frame difference", "—",
+              f"1 ray {fmt(sh['frame_to_frame_mae_pct_1'], 3)} %, auto "
+              f"{fmt(sh['frame_to_frame_mae_pct_auto'], 3)} %, 4 rays "
+              f"{fmt(sh['frame_to_frame_mae_pct_4'], 3)} %, 16-ray render "
+              f"{fmt(sh['frame_to_frame_mae_pct_16'], 3)} %", NO_TARGET, cmd)
+        lines = ["| pitch | variant | rays per pixel | frame ms | MAE % vs 4×4 reference |",
+                 "| ---: | --- | ---: | ---: | ---: |"]
+        for r in s["rows"]:
+            lines.append(f"| {fmt(r['pitch_deg'], 0)}° | {r['name']} | "
+                         f"{fmt(r['rays_per_pixel'], 0)} | {spread(r['ms_runs'], 1)} | "
+                         f"{fmt(r['mae_pct_vs_reference'], 3)} |")
+        p.section("Supersampling driven by pitch (`--supersample auto`)",
+                  f"Time at {s['image'].replace('x', '×')} (one thread; frame times in ms: "
+                  f"median, range, runs), error at {s['error_image'].replace('x', '×')} against "
+                  f"a 4×4 supersampled reference, synthetic {s['map'].split()[-1]}². Command: "
+                  + cmd + ".", "\n".join(lines))
+    b = p.load("render_batch.json")
+    if b:
+        fps_batch = [b["frames"] / t for t in b["batch_s"]]
+        fps_single = [b["frames"] / t for t in b["single_s"]]
+        p.row(f"Batch rendering, `ig-render --poses` ({b['frames']} poses, "
+              f"{b['image'].replace('x', '×')}, {b['map']}, {b['cores']} cores) vs one "
+              f"`ig-render` process per frame", "—",
+              f"{spread(fps_batch, 1)} frames/s vs {spread(fps_single, 1)} frames/s: "
+              f"{spread(ratios(fps_batch, fps_single), 1, '×')}", NO_TARGET,
+              p.command("render_batch"))
+
 
 def callgrind(p):
     """Instructions per pixel before and after a reorganisation of the caster, from
@@ -671,6 +717,7 @@ def render(data_dir):
     casters(p)
     renderer(p)
     span(p)
+    appearance(p)
     callgrind(p)
     warp(p)
     warp_eval(p)

@@ -7,7 +7,7 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render warp warp-eval stereo flythrough io restart  (default: all)
+#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart  (default: all)
 #   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|warp|warp-eval|stereo|flythrough|io|restart|field-clock) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, warp, warp-eval, stereo, flythrough, io, restart or field-clock" >&2
+                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -41,7 +41,7 @@ wanted() {
 if [ "$build" = 1 ]; then
     scripts/setup.sh
     cmake --preset release >/dev/null
-    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp \
+    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp ig-render \
         warp-eval stereo-eval flythrough io-check
 fi
 mkdir -p "$data" "$cache"
@@ -118,6 +118,12 @@ if wanted render; then
     # The span caster against a Comanche-style peer and the multiresolution caster, per view.
     run span_bench "$bin/bench-render" span span-threads --size 16384 --repeat 3 --cache "$cache" \
         --json "$data/span_bench.json"
+fi
+
+if wanted appearance; then
+    run render_autosample "$bin/bench-render" autosample --size 4096 --image 720x486 --repeat 3 \
+        --cache "$cache" --json "$data/render_autosample.json"
+    run render_batch scripts/bench-batch.sh build/release/bin "$data/render_batch.json" 24 3
 fi
 
 if wanted warp; then

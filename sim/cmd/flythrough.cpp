@@ -116,6 +116,12 @@ int main(int argc, char** argv) {
     app.footer(kNotes);
     ig::TerrainOptions terrain;
     ig::addTerrainOptions(app, terrain);
+    // Haze at a quarter of the map's extent and the lit colour ramp: the map's far edge fades
+    // into the horizon (docs/design/appearance.md).
+    ig::AppearanceOptions look;
+    look.haze = "auto";
+    look.colors = "auto";
+    ig::addAppearanceOptions(app, look);
     std::string trajectoryPath, stickSpec, startText;
     std::optional<double> duration;
     double renderHz = 0.0;
@@ -344,7 +350,8 @@ int main(int argc, char** argv) {
         // Where things went: standard output, unless an output is written there.
         std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
 
-        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
         const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
 
         // Where the aircraft is: a trajectory, a stick, or the default scenario's script.

@@ -3,19 +3,28 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/pose_sweep.hpp"
 #include "ig/stereo.hpp"
 #include "io/image_file.hpp"
 #include "io/output_file.hpp"
 #include "io/stop_signals.hpp"
+#include "sim/trajectory.hpp"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -174,10 +183,170 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
     return 0;
 }
 
+// ---- Batch (--poses): many frames from one load of the terrain. --------------------------------
+
+// PATTERN with its run of '#' replaced by `index` zero-padded to the run's length (at least);
+// empty stays empty.
+std::string numberedPath(const std::string& pattern, int index) {
+    if (pattern.empty()) return {};
+    const std::size_t first = pattern.find('#');
+    const std::size_t last = pattern.find_first_not_of('#', first);
+    const std::size_t run = (last == std::string::npos ? pattern.size() : last) - first;
+    std::string digits = std::to_string(index);
+    if (digits.size() < run) digits.insert(0, run - digits.size(), '0');
+    return pattern.substr(0, first) + digits + pattern.substr(first + run);
+}
+
+void checkPattern(const std::string& pattern, const std::string& flag) {
+    if (pattern.empty()) return;
+    const std::size_t first = pattern.find('#');
+    if (first == std::string::npos || pattern == "-") {
+        throw ig::InputError(flag + " " + base::quoted(pattern) +
+                             ": with --poses give a file name with a run of # for the frame "
+                             "number, e.g. frames/color_####.png");
+    }
+    const std::size_t last = pattern.find_first_not_of('#', first);
+    if (last != std::string::npos && pattern.find('#', last) != std::string::npos) {
+        throw ig::InputError(flag + " " + base::quoted(pattern) + ": one run of # only");
+    }
+}
+
+// Poses of a --poses file: pose lines, or a trajectory CSV sampled every `every` seconds.
+// `where` receives what names each pose in a message ("FILE line N", "FILE at t = T s").
+std::vector<ig::Pose> batchPoses(const std::string& path, std::optional<double> every,
+                                 const ig::TerrainMap& map, std::vector<std::string>& where) {
+    if (every) {
+        if (!(std::isfinite(*every) && *every > 0.0)) {
+            throw ig::InputError("--every: must be a positive number of seconds");
+        }
+        const sim::Trajectory trajectory = sim::Trajectory::loadCsv(path);
+        const double span = trajectory.endTime() - trajectory.startTime();
+        if (span / *every > 1e6) {
+            throw ig::InputError("--every " + base::number(*every) +
+                                 ": more than a million frames over " + path);
+        }
+        std::vector<ig::Pose> poses;
+        for (int k = 0;; ++k) {
+            const double t = trajectory.startTime() + k * *every;
+            if (t > trajectory.endTime() + 1e-9 * std::max(1.0, span)) break;
+            poses.push_back(trajectory.poseAt(t));
+            where.push_back(path + " at t = " + base::number(t) + " s");
+        }
+        return poses;
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw ig::InputError("--poses " + path + ": cannot open the file");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (text.size() > (64u << 20)) throw ig::InputError("--poses " + path + ": larger than 64 MiB");
+    std::vector<int> lines;
+    std::vector<ig::Pose> poses = ig::parsePoseList(text, map, path, &lines);
+    for (const int line : lines)
+        where.push_back(path + " line " + std::to_string(line));
+    return poses;
+}
+
+struct BatchFlags {
+    std::string posesPath;
+    std::optional<double> every;
+};
+
+// Renders every pose of the batch (frames spread over the threads, each frame's image the
+// same whatever the thread count), writes the numbered images and one JSON.
+int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::TerrainMap& map,
+                const ig::Intrinsics& intr, int threads, const std::string& outPattern,
+                const std::string& depthPattern, const std::string& jsonPath,
+                const nlohmann::json& common) {
+    std::vector<std::string> where;
+    const std::vector<ig::Pose> poses = batchPoses(batch.posesPath, batch.every, map, where);
+    const int n = static_cast<int>(poses.size());
+    for (int i = 0; i < n; ++i) {
+        const std::string& what = where[static_cast<std::size_t>(i)];
+        if (caster.kind() == ig::CasterKind::Fast && poses[i].roll != 0.0) {
+            throw ig::InputError(what +
+                                 ": the fast caster renders roll = 0; use --caster naive "
+                                 "or reference for a rolled view");
+        }
+        try {
+            ig::validateView(map, poses[i], intr);
+        } catch (const ig::InputError& e) {
+            throw ig::InputError(what + ": " + e.what());
+        }
+    }
+    std::vector<nlohmann::json> records(static_cast<std::size_t>(n));
+    std::atomic<int> done{0};
+    std::mutex progressMutex;
+    const bool bar = isatty(fileno(stderr)) != 0;
+    std::atomic<bool> failed{false};
+    std::string failure;
+    const auto start = std::chrono::steady_clock::now();
+    auto renderOne = [&](int i) {
+        if (failed.load() || io::stopRequested()) return;
+        try {
+            const ig::RenderedFrame frame =
+                ig::renderFrame(caster, map, poses[i], intr, 0.0, static_cast<std::uint64_t>(i));
+            std::string error;
+            const std::string colorPath = numberedPath(outPattern, i);
+            const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
+            if (io::writePng8(colorPath, frame.width(), frame.height(), 3,
+                              {bytes, frame.color.size() * 3}, &error) != 0) {
+                throw ig::InputError("--out " + error);
+            }
+            const std::string depthPath = numberedPath(depthPattern, i);
+            if (!depthPath.empty() &&
+                io::writePfm(depthPath, frame.width(), frame.height(), frame.depth, &error) != 0) {
+                throw ig::InputError("--depth " + error);
+            }
+            const double pixels = static_cast<double>(frame.width()) * frame.height();
+            nlohmann::json r;
+            r["index"] = i;
+            r["pose"] = poseJson(poses[i]);
+            r["render_ms"] = frame.stats.renderMs;
+            r["rays_per_pixel"] = static_cast<double>(frame.stats.rays) / pixels;
+            r["steps_per_pixel"] = static_cast<double>(frame.stats.steps) / pixels;
+            r["coherence_restarts"] = frame.stats.restarts;
+            r["out"] = colorPath;
+            if (!depthPath.empty()) r["depth"] = depthPath;
+            records[static_cast<std::size_t>(i)] = std::move(r);
+        } catch (const std::exception& e) {
+            const std::lock_guard lock(progressMutex);
+            if (!failed.exchange(true)) failure = e.what();
+            return;
+        }
+        const int finished = ++done;
+        if (bar) {
+            const std::lock_guard lock(progressMutex);
+            const int width = 40, filled = finished * width / n;
+            std::fprintf(stderr, "\r[%s%s] %d/%d frames", std::string(filled, '#').c_str(),
+                         std::string(width - filled, ' ').c_str(), finished, n);
+            if (finished == n) std::fprintf(stderr, "\n");
+        }
+    };
+    if (threads > 0) {
+        tbb::task_arena arena(threads);
+        arena.execute([&] { tbb::parallel_for(0, n, renderOne); });
+    } else {
+        tbb::parallel_for(0, n, renderOne);
+    }
+    if (failed) throw ig::InputError(failure);
+    if (io::stopRequested()) return 130;
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    nlohmann::json j = common;
+    j["poses"] = batch.posesPath;
+    if (batch.every) j["every_s"] = *batch.every;
+    j["frames"] = records;
+    j["total_s"] = seconds;
+    j["frames_per_s"] = n / std::max(seconds, 1e-9);
+    if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
+    std::fprintf(stderr, "%d frames %dx%d in %.2f s (%.2f frames/s) -> %s\n", n, intr.width,
+                 intr.height, seconds, n / std::max(seconds, 1e-9), outPattern.c_str());
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-    CLI::App app{"Render one frame of a voxel terrain by ray casting."};
+    CLI::App app{"Render frames of a voxel terrain by ray casting: one pose, or a batch."};
     app.footer(kConventions);
     ig::TerrainOptions terrain;
     ig::addTerrainOptions(app, terrain);
@@ -188,17 +357,22 @@ int main(int argc, char** argv) {
     double fovDeg = 60.0;
     int margin = 0;
     std::string casterText = "fast";
-    std::string outPath = "frame.png";
+    std::string outPath;
     std::string depthPath, jsonPath;
     int threads = 0;
-    double haze = 0.0;
     std::string levelsText = "auto";
-    int supersample = 1;
     std::string kernelText = "auto";
+    ig::AppearanceOptions look;
+    BatchFlags batch;
     app.add_option("--pose", poseText,
                    "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H). Default: " + shippedPose +
                        " over the shipped map; over others, above the south-west quarter looking "
                        "toward the far corner");
+    app.add_option("--poses", batch.posesPath,
+                   "Batch: a file of x,y,z,yaw,pitch,roll lines (as --pose), or with --every a "
+                   "trajectory CSV; --out and --depth then name numbered files (a run of #)");
+    app.add_option("--every", batch.every,
+                   "Batch: --poses is a trajectory CSV, sampled every this many seconds");
     app.add_option("--fov", fovDeg, "Horizontal field of view of the window, degrees")
         ->capture_default_str();
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
@@ -206,20 +380,17 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--caster", casterText, "fast | span | naive | reference")
         ->capture_default_str();
-    app.add_option("--out", outPath, "Colour PNG")->capture_default_str();
+    app.add_option("--out", outPath, "Colour PNG (default frame.png; with --poses frame_####.png)");
     app.add_option("--depth", depthPath, "Depth PFM (metres from the eye, +inf for sky)");
-    app.add_option("--json", jsonPath, "Stats and control points as JSON");
-    app.add_option("--threads", threads, "Worker threads (0: all cores)")->capture_default_str();
-    app.add_option("--haze", haze, "Distance haze: metres for 63% blend to the horizon (0: off)")
+    app.add_option("--json", jsonPath, "Stats and control points as JSON (--poses: per frame)");
+    app.add_option("--threads", threads,
+                   "Worker threads (0: all cores); a batch spreads frames and pixels over them")
         ->capture_default_str();
+    ig::addAppearanceOptions(app, look);
     // Multiresolution (fast caster).
     app.add_option("--levels", levelsText,
                    "Coarser levels beyond the distance where a voxel shrinks below a pixel: auto "
                    "(all) | 0 (single level, exact) | N (at most N)")
-        ->capture_default_str();
-    app.add_option("--supersample", supersample,
-                   "Fast caster: rays per pixel stacked vertically and averaged, 1..8 (a fixed "
-                   "setting; it helps most at shallow pitch)")
         ->capture_default_str();
     app.add_option("--kernel", kernelText,
                    "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
@@ -232,12 +403,24 @@ int main(int argc, char** argv) {
     return ig::runProgram("ig-render", [&]() -> int {
         // A signal ends the run at once, leaving no file half written.
         io::installStopSignals(true);
+        const bool batchMode = !batch.posesPath.empty();
+        if (outPath.empty()) outPath = batchMode ? "frame_####.png" : "frame.png";
+        if (batchMode) {
+            if (stereo.enabled()) throw ig::InputError("--poses: not with --stereo");
+            if (!poseText.empty())
+                throw ig::InputError("--poses: give --pose or --poses, not both");
+            checkPattern(outPath, "--out");
+            checkPattern(depthPath, "--depth");
+        } else if (batch.every) {
+            throw ig::InputError("--every: needs --poses (a trajectory CSV)");
+        }
         // Every path, checked before the terrain is loaded and the frame rendered: no output
         // on an input or on another output, standard output for one at most. (--out is not
         // written with --stereo.)
         const auto out = io::PathRole::Output;
         io::checkRunPaths({{"--height", terrain.height, io::PathRole::Input},
                            {"--color", terrain.color, io::PathRole::Input},
+                           {"--poses", batch.posesPath, io::PathRole::Input},
                            {"--out", stereo.enabled() ? std::string() : outPath, out},
                            {"--depth", depthPath, out},
                            {"--json", jsonPath, out},
@@ -251,15 +434,15 @@ int main(int argc, char** argv) {
         }
         if (margin < 0 || margin > 4096) throw ig::InputError("--margin: must be 0..4096 pixels");
         if (threads < 0 || threads > 1024) throw ig::InputError("--threads: must be 0..1024");
-        if (!(haze >= 0.0) || !std::isfinite(haze)) throw ig::InputError("--haze: must be >= 0");
         const auto [w, h] = ig::parseSize(sizeText);
         const ig::CasterKind kind = ig::parseCasterKind(casterText);
-        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
         const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
         const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
                               : shippedMap      ? ig::parsePose(shippedPose, map)
                                                 : ig::defaultViewPose(map);
-        if (ig::casterNeedsLevelRoll(kind) && pose.roll != 0.0) {
+        if (!batchMode && ig::casterNeedsLevelRoll(kind) && pose.roll != 0.0) {
             throw ig::InputError(
                 "--pose: the " + casterText +
                 " caster renders roll = 0 (roll is applied by the post-rendering "
@@ -268,12 +451,8 @@ int main(int argc, char** argv) {
         const ig::Intrinsics intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg), margin);
         ig::RenderOptions options;
         options.threads = threads;
-        options.sky.hazeDistance = haze;
         options.levels = ig::parseLevels(levelsText);
-        if (supersample < 1 || supersample > 8) {
-            throw ig::InputError("--supersample: must be 1..8 rays per pixel");
-        }
-        options.supersample = supersample;
+        ig::applyAppearance(appearance, map, options);
         options.kernel = ig::parseCasterKernel(kernelText);
         if (kind != ig::CasterKind::Fast && options.kernel != ig::CasterKernel::Auto) {
             throw ig::InputError("--kernel " + kernelText +
@@ -283,8 +462,23 @@ int main(int argc, char** argv) {
         if (stereo.enabled())
             return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
         const auto caster = ig::makeCaster(kind, map, options);
+        if (batchMode) {
+            nlohmann::json common;
+            common["caster"] = casterText;
+            common["width"] = intr.width;
+            common["height"] = intr.height;
+            common["margin"] = margin;
+            common["focal_px"] = intr.focal;
+            common["levels"] = levelsText;
+            common["supersample"] = look.supersample;
+            common["haze_m"] = appearance.hazeDistance;
+            common["kernel"] = std::string(caster->kernelName());
+            common["threads"] = threads;
+            common["terrain"] = ig::describeTerrain(map);
+            return renderBatch(batch, *caster, map, intr, threads, outPath, depthPath, jsonPath,
+                               common);
+        }
         const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr);
-
         std::string error;
         const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
         if (io::writePng8(outPath, frame.width(), frame.height(), 3,
@@ -307,7 +501,9 @@ int main(int argc, char** argv) {
         j["steps_per_pixel"] = static_cast<double>(frame.stats.steps) / pixels;
         j["coherence_restarts"] = frame.stats.restarts;
         j["levels"] = levelsText;
-        j["supersample"] = supersample;
+        j["supersample"] = look.supersample;
+        j["rays_per_pixel"] = static_cast<double>(frame.stats.rays) / pixels;
+        j["haze_m"] = appearance.hazeDistance;
         j["kernel"] = std::string(frame.stats.kernel);
         if (!frame.stats.path.empty()) j["path"] = std::string(frame.stats.path);
         j["pose"] = poseJson(pose);

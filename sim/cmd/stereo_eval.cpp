@@ -109,6 +109,8 @@ int main(int argc, char** argv) {
     app.footer(kNotes);
     ig::TerrainOptions terrain;
     ig::addTerrainOptions(app, terrain);
+    ig::AppearanceOptions look;
+    ig::addAppearanceOptions(app, look);
     std::string sizeText = "720x486", posesPath, jsonPath, extraGaps = "1,4";
     double fovDeg = 60.0, gapThreshold = 2.0, aglFactor = 0.02;
     std::optional<double> separation;
@@ -170,7 +172,8 @@ int main(int argc, char** argv) {
         }
         const bool useCpu = clockText == "cpu" || (clockText == "auto" && threads == 1);
         const auto [w, h] = ig::parseSize(sizeText);
-        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
         const std::vector<ig::Pose> poses =
             posesPath.empty() ? ig::sweepPoses(map, sweep) : readPoses(posesPath, map);
         // A pose far off the map is a mistake of coordinates; say so rather than skip it.
@@ -190,6 +193,7 @@ int main(int argc, char** argv) {
         const ig::Intrinsics intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg));
         ig::RenderOptions renderOptions;
         renderOptions.threads = threads;
+        ig::applyAppearance(appearance, map, renderOptions);
         renderOptions.kernel = ig::parseCasterKernel(kernelText);
 
         std::vector<Config> configs;

@@ -130,6 +130,8 @@ int main(int argc, char** argv) {
     app.footer(kNotes);
     ig::TerrainOptions terrain;
     ig::addTerrainOptions(app, terrain);
+    ig::AppearanceOptions look;
+    ig::addAppearanceOptions(app, look);
     std::vector<std::string> trajectories;
     std::string sizeText = "320x240", horizonsText = "1..8",
                 modelsText = "poly,affine,homography,depth,hold";
@@ -209,7 +211,8 @@ int main(int argc, char** argv) {
         for (const std::string& p : trajectories)
             loaded.push_back(sim::Trajectory::loadCsv(p));
 
-        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
         std::fprintf(tableOut, "terrain: %s\n", ig::describeTerrain(map).c_str());
         // The shipped trajectories are flown over Puget Sound; over another map they are laid
         // over it (scaled to fit, heights above its highest ground under the path).
@@ -224,7 +227,7 @@ int main(int argc, char** argv) {
         for (std::size_t i = 0; i < loaded.size(); ++i)
             sim::checkTrajectoryClearance(loaded[i], map, trajectories[i]);
         const auto fast = ig::makeCaster(casterKind, map, renderOptions);
-        const auto reference = ig::makeCaster(ig::CasterKind::Reference, map);
+        const auto reference = ig::makeCaster(ig::CasterKind::Reference, map, renderOptions);
 
         std::vector<prp::EvalResult> parts;
         nlohmann::json perTrajectory = nlohmann::json::array();

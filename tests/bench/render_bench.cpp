@@ -6,7 +6,7 @@
 //                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
 //                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream span span-threads
+//             frame stream span span-threads autosample
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -821,6 +821,117 @@ void spanThreads(const Config& c) {
     gJson["span_threads"] = j;
 }
 
+// The image of a w x h view rendered at 4w x 4h by `one` (one ray per pixel) and box filtered:
+// 16 rays per pixel, the reference of the autosample section's flight.
+std::vector<ig::Rgb8> sixteenRays(const ig::Caster& one, const ig::TerrainMap& map,
+                                  const ig::Pose& pose, int w, int h) {
+    const ig::RenderedFrame r =
+        ig::renderFrame(one, map, pose, ig::Intrinsics::fromFov(4 * w, 4 * h, ig::degToRad(60.0)));
+    return ig::boxDownsample(r.color, w, h, 4);
+}
+
+// Supersampling chosen from the pitch (auto) against fixed 1 and 4 rays per pixel over a pitch
+// sweep: time at the full image (one thread, best of --repeat), error against a 4x4 supersampled
+// reference at an eighth of the size, and the shimmer along a slow shallow flight (mean
+// frame-to-frame change, and its excess over a 16-ray render's own change).
+void autosample(const Config& c) {
+    const int size = std::min(c.size, 4096);
+    const ig::TerrainMap& map = syntheticMap(size);
+    const ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const int qw = c.width / 8, qh = c.height / 8;
+    const ig::Intrinsics small = ig::Intrinsics::fromFov(qw, qh, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    struct Variant {
+        const char* name;
+        int rays;
+    };
+    const Variant variants[] = {{"1 ray", 1}, {"auto", ig::kSupersampleAuto}, {"4 rays", 4}};
+    std::vector<std::unique_ptr<ig::Caster>> casters;
+    for (const Variant& v : variants) {
+        ig::RenderOptions o;
+        o.levels = c.levels;
+        o.threads = 1;
+        o.kernel = gKernel;
+        o.supersample = v.rays;
+        casters.push_back(ig::makeCaster(ig::CasterKind::Fast, map, o));
+    }
+    std::printf(
+        "\n## autosample: synthetic %d^2, levels %d, time at %dx%d (one thread, best of %d), "
+        "error at %dx%d vs 4x4 supersampled reference\n",
+        size, c.levels, c.width, c.height, c.repeat, qw, qh);
+    std::printf("| pitch | variant | rays/px | frame ms | MAE %% |\n|---|---|---|---|---|\n");
+    nlohmann::json j = sectionJson(c, size), rows = nlohmann::json::array();
+    j["levels"] = c.levels;
+    j["error_image"] = std::to_string(qw) + "x" + std::to_string(qh);
+    std::vector<double> totalMs(3, 0.0), totalErr(3, 0.0);
+    const double pitches[] = {0.0, -2.0, -5.0, -10.0, -20.0, -30.0, -45.0, -70.0};
+    for (const double pitch : pitches) {
+        const ig::Pose pose = issuePose(map, pitch);
+        const auto ref = supersampledReference(map, pose, qw, qh, 4);
+        for (std::size_t k = 0; k < casters.size(); ++k) {
+            const Timed t = timeFrames(*casters[k], map, pose, in, c.repeat);
+            const auto q = ig::renderFrame(*casters[k], map, pose, small);
+            const double err = ig::meanAbsErrorPct(q.color, ref);
+            const double rays = static_cast<double>(t.frame.stats.rays) / pixels;
+            std::printf("| %.0f | %s | %.0f | %.1f | %.3f |\n", pitch, variants[k].name, rays, t.ms,
+                        err);
+            nlohmann::json row = timedJson(variants[k].name, t, pixels);
+            row["pitch_deg"] = pitch;
+            row["rays_per_pixel"] = rays;
+            row["mae_pct_vs_reference"] = err;
+            rows.push_back(row);
+            totalMs[k] += t.ms;
+            totalErr[k] += err / std::size(pitches);
+        }
+    }
+    j["rows"] = rows;
+    std::printf("| sweep | variant | | total ms | mean MAE %% |\n");
+    nlohmann::json sums = nlohmann::json::array();
+    for (std::size_t k = 0; k < casters.size(); ++k) {
+        std::printf("| all | %s | | %.1f | %.3f |\n", variants[k].name, totalMs[k], totalErr[k]);
+        sums.push_back({{"variant", variants[k].name},
+                        {"sweep_ms", totalMs[k]},
+                        {"mean_mae_pct_vs_reference", totalErr[k]}});
+    }
+    j["sweep"] = sums;
+
+    // Shimmer: 5 m per frame at pitch -4 degrees, at a quarter of the size.
+    const int fw = c.width / 4, fh = c.height / 4;
+    const ig::Intrinsics fin = ig::Intrinsics::fromFov(fw, fh, ig::degToRad(60.0));
+    ig::RenderOptions o1;
+    o1.levels = c.levels;
+    const auto one = ig::makeCaster(ig::CasterKind::Fast, map, o1);
+    std::vector<std::vector<ig::Rgb8>> prev(casters.size() + 1);
+    std::vector<double> change(casters.size() + 1, 0.0);
+    const int frames = 30;
+    const double z = map.surfaceHeight(20000.0, 20000.0) + 300.0;
+    for (int i = 0; i <= frames; ++i) {
+        ig::Pose pose = issuePose(map, -4.0);
+        pose.position.x += 5.0 * i * 0.7071067811865476;
+        pose.position.y += 5.0 * i * 0.7071067811865476;
+        pose.position.z = z;
+        for (std::size_t k = 0; k <= casters.size(); ++k) {
+            std::vector<ig::Rgb8> img = k < casters.size()
+                                            ? ig::renderFrame(*casters[k], map, pose, fin).color
+                                            : sixteenRays(*one, map, pose, fw, fh);
+            if (i > 0) change[k] += ig::meanAbsErrorPct(img, prev[k]) / frames;
+            prev[k] = std::move(img);
+        }
+    }
+    std::printf(
+        "\nshimmer along a slow flight (%dx%d, pitch -4, 5 m/frame): mean frame-to-frame "
+        "MAE %%: 1 ray %.3f, auto %.3f, 4 rays %.3f, 16-ray reference %.3f\n",
+        fw, fh, change[0], change[1], change[2], change[3]);
+    j["shimmer"] = {{"image", std::to_string(fw) + "x" + std::to_string(fh)},
+                    {"frames", frames},
+                    {"pitch_deg", -4.0},
+                    {"frame_to_frame_mae_pct_1", change[0]},
+                    {"frame_to_frame_mae_pct_auto", change[1]},
+                    {"frame_to_frame_mae_pct_4", change[2]},
+                    {"frame_to_frame_mae_pct_16", change[3]}};
+    gJson["autosample"] = j;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -885,14 +996,14 @@ int main(int argc, char** argv) {
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
                    a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
-                   a == "span-threads") {
+                   a == "span-threads" || a == "autosample") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                "[stream] [headings] [pitches] [span] [span-threads] [--size N] "
+                "[stream] [headings] [pitches] [span] [span-threads] [autosample] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
@@ -924,6 +1035,7 @@ int main(int argc, char** argv) {
             if (s == "frame") frame(c);
             if (s == "span") spanSection(c);
             if (s == "span-threads") spanThreads(c);
+            if (s == "autosample") autosample(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());

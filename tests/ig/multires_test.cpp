@@ -674,7 +674,12 @@ TEST(MultiresCaster, LevelsParse) {
     EXPECT_THROW(ig::parseLevels("many"), ig::InputError);
     EXPECT_THROW(ig::parseLevels(""), ig::InputError);
     ig::RenderOptions bad;
-    bad.supersample = 0;
+    bad.supersample = 9;  // (0 is kSupersampleAuto: chosen per frame)
+    EXPECT_THROW(ig::makeCaster(CasterKind::Fast, synthetic512(), bad), ig::InputError);
+    bad.supersample = -1;
+    EXPECT_THROW(ig::makeCaster(CasterKind::Fast, synthetic512(), bad), ig::InputError);
+    bad.supersample = ig::kSupersampleAuto;
+    bad.supersampleMax = 9;
     EXPECT_THROW(ig::makeCaster(CasterKind::Fast, synthetic512(), bad), ig::InputError);
 }
 
