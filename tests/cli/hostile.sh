@@ -38,6 +38,12 @@ whole_frames() {
     [ $(((size - header) % frame)) -eq 0 ] || fail "$file: $size bytes is not whole frames"
     echo $(((size - header) / frame))
 }
+# Waits (up to 30 s) for cigi-host to write its port.
+wait_for_port() {
+    local i
+    for i in $(seq 1 300); do [ -s "$1" ] && return 0; sleep 0.1; done
+    fail "cigi-host wrote no port to $1"
+}
 fly_small=(--size 160x120 --margin 8 --render-threads 1 --quiet)
 
 case "$case_name" in
@@ -318,6 +324,107 @@ cigi_garbage_host)
     # (a burst beyond the socket buffer, about 256 small datagrams, is dropped by the kernel)
     [ "${bad:-0}" -ge 100 ] || fail "refused datagrams not counted ($bad): $(cat "$tmp/err")"
     grep -q 'cigi: CIGI message from the host' "$tmp/err" || fail "no refusal reported: $(cat "$tmp/err")"
+    ;;
+# A flood of 10,000 good host messages a second over loopback on top of a 60 Hz host: no field
+# is missed, every datagram is counted, and no field's poll takes long.
+cigi_flood)
+    host_flags=(--origin 47,-122,0 --start 300,300,1700 --speed 20)
+    "$bin/cigi-host" --port-file "$tmp/port" --seconds 5 --flood 10000 "${host_flags[@]}" \
+        --json "$tmp/host.json" 2>"$tmp/host.err" &
+    hpid=$!
+    wait_for_port "$tmp/port"
+    "$fly" --synthetic 128 --cigi 127.0.0.1:0 --cigi-host "127.0.0.1:$(cat "$tmp/port")" \
+        --cigi-origin 47,-122 --cigi-wait 10 --duration 3 --out null --contact none \
+        --json "$tmp/run.json" "${fly_small[@]}" 2>"$tmp/err" || fail "flythrough: $(cat "$tmp/err")"
+    wait "$hpid" || fail "cigi-host: $(cat "$tmp/host.err")"
+    python3 - "$tmp/run.json" "$tmp/host.json" <<'PY' || fail "$(cat "$tmp/err" "$tmp/host.err")"
+import json, sys
+j, h = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+c = j["cigi"]
+print("flood:", j["fields"], "fields,", j["missed_deadlines"], "missed,", c["datagrams"],
+      "datagrams,", c["dropped_by_kernel"], "dropped, longest poll", round(c["max_poll_ms"], 3), "ms")
+assert j["fields"] == 180, j["fields"]
+assert j["missed_deadlines"] == 0, j["missed_deadlines"]
+assert h["flood_messages"] >= 40000, h  # 10,000 a second for the whole run at least
+assert c["datagrams"] + c["dropped_by_kernel"] >= 25000, c
+assert c["bad_datagrams"] == 0, c
+assert c["max_poll_ms"] < 8.0, c  # half a field: the flood never costs one
+PY
+    ;;
+# The host falls silent for 1.5 s mid-run: the run goes on, the outage is reported with its
+# start and length, the ownship extrapolated for --cigi-extrapolate then held.
+cigi_host_silence)
+    "$bin/cigi-host" --port-file "$tmp/port" --seconds 4 --silent-from 1 --silent-for 1.5 \
+        --origin 47,-122,0 --start 300,300,1700 --speed 20 2>"$tmp/host.err" &
+    hpid=$!
+    wait_for_port "$tmp/port"
+    "$fly" --synthetic 128 --cigi 127.0.0.1:0 --cigi-host "127.0.0.1:$(cat "$tmp/port")" \
+        --cigi-origin 47,-122 --cigi-wait 10 --cigi-timeout 0.3 --cigi-extrapolate 0.5 \
+        --duration 3.5 --out null --contact none --json "$tmp/run.json" "${fly_small[@]}" \
+        2>"$tmp/err" || fail "flythrough: $(cat "$tmp/err")"
+    wait "$hpid" || fail "cigi-host: $(cat "$tmp/host.err")"
+    grep -q 'cigi: host silent from' "$tmp/err" || fail "outage not reported: $(cat "$tmp/err")"
+    python3 - "$tmp/run.json" <<'PY' || fail "$(cat "$tmp/err")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+c = j["cigi"]
+assert j["fields"] == 210, j["fields"]
+assert c["host_losses"] == 1, c
+o = c["host_outages"][0]
+assert not o["ongoing"], o
+assert abs(o["last_message_s"] - 1.0) < 0.15, o
+assert abs(o["length_s"] - 1.5) < 0.15, o
+assert abs(o["noticed_s"] - o["last_message_s"] - 0.3) < 0.03, o
+# 0.2 s extrapolated (0.5 s after the last message, less the 0.3 s to notice), then held.
+assert 8 <= o["fields_extrapolated"] <= 16, o
+assert 50 <= o["fields_held"] <= 70, o
+PY
+    ;;
+# Two image generators on one machine (views 0 and 1, ports of their own) driven by one host:
+# channels yawed -30 and +30 degrees, 60 degrees wide. The right edge column of the left
+# channel's last frame meets the left edge column of the right one's (luma), no worse than
+# 1.5 times neighbouring columns beside the edge plus 2 levels (each process warps its own
+# frames to the same instants; the unit test CigiView.TwoChannelsMeetAtTheirSharedEdge bounds
+# the rendering itself).
+cigi_two_channels)
+    "$bin/cigi-host" --port-file "$tmp/port" --igs 2 --views 60 --seconds 5 \
+        --origin 47,-122,0 --start 300,300,1700 --speed 20 --pitch -40 2>"$tmp/host.err" &
+    hpid=$!
+    wait_for_port "$tmp/port"
+    for view in 0 1; do
+        "$fly" --synthetic 128 --cigi 127.0.0.1:0 --cigi-host "127.0.0.1:$(cat "$tmp/port")" \
+            --cigi-origin 47,-122 --cigi-wait 10 --cigi-view "$view" --duration 2 \
+            --out "y4m:$tmp/v$view.y4m" --contact none --json "$tmp/v$view.json" \
+            "${fly_small[@]}" 2>"$tmp/err$view" &
+        pids[$view]=$!
+    done
+    wait "${pids[0]}" || fail "view 0: $(cat "$tmp/err0")"
+    wait "${pids[1]}" || fail "view 1: $(cat "$tmp/err1")"
+    wait "$hpid" || fail "cigi-host: $(cat "$tmp/host.err")"
+    grep -q 'view 1: 60.000 degrees wide' "$tmp/err1" || fail "no View Definition: $(cat "$tmp/err1")"
+    python3 - "$tmp" <<'PY' || fail "seam"
+import json, sys
+tmp = sys.argv[1]
+for v in (0, 1):
+    j = json.load(open(f"{tmp}/v{v}.json"))
+    assert j["fields"] == 120 and j["cigi"]["view"] == v, j
+    assert abs(j["fov_deg"] - 60.0) < 1e-6, j["fov_deg"]
+w, h = 160, 120
+def last_luma(path):
+    data = open(path, "rb").read()
+    frame = w * h * 2
+    body = data[len(data) - frame:]
+    return [[body[(y * w + x) * 2 + 1] for x in range(w)] for y in range(h)]
+L, R = last_luma(f"{tmp}/v0.y4m"), last_luma(f"{tmp}/v1.y4m")
+def diff(a, xa, b, xb):
+    return sum(abs(a[y][xa] - b[y][xb]) for y in range(h)) / h
+seam = diff(L, w - 1, R, 0)
+beside = 0.5 * (diff(L, w - 2, L, w - 1) + diff(R, 0, R, 1))
+apart = diff(L, w - 1, R, w - 1)
+print(f"seam {seam:.2f}, beside the edge {beside:.2f}, 60 degrees apart {apart:.2f} (luma levels)")
+assert seam <= 1.5 * beside + 2.0, (seam, beside)
+assert apart > 4.0 * seam, (apart, seam)
+PY
     ;;
 *)
     fail "unknown case"
