@@ -6,7 +6,8 @@ packages=(build-essential cmake ninja-build pkg-config libeigen3-dev libglm-dev 
           libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev libpng-dev libjpeg-dev libgdal-dev
           nlohmann-json3-dev libcli11-dev
           python3 gnuplot-nox
-          tshark)  # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
+          tshark   # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
+          ffmpeg)  # ffprobe: tests/cli/hostile.sh reads the Y4M written through renderer faults
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

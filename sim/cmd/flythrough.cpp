@@ -7,6 +7,7 @@
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
 #include "io/frame_sink.hpp"
+#include "io/memory_lock.hpp"
 #include "io/output_file.hpp"
 #include "io/stick.hpp"
 #include "io/stop_signals.hpp"
@@ -505,6 +506,16 @@ int main(int argc, char** argv) {
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
         options.stop = &io::stopFlag();
+        // On the wall clock the field process keeps its memory resident: no field waits on a
+        // page fault (the renderer process, forked later, does not inherit the lock).
+        io::MemoryLock memoryLock;
+        if (!simulated) {
+            memoryLock = io::lockAllMemory();
+            if (!memoryLock.locked) {
+                std::fprintf(stderr, "flythrough: memory not locked: %s\n",
+                             memoryLock.error.c_str());
+            }
+        }
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();
         if (live) std::fprintf(stderr, "\n");
@@ -574,6 +585,9 @@ int main(int argc, char** argv) {
             j["warp"] = warpText;
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
+            j["memory_locked"] = memoryLock.locked;
+            j["memory_lock_error"] = memoryLock.error;
+            j["memory_locked_mib"] = static_cast<double>(io::lockedBytes()) / (1 << 20);
             if (cigiSource) {
                 const sim::CigiStats& c = cigiSource->session().stats();
                 j["cigi"] = sim::toJson(c);

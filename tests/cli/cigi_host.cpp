@@ -6,7 +6,7 @@
 // (view i yawed by (i - (N - 1) / 2) * FOV). Options:
 //   --flood N          N more host messages a second on top (paced each millisecond)
 //   --silent-from S --silent-for D   send nothing from S to S + D seconds
-//   --steps            every 30th host frame the ownship jumps 50 m east or back; the delay
+//   --steps N          every N-th host frame the ownship jumps 50 m east or back; the delay
 //                      from sending it to the first Start of Frame naming that host frame (the
 //                      field that applied it) is measured on CLOCK_MONOTONIC
 //   --json FILE        what was sent and the measured delays
@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
     int igs = 1;
     double seconds = 3.0, rate = 60.0, flood = 0.0, viewsFov = 0.0;
     double silentFrom = -1.0, silentFor = 0.0;
-    bool steps = false;
+    int steps = 0;
     sim::GeoOrigin origin{47.0, -122.0, 0.0};
     double x0 = 500.0, y0 = 500.0, z0 = 1500.0, heading = 45.0, pitch = -10.0, speed = 60.0;
     for (int i = 1; i < argc; ++i) {
@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
         } else if (a == "--silent-for") {
             silentFor = number("--silent-for", value());
         } else if (a == "--steps") {
-            steps = true;
+            steps = static_cast<int>(number("--steps", value()));
         } else if (a == "--origin") {
             origin = sim::parseGeoOrigin(value(), "--origin");
         } else if (a == "--start") {
@@ -111,6 +111,7 @@ int main(int argc, char** argv) {
     if (!(rate > 0.0 && rate <= 1000.0)) usage("--rate: 0 < HZ <= 1000");
     if (!(flood >= 0.0 && flood <= 1e6)) usage("--flood: 0 .. 1e6 a second");
     if (!(heading >= 0.0 && heading < 360.0)) usage("--heading: 0 <= DEG < 360");
+    if (steps < 0 || steps > 1000000) usage("--steps: a count of host frames");
 
     io::UdpSocket socket;
     if (socket.open({0x7f000001, 0}, 1 << 20) != 0) usage("cannot bind a loopback UDP port");
@@ -211,12 +212,12 @@ int main(int argc, char** argv) {
         const bool silent = silentFrom >= 0.0 && t >= silentFrom && t < silentFrom + silentFor;
         if (now >= nextFrame) {
             ++hostFrame;
-            if (steps && hostFrame % 30 == 0) stepped = !stepped;
+            if (steps > 0 && hostFrame % steps == 0) stepped = !stepped;
             if (!silent) {
                 encode(t, hostFrame, stepped);
                 const std::int64_t sentNs = io::monotonicNs();
                 sendAll(false);
-                if (steps && hostFrame % 30 == 0) stepsSent.push_back({hostFrame, sentNs});
+                if (steps > 0 && hostFrame % steps == 0) stepsSent.push_back({hostFrame, sentNs});
             }
             nextFrame = start + static_cast<std::int64_t>(hostFrame * periodNs);
         }
@@ -268,7 +269,7 @@ int main(int argc, char** argv) {
                  static_cast<unsigned long long>(floodSent),
                  static_cast<unsigned long long>(sendErrors),
                  static_cast<unsigned long long>(sofs));
-    if (steps) {
+    if (steps > 0) {
         std::fprintf(stderr, "; step to field: %zu of %zu seen, p50 %.2f p99 %.2f max %.2f ms",
                      delays.size(), stepsSent.size(), percentile(delays, 0.5),
                      percentile(delays, 0.99), percentile(delays, 1.0));
