@@ -29,6 +29,13 @@ wait_for_bytes() {
     done
     fail "$file: still under $bytes bytes after 60 s"
 }
+# Frames in a Y4M as ffprobe (FFmpeg, another implementation) decodes them; ffprobe is
+# installed by scripts/setup.sh, and its absence is a failure, not a skip.
+ffprobe_frames() {
+    command -v ffprobe >/dev/null || fail "ffprobe not installed (scripts/setup.sh installs ffmpeg)"
+    ffprobe -v error -count_frames -select_streams v:0 -show_entries stream=nb_read_frames \
+        -of csv=p=0 "$1" 2>"$tmp/ffprobe.err" || fail "ffprobe refused $1: $(cat "$tmp/ffprobe.err")"
+}
 # Y4M size check: header line plus whole frames of W x H 4:2:2 (2 bytes a pixel) + "FRAME\n".
 whole_frames() {
     local file="$1" w="$2" h="$3"
@@ -172,6 +179,8 @@ renderer_faults)
         [ "$rc" -eq 0 ] || fail "$fault: exit $rc: $(cat "$tmp/err")"
         frames=$(whole_frames "$tmp/v.y4m" 160 120)
         [ "$frames" -eq 90 ] || fail "$fault: $frames frames, expected 90"
+        frames=$(ffprobe_frames "$tmp/v.y4m")
+        [ "$frames" = 90 ] || fail "$fault: ffprobe read $frames frames, expected 90"
         python3 - "$tmp/s.json" "$fault" <<'PY' || fail "$fault: $(cat "$tmp/s.json")"
 import json, sys
 j = json.load(open(sys.argv[1]))
@@ -194,6 +203,8 @@ PY
     [ "$rc" -eq 0 ] || fail "renderer killed: exit $rc: $(cat "$tmp/err")"
     frames=$(whole_frames "$tmp/w.y4m" 160 120)
     [ "$frames" -eq 240 ] || fail "renderer killed: $frames frames, expected 240"
+    frames=$(ffprobe_frames "$tmp/w.y4m")
+    [ "$frames" = 240 ] || fail "renderer killed: ffprobe read $frames frames, expected 240"
     python3 - "$tmp/w.json" <<'PY' || fail "renderer killed: $(cat "$tmp/w.json")"
 import json, sys
 j = json.load(open(sys.argv[1]))
@@ -217,7 +228,8 @@ PY
     ms=$((($(date +%s%N) - start) / 1000000))
     [ "$rc" -eq 130 ] || fail "hung renderer, SIGINT: exit $rc: $(cat "$tmp/err")"
     [ "$ms" -lt 5000 ] || fail "hung renderer, SIGINT: the run took $ms ms to end"
-    whole_frames "$tmp/h.y4m" 160 120 >/dev/null
+    frames=$(whole_frames "$tmp/h.y4m" 160 120)
+    [ "$(ffprobe_frames "$tmp/h.y4m")" = "$frames" ] || fail "hung renderer, SIGINT: ffprobe disagrees"
     python3 -c "import json,sys; json.load(open(sys.argv[1]))" "$tmp/h.json" ||
         fail "hung renderer, SIGINT: no valid JSON"
     sleep 0.2
@@ -324,6 +336,43 @@ cigi_garbage_host)
     # (a burst beyond the socket buffer, about 256 small datagrams, is dropped by the kernel)
     [ "${bad:-0}" -ge 100 ] || fail "refused datagrams not counted ($bad): $(cat "$tmp/err")"
     grep -q 'cigi: CIGI message from the host' "$tmp/err" || fail "no refusal reported: $(cat "$tmp/err")"
+    ;;
+# The renderer gap against an instant measured outside the program: this script SIGKILLs the
+# renderer process itself, reading CLOCK_MONOTONIC (Python's time.monotonic) just before, and
+# compares with the restart flythrough reports (its instants on the same clock). The supervisor
+# looks every 2 ms, so it notices within 50 ms even on a loaded machine; the first new frame is
+# shown after the kill; and the reported gap (last new frame before the kill to the first
+# after) exceeds kill-to-first-frame by less than a frame interval before the kill (1/render
+# rate, capped at 20 Hz here) plus a field period and 20 ms of scheduling slack.
+renderer_gap_from_outside)
+    "$fly" "${fly_small[@]}" --render-hz 20 --duration 5 --out "y4m:$tmp/g.y4m" \
+        --json "$tmp/g.json" --contact none >/dev/null 2>"$tmp/err" &
+    pid=$!
+    wait_for_bytes "$tmp/g.y4m" 200000
+    child=$(pgrep -P "$pid" | head -n 1)
+    [ -n "$child" ] || fail "no renderer process under flythrough $pid"
+    kill_at=$(python3 -c 'import os, sys, time
+t = time.monotonic(); os.kill(int(sys.argv[1]), 9); print(repr(t))' "$child")
+    wait "$pid"; rc=$?
+    [ "$rc" -eq 0 ] || fail "exit $rc: $(cat "$tmp/err")"
+    [ "$(ffprobe_frames "$tmp/g.y4m")" = 150 ] || fail "ffprobe: not 150 frames"
+    python3 - "$tmp/g.json" "$kill_at" <<'PY' || fail "$(cat "$tmp/g.json")"
+import json, sys
+j, k = json.load(open(sys.argv[1])), float(sys.argv[2])
+r = j["renderer_restarts"]
+assert len(r) == 1 and "signal 9" in r[0]["cause"], r
+r = r[0]
+noticed = r["detected_monotonic_s"] - k
+to_first = r["first_frame_monotonic_s"] - k
+gap = r["gap_ms"] / 1e3
+print(f"kill to noticed {noticed * 1e3:.1f} ms, kill to first frame {to_first * 1e3:.1f} ms "
+      f"(outside), reported gap {gap * 1e3:.1f} ms, recovery {r['recovery_ms']:.1f} ms")
+assert 0.0 <= noticed < 0.05, noticed
+assert to_first > noticed
+assert gap >= to_first - 1e-3, (gap, to_first)
+assert gap - to_first < 1 / 20 + 1001 / 60000 + 0.02, (gap, to_first)
+assert abs(r["recovery_ms"] / 1e3 - (to_first - noticed)) < 0.002, r
+PY
     ;;
 # A flood of 10,000 good host messages a second over loopback on top of a 60 Hz host: no field
 # is missed, every datagram is counted, and no field's poll takes long.
