@@ -50,8 +50,9 @@ class UdpSocket {
     // buffer: the datagram was cut, and only buffer.size() bytes are there), -EAGAIN when none
     // waits, or another -errno.
     long receive(std::span<std::uint8_t> buffer, UdpEndpoint* from = nullptr);
-    // Datagrams the kernel dropped since open() because the receive buffer was full, as it
-    // reported with the last datagram received (SO_RXQ_OVFL; 0 where the system does not say).
+    // Datagrams the kernel dropped since open() because the receive buffer was full, as it had
+    // counted them when the last datagram received was queued (SO_RXQ_OVFL; drops after that
+    // show with the next datagram; 0 where the system does not say).
     std::uint64_t droppedByKernel() const { return dropped_; }
     // The receive buffer the system granted, in bytes (0 when closed).
     int receiveBufferBytes() const;

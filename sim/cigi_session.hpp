@@ -130,7 +130,7 @@ struct CigiStats {
     int receiveBufferBytes = 0;         // granted by the system
     std::uint64_t badDatagrams = 0;     // refused by the codec, or cut (longer than 64 KiB)
     std::uint64_t skippedPackets = 0;   // of ids the codec does not know
-    std::uint64_t ignoredPackets = 0;   // known but not acted on (other entities, views, Reset)
+    std::uint64_t ignoredPackets = 0;   // known but not acted on (other entities or views, Reset)
     std::uint64_t igControls = 0, entityUpdates = 0, rateUpdates = 0;
     std::uint64_t hatHotRequests = 0, losRequests = 0;
     std::uint64_t answers = 0, droppedRequests = 0;
