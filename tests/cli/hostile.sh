@@ -341,9 +341,11 @@ cigi_garbage_host)
 # renderer process itself, reading CLOCK_MONOTONIC (Python's time.monotonic) just before, and
 # compares with the restart flythrough reports (its instants on the same clock). The supervisor
 # looks every 2 ms, so it notices within 50 ms even on a loaded machine; the first new frame is
-# shown after the kill; and the reported gap (last new frame before the kill to the first
-# after) exceeds kill-to-first-frame by less than a frame interval before the kill (1/render
-# rate, capped at 20 Hz here) plus a field period and 20 ms of scheduling slack.
+# shown after the kill; and the reported gap (from the field that first showed the last frame
+# rendered before the kill to the one that first showed the next) lies between
+# kill-to-first-frame less a field period (that last frame may first be shown just after the
+# kill) and kill-to-first-frame plus a frame interval (1/render rate, capped at 20 Hz here), a
+# field period and 20 ms of scheduling slack.
 renderer_gap_from_outside)
     "$fly" "${fly_small[@]}" --render-hz 20 --duration 5 --out "y4m:$tmp/g.y4m" \
         --json "$tmp/g.json" --contact none >/dev/null 2>"$tmp/err" &
@@ -369,7 +371,8 @@ print(f"kill to noticed {noticed * 1e3:.1f} ms, kill to first frame {to_first * 
       f"(outside), reported gap {gap * 1e3:.1f} ms, recovery {r['recovery_ms']:.1f} ms")
 assert 0.0 <= noticed < 0.05, noticed
 assert to_first > noticed
-assert gap >= to_first - 1e-3, (gap, to_first)
+# The last frame rendered before the kill may first be shown by the field after it.
+assert gap >= to_first - 1001 / 60000 - 1e-3, (gap, to_first)
 assert gap - to_first < 1 / 20 + 1001 / 60000 + 0.02, (gap, to_first)
 assert abs(r["recovery_ms"] / 1e3 - (to_first - noticed)) < 0.002, r
 PY
