@@ -4,11 +4,13 @@
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <utility>
 
 namespace io {
@@ -81,17 +83,19 @@ UdpSocket::~UdpSocket() {
     close();
 }
 
-UdpSocket::UdpSocket(UdpSocket&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
+UdpSocket::UdpSocket(UdpSocket&& other) noexcept
+    : fd_(std::exchange(other.fd_, -1)), dropped_(std::exchange(other.dropped_, 0)) {}
 
 UdpSocket& UdpSocket::operator=(UdpSocket&& other) noexcept {
     if (this != &other) {
         close();
         fd_ = std::exchange(other.fd_, -1);
+        dropped_ = std::exchange(other.dropped_, 0);
     }
     return *this;
 }
 
-int UdpSocket::open(const UdpEndpoint& local) {
+int UdpSocket::open(const UdpEndpoint& local, int receiveBufferBytes) {
     close();
     const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (fd < 0) return -errno;
@@ -101,7 +105,16 @@ int UdpSocket::open(const UdpEndpoint& local) {
         ::close(fd);
         return -err;
     }
+    // The kernel counts the datagrams it drops for want of buffer room (SO_RXQ_OVFL) and
+    // reports the total with each one received; a larger buffer rides out a burst. Both are
+    // best effort: a system that refuses them still receives.
+    const int one = 1;
+    ::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one);
+    if (receiveBufferBytes > 0) {
+        ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receiveBufferBytes, sizeof receiveBufferBytes);
+    }
     fd_ = fd;
+    dropped_ = 0;
     return 0;
 }
 
@@ -117,6 +130,13 @@ UdpEndpoint UdpSocket::localEndpoint() const {
     return fromSockaddr(a);
 }
 
+int UdpSocket::receiveBufferBytes() const {
+    int bytes = 0;
+    socklen_t len = sizeof bytes;
+    if (fd_ < 0 || ::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &bytes, &len) != 0) return 0;
+    return bytes;
+}
+
 int UdpSocket::sendTo(std::span<const std::uint8_t> bytes, const UdpEndpoint& to) {
     if (fd_ < 0) return -EBADF;
     const sockaddr_in a = toSockaddr(to);
@@ -129,11 +149,26 @@ int UdpSocket::sendTo(std::span<const std::uint8_t> bytes, const UdpEndpoint& to
 long UdpSocket::receive(std::span<std::uint8_t> buffer, UdpEndpoint* from) {
     if (fd_ < 0) return -EBADF;
     sockaddr_in a{};
-    socklen_t len = sizeof a;
+    iovec iov{buffer.data(), buffer.size()};
+    alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(std::uint32_t))];
+    msghdr msg{};
+    msg.msg_name = &a;
+    msg.msg_namelen = sizeof a;
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control;
+    msg.msg_controllen = sizeof control;
     // MSG_TRUNC: the datagram's real length comes back even when it did not fit.
-    const ssize_t n = ::recvfrom(fd_, buffer.data(), buffer.size(), MSG_DONTWAIT | MSG_TRUNC,
-                                 reinterpret_cast<sockaddr*>(&a), &len);
+    const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT | MSG_TRUNC);
     if (n < 0) return errno == EWOULDBLOCK ? -EAGAIN : -errno;
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL &&
+            c->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
+            std::uint32_t total = 0;
+            std::memcpy(&total, CMSG_DATA(c), sizeof total);
+            dropped_ = total;
+        }
+    }
     if (from) *from = fromSockaddr(a);
     return static_cast<long>(n);
 }

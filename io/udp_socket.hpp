@@ -33,8 +33,10 @@ class UdpSocket {
     UdpSocket(const UdpSocket&) = delete;
     UdpSocket& operator=(const UdpSocket&) = delete;
 
-    // Opens a non-blocking socket bound to `local` (port 0: one the system picks). 0 or -errno.
-    int open(const UdpEndpoint& local);
+    // Opens a non-blocking socket bound to `local` (port 0: one the system picks), asking for a
+    // receive buffer of `receiveBufferBytes` (0: the system's default; the system may give
+    // less). 0 or -errno.
+    int open(const UdpEndpoint& local, int receiveBufferBytes = 0);
     void close();
     bool isOpen() const { return fd_ >= 0; }
     // The address and port bound (after open).
@@ -48,9 +50,16 @@ class UdpSocket {
     // buffer: the datagram was cut, and only buffer.size() bytes are there), -EAGAIN when none
     // waits, or another -errno.
     long receive(std::span<std::uint8_t> buffer, UdpEndpoint* from = nullptr);
+    // Datagrams the kernel dropped since open() because the receive buffer was full, as it had
+    // counted them when the last datagram received was queued (SO_RXQ_OVFL; drops after that
+    // show with the next datagram; 0 where the system does not say).
+    std::uint64_t droppedByKernel() const { return dropped_; }
+    // The receive buffer the system granted, in bytes (0 when closed).
+    int receiveBufferBytes() const;
 
   private:
     int fd_ = -1;
+    std::uint64_t dropped_ = 0;
 };
 
 }  // namespace io

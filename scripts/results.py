@@ -691,6 +691,40 @@ def renderer_process(p):
               p.command("io_check_realtime"))
 
 
+def cigi(p):
+    """cigi_bench.json (scripts/bench-cigi.sh): host message to field over loopback, with and
+    without a flood, and the decoder's and session's rates."""
+    p.group = "Real-time pipeline and output"
+    doc = p.load("cigi_bench.json")
+    if not doc:
+        return
+    cmd = "`" + doc["command"] + "`"
+    period = doc["field_period_ms"]
+    for name, label in (("steady", "a 60 Hz host"), ("flood", "the same host plus a flood of "
+                                                      f"{fmt(doc['runs'].get('flood', {}).get('host', {}).get('flood_per_second', 0), 0)} "
+                                                      "messages a second")):
+        r = doc["runs"].get(name)
+        if not r:
+            continue
+        d, late, c = r["host"]["step_to_field_ms"], r["lateness_ms"], r["cigi"]
+        p.row(f"CIGI over loopback, {label}: an Entity Control change to the Start of Frame of "
+              "the first field that applies it, p50 / p99 / max (the field's hand-off follows "
+              "by its lateness, p50 / p99); fields missed",
+              f"≤ 1 field period ({fmt(period, 2)} ms); 0 missed",
+              f"{fmt(d['p50'], 2)} / {fmt(d['p99'], 2)} / {fmt(d['max'], 2)} ms over "
+              f"{r['host']['steps_seen']} changes (+ {fmt(late['p50'], 2)} / "
+              f"{fmt(late['p99'], 2)} ms); {r['missed_deadlines']} of {r['fields']} missed; "
+              f"{c['datagrams']} datagrams, longest poll {fmt(c['max_poll_ms'], 2)} ms, "
+              f"{c['capped_polls']} fields at the 256-datagram cap",
+              status(d["p99"] <= period and r["missed_deadlines"] == 0), cmd)
+    dec, ses = doc.get("decode_packets_per_second"), doc.get("session_datagrams_per_second")
+    if dec and ses:
+        p.row("CIGI decoding: packets a second (a six-packet host message); datagrams a second "
+              "a session receives, decodes and applies from a loopback socket", "—",
+              f"{spread([x / 1e6 for x in dec], 1, ' M')}; {spread([x / 1e3 for x in ses], 0, ' k')}",
+              NO_TARGET, cmd)
+
+
 def io_layer(p):
     p.group = "Real-time pipeline and output"
     doc = p.load("io_check.json")
@@ -724,6 +758,7 @@ def render(data_dir):
     stereo(p)
     pipeline(p)
     renderer_process(p)
+    cigi(p)
     io_layer(p)
     m = p.load("machine.json") or {}
     out = ["# Measured results", "",

@@ -7,7 +7,7 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart  (default: all)
+#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart cigi  (default: all)
 #   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|field-clock) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart or field-clock" >&2
+                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|cigi|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart, cigi or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -189,6 +189,10 @@ fi
 # field clock over ten minutes against the renderer thread (only when named: twenty minutes).
 if wanted restart; then
     scripts/bench-renderer-restart.sh 5 "$data/renderer_restart.json"
+fi
+# CIGI over loopback: host message to field, with and without a flood; decoding rates (a minute).
+if wanted cigi; then
+    scripts/bench-cigi.sh 20 "$data/cigi_bench.json"
 fi
 if [ ${#only[@]} -gt 0 ] && wanted field-clock; then
     scripts/bench-field-clock.sh 600 "$data/field_clock.json"

@@ -7,6 +7,7 @@ packages=(build-essential cmake ninja-build pkg-config libeigen3-dev libglm-dev 
           nlohmann-json3-dev libcli11-dev
           python3 gnuplot-nox
           tshark  # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
+          ffmpeg  # ffprobe: tests/cli/hostile.sh reads the Y4M written through renderer faults
           # scripts/device-tests.sh (ctest device.vm): the VM, its shell and the tools run in it;
           # it adds the kernel headers for the guest kernel it downloads
           qemu-system-x86 busybox-static v4l-utils gpiod cpio kmod)

@@ -4,6 +4,10 @@
 #include "base/error.hpp"
 #include "base/text.hpp"
 #include "ig/surface_hit.hpp"
+#include "io/field_clock.hpp"
+
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cerrno>
@@ -143,8 +147,40 @@ glm::dvec3 GeoFrame::geodeticFromWorld(const glm::dvec3& world) const {
             wrapLongitude(origin_.lonDeg + world.x / perLon_), world.z + origin_.altM};
 }
 
+namespace {
+
+// The axes of a rotation by yaw (right), pitch (up), roll (right) from a frame of x forward, y
+// right, z down, in that frame's coordinates.
+void axesFromAngles(double yaw, double pitch, double roll, glm::dvec3& forward, glm::dvec3& right) {
+    const double cy = std::cos(yaw), sy = std::sin(yaw);
+    const double cp = std::cos(pitch), sp = std::sin(pitch);
+    const double cr = std::cos(roll), sr = std::sin(roll);
+    forward = {cp * cy, cp * sy, -sp};
+    right = {sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, sr * cp};
+}
+
+}  // namespace
+
+ig::Pose eyePose(const ig::Pose& entity, const ViewOffset& view) {
+    if (view.isIdentity()) return entity;
+    glm::dvec3 f, r;
+    axesFromAngles(view.yaw, view.pitch, view.roll, f, r);
+    const glm::dvec3 forward = worldFromBody(entity, f), right = worldFromBody(entity, r);
+    ig::Pose eye;
+    eye.position = entity.position + worldFromBody(entity, view.offset);
+    eye.pitch = std::asin(std::clamp(forward.z, -1.0, 1.0));
+    // Straight up or down the heading is the entity's (any would do); roll then follows.
+    eye.yaw =
+        std::hypot(forward.x, forward.y) > 1e-12 ? std::atan2(forward.x, forward.y) : entity.yaw;
+    const double cy = std::cos(eye.yaw), sy = std::sin(eye.yaw);
+    const double sp = std::sin(eye.pitch), cp = std::cos(eye.pitch);
+    const glm::dvec3 right0{cy, -sy, 0.0}, up0{-sy * sp, -cy * sp, cp};
+    eye.roll = std::atan2(-glm::dot(right, up0), glm::dot(right, right0));
+    return eye;
+}
+
 ig::Pose DeadReckoning::at(double t) const {
-    const double dt = t - time;
+    const double dt = std::min(t, holdAfter) - time;
     ig::Pose p = pose;
     p.position += velocity * dt;
     p.yaw += yawRate * dt;
@@ -161,12 +197,14 @@ CigiSession::CigiSession(const ig::TerrainMap& map, const CigiOptions& options)
     repeating_.reserve(kMaxRepeating);
     message_.packets.reserve(64);
     stats_.firstErrors.reserve(CigiStats::kReportedErrors);
+    stats_.outages.reserve(CigiStats::kReportedOutages);
     ownship_.time = options_.startTime;
     ownship_.pose = options_.startPose;
 }
 
 int CigiSession::open(std::string* error) {
-    const int rc = socket_.open(options_.bind);
+    const int rc = socket_.open(options_.bind, options_.receiveBufferBytes);
+    stats_.receiveBufferBytes = socket_.receiveBufferBytes();
     if (rc != 0 && error) {
         *error = "cannot bind UDP " + io::toString(options_.bind) + ": " + std::strerror(-rc);
     }
@@ -176,6 +214,46 @@ int CigiSession::open(std::string* error) {
 void CigiSession::noteError(const std::string& message) {
     if (stats_.firstErrors.size() < CigiStats::kReportedErrors) {
         stats_.firstErrors.push_back(message);
+    }
+}
+
+void CigiSession::heard(double t) {
+    if (t > ownship_.holdAfter) {
+        // Back after a hold: the ownship goes on from where it stopped, not from where its old
+        // rates would have taken it (the host's next Entity Control puts it right).
+        ownship_.pose = ownship_.at(t);
+        ownship_.time = t;
+    }
+    ownship_.holdAfter = t + options_.extrapolateLimit;
+    lastHeard_ = t;
+    if (silent_) {
+        silent_ = false;
+        if (!stats_.outages.empty() && stats_.outages.back().ongoing) {
+            HostOutage& o = stats_.outages.back();
+            o.length = t - o.lastMessage;
+            o.ongoing = false;
+        }
+    }
+}
+
+void CigiSession::watch(double t) {
+    if (!stats_.hostSeen) return;  // a host never heard has not vanished
+    if (!silent_ && t - lastHeard_ > options_.hostTimeout) {
+        silent_ = true;
+        ++stats_.hostLosses;
+        if (stats_.outages.size() < CigiStats::kReportedOutages) {
+            stats_.outages.push_back({lastHeard_, t, t - lastHeard_, true, 0, 0});
+        }
+    }
+    if (silent_ && stats_.hostLosses <= CigiStats::kReportedOutages && !stats_.outages.empty() &&
+        stats_.outages.back().ongoing) {
+        HostOutage& o = stats_.outages.back();
+        o.length = t - o.lastMessage;
+        if (t > ownship_.holdAfter) {
+            ++o.fieldsHeld;
+        } else {
+            ++o.fieldsExtrapolated;
+        }
     }
 }
 
@@ -222,6 +300,9 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ownship_ = DeadReckoning{};
             ownship_.time = t;
             ownship_.pose = options_.startPose;
+            ownship_.holdAfter = t + options_.extrapolateLimit;
+            view_ = {};
+            viewControl_ = {};
             rates_ = {};
             pending_.clear();
             repeating_.clear();
@@ -285,8 +366,62 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
         } else {
             pending_.push_back({packet, lsn});
         }
+    } else if (const auto* vc = std::get_if<cigi::ViewControl>(&packet)) {
+        if (!operating || vc->viewId != options_.viewId) {
+            ++stats_.ignoredPackets;  // another image generator's view
+            return;
+        }
+        if (vc->entityId != 0) {
+            // Only the ownship is known: the view stays where it was.
+            ++stats_.ignoredPackets;
+            noteError("View Control for view " + std::to_string(vc->viewId) + " names entity " +
+                      std::to_string(vc->entityId) + ": only the ownship (entity 0) is known");
+            return;
+        }
+        ++stats_.viewControls;
+        // Only the enabled fields change; the others keep their last value.
+        cigi::ViewControl& v = viewControl_;
+        if (vc->xEnable) v.x = vc->x;
+        if (vc->yEnable) v.y = vc->y;
+        if (vc->zEnable) v.z = vc->z;
+        if (vc->yawEnable) v.yawDeg = vc->yawDeg;
+        if (vc->pitchEnable) v.pitchDeg = vc->pitchDeg;
+        if (vc->rollEnable) v.rollDeg = vc->rollDeg;
+        view_.offset = {v.x, v.y, v.z};
+        // Yaw travels in [0, 360]: turned to (-180, 180] so a small left turn stays small.
+        const double yaw = v.yawDeg > 180.0f ? v.yawDeg - 360.0 : v.yawDeg;
+        view_.yaw = yaw * kDeg;
+        view_.pitch = v.pitchDeg * kDeg;
+        view_.roll = v.rollDeg * kDeg;
+    } else if (const auto* vd = std::get_if<cigi::ViewDefinition>(&packet)) {
+        if (vd->viewId != options_.viewId) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        if (!(vd->leftEnable && vd->rightEnable)) {
+            ++stats_.ignoredPackets;  // nothing this image generator takes
+            return;
+        }
+        const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
+        const auto refuse = [&](const std::string& why) {
+            ++stats_.viewDefinitionsNotApplied;
+            noteError("View Definition for view " + std::to_string(vd->viewId) + ": " + why);
+        };
+        if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
+            !(hfov < 179.0 * kDeg)) {
+            refuse("left " + base::number(vd->leftDeg) + ", right " + base::number(vd->rightDeg) +
+                   " degrees: only a frustum symmetric about the view axis, narrower than 179 "
+                   "degrees, is rendered");
+        } else if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
+            refuse("a field of view of " + base::number(hfov / kDeg) +
+                   " degrees arrived during the run: the renderer keeps " +
+                   base::number(frozenHfov_ / kDeg));
+        } else {
+            ++stats_.viewDefinitions;
+            viewHfov_ = hfov;
+        }
     } else {
-        ++stats_.ignoredPackets;  // views: not yet
+        ++stats_.ignoredPackets;
     }
 }
 
@@ -403,8 +538,10 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
 }
 
 void CigiSession::poll(double t) {
+    const std::int64_t pollStart = io::monotonicNs();
     std::uint8_t lsn = static_cast<std::uint8_t>(stats_.lastHostFrame & 15u);
-    for (int i = 0; i < options_.maxDatagramsPerField && socket_.isOpen(); ++i) {
+    int taken = 0;
+    for (; taken < options_.maxDatagramsPerField && socket_.isOpen(); ++taken) {
         const long n = socket_.receive(in_);
         if (n == -EAGAIN) break;
         if (n < 0) {
@@ -433,9 +570,13 @@ void CigiSession::poll(double t) {
             if (report) noteError(error);
             continue;
         }
+        heard(t);
         for (const cigi::Packet& packet : message_.packets)
             apply(packet, t, lsn);
     }
+    if (taken == options_.maxDatagramsPerField) ++stats_.cappedPolls;
+    stats_.droppedByKernel = socket_.droppedByKernel();
+    watch(t);
 
     // Start of Frame, then the answers of up to maxAnswersPerField requests.
     out_.clear();
@@ -463,6 +604,7 @@ void CigiSession::poll(double t) {
         ++stats_.answers;
     }
     ++igFrame_;
+    stats_.maxPollMs = std::max(stats_.maxPollMs, (io::monotonicNs() - pollStart) * 1e-6);
     if (socket_.isOpen()) {
         const int rc = socket_.sendTo(out_, options_.host);
         if (rc == 0) {
@@ -477,10 +619,41 @@ void CigiSession::poll(double t) {
     }
 }
 
+nlohmann::json toJson(const CigiStats& c) {
+    nlohmann::json outages = nlohmann::json::array();
+    for (const HostOutage& o : c.outages) {
+        outages.push_back({{"last_message_s", o.lastMessage},
+                           {"noticed_s", o.noticed},
+                           {"length_s", o.length},
+                           {"ongoing", o.ongoing},
+                           {"fields_extrapolated", o.fieldsExtrapolated},
+                           {"fields_held", o.fieldsHeld}});
+    }
+    return {{"datagrams", c.datagrams},
+            {"bad_datagrams", c.badDatagrams},
+            {"dropped_by_kernel", c.droppedByKernel},
+            {"capped_polls", c.cappedPolls},
+            {"max_poll_ms", c.maxPollMs},
+            {"receive_buffer_bytes", c.receiveBufferBytes},
+            {"skipped_packets", c.skippedPackets},
+            {"ignored_packets", c.ignoredPackets},
+            {"entity_updates", c.entityUpdates},
+            {"rate_updates", c.rateUpdates},
+            {"answers", c.answers},
+            {"dropped_requests", c.droppedRequests},
+            {"start_of_frame_sent", c.framesSent},
+            {"send_errors", c.sendErrors},
+            {"last_host_frame", c.lastHostFrame},
+            {"clamped_poses", c.clampedPoses},
+            {"host_losses", c.hostLosses},
+            {"host_outages", outages},
+            {"first_errors", c.firstErrors}};
+}
+
 CigiPoseSource::CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& options,
                                double clearance)
     : map_(map), session_(map, options), startTime_(options.startTime), clearance_(clearance) {
-    latest_.back() = session_.ownship();
+    latest_.back() = {session_.ownship(), session_.view()};
     latest_.publish();
 }
 
@@ -497,9 +670,9 @@ ig::Pose CigiPoseSource::clamped(ig::Pose pose, bool count) {
 
 ig::Pose CigiPoseSource::advanceTo(double t) {
     session_.poll(t);
-    latest_.back() = session_.ownship();
+    latest_.back() = {session_.ownship(), session_.view()};
     latest_.publish();
-    return clamped(session_.ownship().at(t), true);
+    return clamped(eyePose(session_.ownship().at(t), session_.view()), true);
 }
 
 bool CigiPoseSource::waitForHost(double seconds) {
@@ -514,7 +687,8 @@ bool CigiPoseSource::waitForHost(double seconds) {
 
 ig::Pose CigiPoseSource::predict(double t) {
     latest_.fetch();
-    return clamped(latest_.front().at(t), false);
+    const EyeState& s = latest_.front();
+    return clamped(eyePose(s.ownship.at(t), s.view), false);
 }
 
 }  // namespace sim

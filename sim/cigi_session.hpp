@@ -11,9 +11,11 @@
 #include "sim/pose_source.hpp"
 
 #include <glm/vec3.hpp>
+#include <nlohmann/json_fwd.hpp>
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -54,13 +56,36 @@ class GeoFrame {
 
 // --- Ownship state
 
-// The ownship as last told, and how it moves from there: pose(t) = pose + rates * (t - time).
+// The ownship as last told, and how it moves from there: pose(t) = pose + rates * (t - time),
+// up to holdAfter (a silent host's ownship stops there and holds).
 struct DeadReckoning {
     double time = 0.0;
     ig::Pose pose;
     glm::dvec3 velocity{0.0};                               // world, m/s
     double yawRate = 0.0, pitchRate = 0.0, rollRate = 0.0;  // rad/s of the pose's angles
+    double holdAfter = std::numeric_limits<double>::infinity();
     ig::Pose at(double t) const;
+};
+
+// Where a view's eye is on its entity (View Control): an offset in the entity's axes (x
+// forward, y right, z down, metres) and a rotation from them (yaw right, pitch up, roll right,
+// radians, applied in that order).
+struct ViewOffset {
+    glm::dvec3 offset{0.0};
+    double yaw = 0.0, pitch = 0.0, roll = 0.0;
+    bool isIdentity() const {
+        return offset == glm::dvec3(0.0) && yaw == 0.0 && pitch == 0.0 && roll == 0.0;
+    }
+};
+
+// The eye of a view on an entity at `entity`: its position and yaw, pitch, roll in the product's
+// convention (the entity's pose itself, untouched, when the offset is the identity).
+ig::Pose eyePose(const ig::Pose& entity, const ViewOffset& view);
+
+// The ownship and the view's eye on it, as published to predict().
+struct EyeState {
+    DeadReckoning ownship;
+    ViewOffset view;
 };
 
 // --- Session
@@ -71,29 +96,58 @@ struct CigiOptions {
     GeoOrigin origin;
     ig::Pose startPose;      // held until the first Entity Control for entity 0
     double startTime = 0.0;  // simulation time of the first field (Start of Frame timestamp 0)
+    int viewId = 0;          // the view this image generator shows (View Control, Definition)
     int maxDatagramsPerField = 256;  // more wait for the next field (or the kernel drops them)
     // One-time HAT/HOT and LOS answers in one Start of Frame datagram (the rest wait); requests
     // with an update period (at most 64) are answered on top.
     int maxAnswersPerField = 64;
     std::size_t maxPendingRequests = 1024;  // beyond, requests are dropped and counted
+    int receiveBufferBytes = 1 << 20;       // asked of the system (it may give less)
+    // Watchdog (simulation seconds since the host's last good datagram): after hostTimeout the
+    // host is reported lost; the ownship dead-reckons until extrapolateLimit, then holds.
+    double hostTimeout = 0.5;
+    double extrapolateLimit = 2.0;
+};
+
+// One silence of a host that had been heard: from its last good datagram to the next one (or
+// to the end of the run). Simulation seconds.
+struct HostOutage {
+    double lastMessage = 0.0;  // the last good datagram before the silence
+    double noticed = 0.0;      // when the watchdog declared the host lost
+    double length = 0.0;       // last message to the next one (so far, while `ongoing`)
+    bool ongoing = true;
+    std::uint64_t fieldsExtrapolated = 0;  // fields of the silence dead-reckoned
+    std::uint64_t fieldsHeld = 0;          // fields past the extrapolation limit
 };
 
 struct CigiStats {
     static constexpr std::size_t kReportedErrors = 4;
-    std::uint64_t datagrams = 0;       // received
-    std::uint64_t badDatagrams = 0;    // refused by the codec, or cut (longer than 64 KiB)
-    std::uint64_t skippedPackets = 0;  // of ids the codec does not know
-    std::uint64_t ignoredPackets = 0;  // known but not acted on (other entities, views, Reset)
+    static constexpr std::size_t kReportedOutages = 16;
+    std::uint64_t datagrams = 0;        // received
+    std::uint64_t droppedByKernel = 0;  // lost for want of receive-buffer room (flood)
+    std::uint64_t cappedPolls = 0;      // fields that took maxDatagramsPerField (more waited)
+    double maxPollMs = 0.0;             // wall time of the longest poll
+    int receiveBufferBytes = 0;         // granted by the system
+    std::uint64_t badDatagrams = 0;     // refused by the codec, or cut (longer than 64 KiB)
+    std::uint64_t skippedPackets = 0;   // of ids the codec does not know
+    std::uint64_t ignoredPackets = 0;   // known but not acted on (other entities or views, Reset)
     std::uint64_t igControls = 0, entityUpdates = 0, rateUpdates = 0;
     std::uint64_t hatHotRequests = 0, losRequests = 0;
     std::uint64_t answers = 0, droppedRequests = 0;
     std::uint64_t framesSent = 0, sendErrors = 0, receiveErrors = 0;
     std::uint64_t clampedPoses = 0;  // fields whose pose was lifted above the terrain
     std::uint64_t resets = 0;
+    std::uint64_t viewControls = 0, viewDefinitions = 0;  // for this view, applied
+    std::uint64_t viewDefinitionsNotApplied = 0;  // asymmetric, or a new field of view mid-run
     bool hostSeen = false;
     std::uint32_t lastHostFrame = 0, lastHostTimestamp = 0;
     std::vector<std::string> firstErrors;  // the first kReportedErrors problems, as messages
+    std::uint64_t hostLosses = 0;          // silences longer than hostTimeout
+    std::vector<HostOutage> outages;       // the first kReportedOutages of them
 };
+
+// `{"datagrams": n, "bad_datagrams": n, ..., "host_outages": [...]}` for --json.
+nlohmann::json toJson(const CigiStats& stats);
 
 // One host, one ownship. Everything happens in poll(), on the field thread, without waiting.
 class CigiSession {
@@ -110,6 +164,13 @@ class CigiSession {
     void poll(double t);
 
     const DeadReckoning& ownship() const { return ownship_; }
+    const ViewOffset& view() const { return view_; }
+    // The horizontal field of view (radians) of this view's last View Definition that gave
+    // both left and right, or 0 when none did.
+    double viewHfov() const { return viewHfov_; }
+    // From now on (the run has started) the renderer's field of view is `hfov`: a View
+    // Definition asking for another is counted and reported, not applied.
+    void freezeFieldOfView(double hfov) { frozenHfov_ = hfov; }
     io::cigi::IgMode igMode() const { return igMode_; }
     std::uint32_t igFrame() const { return igFrame_; }
     const CigiStats& stats() const { return stats_; }
@@ -137,6 +198,8 @@ class CigiSession {
     static constexpr std::size_t kMaxRepeating = 64;
 
     void apply(const io::cigi::Packet& packet, double t, std::uint8_t& lsn);
+    void heard(double t);
+    void watch(double t);
     void setRates(double t);
     void noteError(const std::string& message);
 
@@ -152,12 +215,17 @@ class CigiSession {
     io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;
     std::uint32_t igFrame_ = 0;
+    ViewOffset view_;
+    io::cigi::ViewControl viewControl_;  // enabled fields as last set
+    double viewHfov_ = 0.0, frozenHfov_ = 0.0;
+    double lastHeard_ = 0.0;  // simulation time of the last good datagram
+    bool silent_ = false;     // an outage is open
     CigiStats stats_;
 };
 
 // The session as the pipeline's pose source: advanceTo(t) polls the session (field thread) and
-// returns the ownship dead-reckoned to t; predict(t) extrapolates the latest state (any one
-// other thread). A pose on or under the terrain is lifted to `clearance` above it.
+// returns the view's eye on the ownship dead-reckoned to t; predict(t) extrapolates the latest
+// state (any one other thread). A pose on or under the terrain is lifted to `clearance` above it.
 class CigiPoseSource final : public PoseSource {
   public:
     CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& options, double clearance = 1.0);
@@ -181,7 +249,7 @@ class CigiPoseSource final : public PoseSource {
     const ig::TerrainMap& map_;
     CigiSession session_;
     double startTime_, clearance_;
-    Mailbox<DeadReckoning> latest_;  // field loop -> predict()
+    Mailbox<EyeState> latest_;  // field loop -> predict()
 };
 
 }  // namespace sim

@@ -324,6 +324,7 @@ void Pipeline::restartProcess(const std::string& cause) {
     process_->kill();
     RendererRestart r;
     r.detected = clock_.now();
+    r.detectedMonotonic = static_cast<double>(io::monotonicNs()) * 1e-9;
     r.cause = cause;
     restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
     const std::int64_t before = io::monotonicNs();
@@ -389,6 +390,7 @@ void Pipeline::noteFrameShown(const ig::RenderedFrame& frame, double clock) {
         RendererRestart& r = stats_.restarts().back();
         r.gapSeconds = clock - lastNewFrameClock_;
         r.recoverySeconds = clock - r.detected;
+        r.firstFrameMonotonic = static_cast<double>(io::monotonicNs()) * 1e-9;
         r.fieldsExtrapolated = gapFields_ - gapHeld_;
         r.fieldsHeld = gapHeld_;
         restartsClosed_ = restarts;

@@ -92,6 +92,8 @@ nlohmann::json restartsJson(const std::vector<RendererRestart>& restarts) {
               r.gapSeconds >= 0.0 ? nlohmann::json(r.gapSeconds * 1e3) : nlohmann::json(nullptr)},
              {"recovery_ms", r.recoverySeconds >= 0.0 ? nlohmann::json(r.recoverySeconds * 1e3)
                                                       : nlohmann::json(nullptr)},
+             {"detected_monotonic_s", r.detectedMonotonic},
+             {"first_frame_monotonic_s", r.firstFrameMonotonic},
              {"fields_extrapolated", r.fieldsExtrapolated},
              {"fields_held", r.fieldsHeld}});
     }

@@ -40,7 +40,10 @@ struct RendererRestart {
     // detection to that first frame; -1 when none came before the run ended.
     double gapSeconds = -1.0;
     double recoverySeconds = -1.0;
-    double startSeconds = 0.0;             // wall seconds the new renderer's start (the fork) took
+    double startSeconds = 0.0;  // wall seconds the new renderer's start (the fork) took
+    // CLOCK_MONOTONIC seconds (io::monotonicNs) of the detection and of the first new frame
+    // shown, so the gap can be set against an instant measured by another process; -1: none.
+    double detectedMonotonic = -1.0, firstFrameMonotonic = -1.0;
     std::uint64_t fieldsExtrapolated = 0;  // fields of the gap warped from the last frame
     std::uint64_t fieldsHeld = 0;          // fields of the gap past the hold horizon
 };

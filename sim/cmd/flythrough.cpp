@@ -7,6 +7,7 @@
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
 #include "io/frame_sink.hpp"
+#include "io/memory_lock.hpp"
 #include "io/output_file.hpp"
 #include "io/stick.hpp"
 #include "io/stop_signals.hpp"
@@ -59,7 +60,11 @@ drive the ownship (entity 0, dead-reckoned with its Rate Control to every field'
 ask HAT/HOT and line-of-sight questions; Start of Frame goes to the host every field. The origin
 is the geodetic position of the map's south-west sample at height 0 (a local tangent plane
 about it). Until the first Entity Control the ownship holds the --start pose; --cigi-wait S
-waits up to S seconds for it before the first field.
+waits up to S seconds for it before the first field. --cigi-view N picks the view shown (View
+Control places the eye on the ownship every field; a symmetric View Definition received before
+the first field sets the field of view, overriding --fov). A host silent for --cigi-timeout S is
+reported lost; the ownship dead-reckons for --cigi-extrapolate S after its last message, then
+holds. Several image generators (one per channel, each on its own port) can share one host.
 
 Outputs: a file is written beside its path and renamed into place when complete; a device or
 FIFO is written in place; an output on an input or another output is refused before the run;
@@ -143,7 +148,8 @@ int main(int argc, char** argv) {
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
     bool terrainPointsOnly = false, overwrite = false;
     std::string cigiBind, cigiHost, cigiOrigin;
-    double cigiWait = 0.0;
+    double cigiWait = 0.0, cigiTimeout = 0.5, cigiExtrapolate = 2.0;
+    int cigiView = 0;
 
     auto* trajectoryOpt =
         app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
@@ -159,6 +165,15 @@ int main(int argc, char** argv) {
     app.add_option("--cigi-wait", cigiWait,
                    "CIGI: before the first field, wait up to this many seconds for the host's "
                    "first Entity Control, sending Start of Frame meanwhile (0: start at once)")
+        ->capture_default_str();
+    app.add_option("--cigi-view", cigiView, "CIGI: the view id this image generator shows")
+        ->capture_default_str();
+    app.add_option("--cigi-timeout", cigiTimeout,
+                   "CIGI: seconds without a good message before the host is reported lost")
+        ->capture_default_str();
+    app.add_option("--cigi-extrapolate", cigiExtrapolate,
+                   "CIGI: seconds after the host's last message the ownship keeps moving at its "
+                   "last rates before it holds")
         ->capture_default_str();
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
@@ -279,6 +294,21 @@ int main(int argc, char** argv) {
                     "--cigi-origin: needed with --cigi (LAT,LON[,ALT] of the map's origin)");
             }
             cigiOptions.origin = sim::parseGeoOrigin(cigiOrigin, "--cigi-origin");
+            if (cigiView < 0 || cigiView > 65535) {
+                throw ig::InputError("--cigi-view " + std::to_string(cigiView) +
+                                     ": must be a view id 0..65535");
+            }
+            if (!(cigiTimeout > 0.0 && cigiTimeout <= 3600.0)) {
+                throw ig::InputError("--cigi-timeout " + base::number(cigiTimeout) +
+                                     ": must be more than 0 and at most 3600 seconds");
+            }
+            if (!(cigiExtrapolate >= 0.0 && cigiExtrapolate <= 3600.0)) {
+                throw ig::InputError("--cigi-extrapolate " + base::number(cigiExtrapolate) +
+                                     ": must be 0 .. 3600 seconds");
+            }
+            cigiOptions.viewId = cigiView;
+            cigiOptions.hostTimeout = cigiTimeout;
+            cigiOptions.extrapolateLimit = cigiExtrapolate;
             if (!(cigiWait >= 0.0 && cigiWait <= 3600.0)) {
                 throw ig::InputError("--cigi-wait " + base::number(cigiWait) +
                                      ": must be 0 .. 3600 seconds");
@@ -467,6 +497,15 @@ int main(int argc, char** argv) {
         geometry.windowWidth = opened.width;
         geometry.windowHeight = opened.height;
         geometry.hfov = ig::degToRad(fovDeg);
+        if (cigiSource) {
+            // The host's View Definition, when one came before the run, sets the field of view.
+            if (cigiSource->session().viewHfov() > 0.0) {
+                geometry.hfov = cigiSource->session().viewHfov();
+                std::fprintf(stderr, "flythrough: view %d: %.3f degrees wide (View Definition)\n",
+                             cigiView, ig::radToDeg(geometry.hfov));
+            }
+            cigiSource->session().freezeFieldOfView(geometry.hfov);
+        }
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
@@ -483,6 +522,16 @@ int main(int argc, char** argv) {
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
         options.stop = &io::stopFlag();
+        // On the wall clock the field process keeps its memory resident: no field waits on a
+        // page fault (the renderer process, forked later, does not inherit the lock).
+        io::MemoryLock memoryLock;
+        if (!simulated) {
+            memoryLock = io::lockAllMemory();
+            if (!memoryLock.locked) {
+                std::fprintf(stderr, "flythrough: memory not locked: %s\n",
+                             memoryLock.error.c_str());
+            }
+        }
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();
         if (live) std::fprintf(stderr, "\n");
@@ -512,6 +561,21 @@ int main(int argc, char** argv) {
                          static_cast<unsigned long long>(c.framesSent),
                          static_cast<unsigned long long>(c.sendErrors), c.lastHostFrame,
                          static_cast<unsigned long long>(c.clampedPoses));
+            if (c.droppedByKernel > 0 || c.cappedPolls > 0) {
+                std::fprintf(stderr,
+                             "cigi: flooded: %llu datagrams dropped by the kernel, %llu fields "
+                             "took their maximum, longest poll %.2f ms\n",
+                             static_cast<unsigned long long>(c.droppedByKernel),
+                             static_cast<unsigned long long>(c.cappedPolls), c.maxPollMs);
+            }
+            for (const sim::HostOutage& o : c.outages) {
+                std::fprintf(stderr,
+                             "cigi: host silent from %.3f s for %.3f s%s (%llu fields "
+                             "extrapolated, %llu held)\n",
+                             o.lastMessage, o.length, o.ongoing ? " to the end" : "",
+                             static_cast<unsigned long long>(o.fieldsExtrapolated),
+                             static_cast<unsigned long long>(o.fieldsHeld));
+            }
             for (const std::string& e : c.firstErrors) {
                 std::fprintf(stderr, "cigi: %s\n", e.c_str());
             }
@@ -537,21 +601,14 @@ int main(int argc, char** argv) {
             j["warp"] = warpText;
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
+            j["memory_locked"] = memoryLock.locked;
+            j["memory_lock_error"] = memoryLock.error;
+            j["memory_locked_mib"] = static_cast<double>(io::lockedBytes()) / (1 << 20);
             if (cigiSource) {
                 const sim::CigiStats& c = cigiSource->session().stats();
-                j["cigi"] = {{"datagrams", c.datagrams},
-                             {"bad_datagrams", c.badDatagrams},
-                             {"skipped_packets", c.skippedPackets},
-                             {"ignored_packets", c.ignoredPackets},
-                             {"entity_updates", c.entityUpdates},
-                             {"rate_updates", c.rateUpdates},
-                             {"answers", c.answers},
-                             {"dropped_requests", c.droppedRequests},
-                             {"start_of_frame_sent", c.framesSent},
-                             {"send_errors", c.sendErrors},
-                             {"last_host_frame", c.lastHostFrame},
-                             {"clamped_poses", c.clampedPoses},
-                             {"first_errors", c.firstErrors}};
+                j["cigi"] = sim::toJson(c);
+                j["cigi"]["view"] = cigiView;
+                j["fov_deg"] = ig::radToDeg(geometry.hfov);
             }
             io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         }

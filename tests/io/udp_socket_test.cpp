@@ -95,3 +95,36 @@ TEST(UdpSocket, ErrorsAreReturnedNotThrown) {
 }
 
 }  // namespace
+
+namespace {
+
+// The kernel's count of datagrams dropped for want of room reaches the socket: a burst far
+// beyond a small receive buffer, then every datagram received plus every one dropped is every
+// one sent.
+TEST(UdpSocket, CountsTheDatagramsTheKernelDropped) {
+    io::UdpSocket sender, receiver;
+    ASSERT_EQ(sender.open({kLoopback, 0}), 0);
+    ASSERT_EQ(receiver.open({kLoopback, 0}, 4096), 0);  // the kernel doubles it, with a floor
+    EXPECT_GT(receiver.receiveBufferBytes(), 0);
+    const io::UdpEndpoint to = receiver.localEndpoint();
+    constexpr int kSent = 2000;
+    const std::vector<std::uint8_t> bytes(200, 0x5a);
+    int sent = 0;
+    for (int i = 0; i < kSent; ++i)
+        sent += sender.sendTo(bytes, to) == 0 ? 1 : 0;
+    ASSERT_GT(sent, 1000);
+    std::vector<std::uint8_t> buffer(256);
+    long received = 0;
+    while (receiver.receive(buffer) > 0)
+        ++received;
+    ASSERT_GT(received, 0);
+    EXPECT_LT(received, sent) << "the buffer held them all: the test proves nothing";
+    // The count travels with each datagram as it was when the datagram was queued: one sent
+    // after the burst brings the whole of it.
+    ASSERT_EQ(sender.sendTo(bytes, to), 0);
+    ASSERT_EQ(receiveWithin(receiver, buffer, nullptr), 200);
+    EXPECT_EQ(static_cast<std::uint64_t>(received) + receiver.droppedByKernel(),
+              static_cast<std::uint64_t>(sent));
+}
+
+}  // namespace

@@ -1,6 +1,7 @@
 #include "sim/cigi_session.hpp"
 
 #include "base/error.hpp"
+#include "ig/camera.hpp"
 #include "ig/caster.hpp"
 #include "ig/synthetic.hpp"
 #include "io/cigi.hpp"
@@ -12,7 +13,9 @@
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -769,6 +772,9 @@ TEST(CigiSession, BadTrafficNeverStopsTheFields) {
         field();
     }
     EXPECT_EQ(stats.badDatagrams, bad + burst + 10000);
+    // What the kernel could not keep of the burst is counted, not lost without trace.
+    EXPECT_EQ(stats.droppedByKernel + burst, 10000u);
+    EXPECT_GT(stats.cappedPolls, 0u);
     world.host.sendRaw(world.host.encode({e}));
     source.advanceTo(kPeriod * (fields + 1));
     EXPECT_EQ(stats.entityUpdates, 2u) << "a good message after the flood is applied";
@@ -901,3 +907,284 @@ TEST(CigiSession, HostDrivenFieldsAgainstTheSameTrajectoryFromCsv) {
         "pose within %.3g m and %.3g rad\n",
         identical, fromCsv.size(), differing, bytes, worstByte, worstPosition, worstAngle);
 }
+
+namespace {
+
+// A host at 60 Hz flying a straight, turning line falls silent at 1 s and comes back at 4 s:
+// the ownship dead-reckons along the line until 1 s + the extrapolation limit, then holds; the
+// watchdog reports one outage (when, how long, fields extrapolated and held), and the pose seen
+// by predict() (the renderer's side) holds too.
+TEST(CigiSession, SilentHostIsExtrapolatedThenHeldAndReported) {
+    World world;
+    sim::CigiOptions options = world.options();
+    options.hostTimeout = 0.25;
+    options.extrapolateLimit = 1.5;
+    sim::CigiPoseSource source(world.map, options);
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    world.host.ig = source.session().localEndpoint();
+    const sim::GeoFrame& geo = source.session().geo();
+    const glm::dvec3 p0{1000.0, 1200.0, world.map.maxHeight() + 300.0};
+    const glm::dvec3 v{30.0, 40.0, 0.5};
+    const auto truth = [&](double t) { return p0 + v * t; };
+    const auto send = [&](double t) {
+        const glm::dvec3 g = geo.geodeticFromWorld(truth(t));
+        cigi::EntityControl e;
+        e.latOrX = g.x;
+        e.lonOrY = g.y;
+        e.altOrZ = g.z;
+        e.yawDeg = 36.0f;
+        cigi::RateControl r;
+        r.xRate = static_cast<float>(v.y);
+        r.yRate = static_cast<float>(v.x);
+        r.zRate = static_cast<float>(-v.z);
+        world.host.send({e, r});
+    };
+    const int silentFrom = 60, backAt = 240, fields = 300;  // 1 s, 4 s, 5 s
+    double lastMessage = 0.0;
+    std::vector<glm::dvec3> got;
+    for (int n = 0; n < fields; ++n) {
+        const double t = n * kPeriod;
+        if (n < silentFrom || n >= backAt) send(t);
+        if (n < silentFrom) lastMessage = t;
+        got.push_back(source.advanceTo(t).position);
+        world.host.receiveAll();
+    }
+    const double holdFrom = lastMessage + options.extrapolateLimit;
+    int extrapolated = 0, held = 0, noticedAt = -1;
+    for (int n = silentFrom; n < backAt; ++n) {
+        const double t = n * kPeriod;
+        const glm::dvec3 want = truth(std::min(t, holdFrom));
+        EXPECT_LT(glm::length(got[n] - want), 1e-6) << "field " << n;
+        if (t - lastMessage > options.hostTimeout) {
+            if (noticedAt < 0) noticedAt = n;
+            (t > holdFrom ? held : extrapolated) += 1;
+        }
+    }
+    EXPECT_GT(held, 60);
+    // Back: the line again from the first message on.
+    for (int n = backAt; n < fields; ++n)
+        EXPECT_LT(glm::length(got[n] - truth(n * kPeriod)), 1e-6) << "field " << n;
+
+    const sim::CigiStats& stats = source.session().stats();
+    EXPECT_EQ(stats.hostLosses, 1u);
+    ASSERT_EQ(stats.outages.size(), 1u);
+    const sim::HostOutage& o = stats.outages[0];
+    EXPECT_DOUBLE_EQ(o.lastMessage, lastMessage);
+    EXPECT_DOUBLE_EQ(o.noticed, noticedAt * kPeriod);
+    EXPECT_NEAR(o.length, backAt * kPeriod - lastMessage, 1e-12);
+    EXPECT_FALSE(o.ongoing);
+    EXPECT_EQ(o.fieldsExtrapolated, static_cast<std::uint64_t>(extrapolated));
+    EXPECT_EQ(o.fieldsHeld, static_cast<std::uint64_t>(held));
+
+    // Silent again to the end: an ongoing outage; predict() holds as advanceTo() does.
+    for (int n = fields; n < fields + 200; ++n)
+        source.advanceTo(n * kPeriod);
+    EXPECT_EQ(stats.hostLosses, 2u);
+    ASSERT_EQ(stats.outages.size(), 2u);
+    EXPECT_TRUE(stats.outages[1].ongoing);
+    const double last2 = (fields - 1) * kPeriod;
+    EXPECT_LT(glm::length(source.predict(100.0).position - truth(last2 + options.extrapolateLimit)),
+              1e-6);
+}
+
+// The eye of a view: the entity's rotation then the view's (yaw right about the entity's z down,
+// pitch up, roll right), checked against rotation matrices built another way (glm::rotate).
+TEST(CigiView, EyePoseComposesTheViewOnTheEntity) {
+    const auto basis = [](const ig::Pose& p) {
+        const ig::CameraBasis b = ig::CameraBasis::fromPose(p);
+        return glm::dmat3(b.forward, b.right, -b.up);  // world from (x forward, y right, z down)
+    };
+    const auto rotation = [](double yaw, double pitch, double roll) {
+        glm::dmat4 m(1.0);
+        m = glm::rotate(m, yaw, glm::dvec3(0, 0, 1));
+        m = glm::rotate(m, pitch, glm::dvec3(0, 1, 0));  // about y right: x turns to -z, up
+        m = glm::rotate(m, roll, glm::dvec3(1, 0, 0));
+        return glm::dmat3(m);
+    };
+    ig::Pose entity;
+    entity.position = {100.0, 200.0, 300.0};
+    EXPECT_EQ(sim::eyePose(entity, {}).position, entity.position);
+    double worst = 0.0;
+    int cases = 0;
+    for (double ey : {0.0, 0.7, -2.5})
+        for (double ep : {0.0, 0.3, -1.2})
+            for (double er : {0.0, 0.4, -2.9})
+                for (double vy : {-0.5236, 0.5236, 2.0})
+                    for (double vp : {0.0, 0.25, -0.6})
+                        for (double vr : {0.0, -0.3}) {
+                            entity.yaw = ey;
+                            entity.pitch = ep;
+                            entity.roll = er;
+                            sim::ViewOffset view{{2.0, -1.0, 0.5}, vy, vp, vr};
+                            const ig::Pose eye = sim::eyePose(entity, view);
+                            const glm::dmat3 want = basis(entity) * rotation(vy, vp, vr);
+                            const glm::dmat3 got = basis(eye);
+                            for (int c = 0; c < 3; ++c)
+                                worst = std::max(worst, glm::length(got[c] - want[c]));
+                            const glm::dvec3 offset = entity.position + basis(entity) * view.offset;
+                            EXPECT_LT(glm::length(eye.position - offset), 1e-12);
+                            ++cases;
+                        }
+    EXPECT_EQ(cases, 486);
+    EXPECT_LT(worst, 1e-12);
+    RecordProperty("worst_axis_error", figure(worst));
+    // A level entity: the view's yaw adds to the heading.
+    entity.yaw = 0.7;
+    entity.pitch = entity.roll = 0.0;
+    const ig::Pose left = sim::eyePose(entity, {{}, -30.0 * kDeg, 0.0, 0.0});
+    EXPECT_NEAR(left.yaw, 0.7 - 30.0 * kDeg, 1e-15);
+    EXPECT_NEAR(left.pitch, 0.0, 1e-15);
+    EXPECT_NEAR(left.roll, 0.0, 1e-15);
+}
+
+// View Control and View Definition for this image generator's view are applied (only their
+// enabled fields); another view's are not; an asymmetric frustum, or a new field of view once
+// the run has begun, is refused and reported.
+TEST(CigiView, ViewPacketsForThisViewOnly) {
+    World world;
+    sim::CigiOptions options = world.options();
+    options.viewId = 2;
+    sim::CigiPoseSource source(world.map, options);
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    world.host.ig = source.session().localEndpoint();
+    cigi::ViewControl mine;
+    mine.viewId = 2;
+    mine.yawEnable = mine.xEnable = true;
+    mine.yawDeg = 330.0f;  // 30 degrees left
+    mine.x = 3.0f;
+    mine.y = 7.0f;  // not enabled
+    cigi::ViewControl other = mine;
+    other.viewId = 1;
+    other.yawDeg = 30.0f;
+    cigi::ViewDefinition def;
+    def.viewId = 2;
+    def.leftEnable = def.rightEnable = true;
+    def.leftDeg = -25.0f;
+    def.rightDeg = 25.0f;
+    world.host.send({mine, other, def});
+    const ig::Pose p0 = source.advanceTo(0.0);
+    const sim::CigiSession& s = source.session();
+    EXPECT_NEAR(s.view().yaw, -30.0 * kDeg, 1e-7);
+    EXPECT_EQ(s.view().offset, glm::dvec3(3.0, 0.0, 0.0));
+    EXPECT_NEAR(s.viewHfov(), 50.0 * kDeg, 1e-7);
+    EXPECT_EQ(s.stats().viewControls, 1u);
+    EXPECT_EQ(s.stats().viewDefinitions, 1u);
+    EXPECT_NEAR(p0.yaw, options.startPose.yaw - 30.0 * kDeg, 1e-7);
+    // Pitch alone: the yaw set before stays.
+    cigi::ViewControl pitchOnly;
+    pitchOnly.viewId = 2;
+    pitchOnly.pitchEnable = true;
+    pitchOnly.pitchDeg = -10.0f;
+    world.host.send({pitchOnly});
+    source.advanceTo(kPeriod);
+    EXPECT_NEAR(s.view().yaw, -30.0 * kDeg, 1e-7);
+    EXPECT_NEAR(s.view().pitch, -10.0 * kDeg, 1e-7);
+
+    source.session().freezeFieldOfView(s.viewHfov());
+    cigi::ViewDefinition wider = def, lopsided = def;
+    wider.leftDeg = -40.0f;
+    wider.rightDeg = 40.0f;
+    lopsided.rightDeg = 35.0f;
+    world.host.send({def, wider, lopsided});
+    source.advanceTo(2 * kPeriod);
+    EXPECT_EQ(s.stats().viewDefinitions, 2u);  // the same field of view again: fine
+    EXPECT_EQ(s.stats().viewDefinitionsNotApplied, 2u);
+    EXPECT_NEAR(s.viewHfov(), 50.0 * kDeg, 1e-7);
+    int reported = 0;
+    for (const std::string& e : s.stats().firstErrors)
+        reported += e.find("View Definition for view 2") != std::string::npos;
+    EXPECT_EQ(reported, 2);
+}
+
+// Two channels driven by one host: image generators for views 0 and 1 on their own ports,
+// yawed -30 and +30 degrees with 60-degree fields of view, meet at the ownship's heading. Each
+// renders its eye (the reference caster, as ig-render would): the right edge column of the
+// left channel and the left edge column of the right one look half a pixel either side of the
+// same edge, so they differ as two neighbouring columns of one image do: the seam's mean
+// difference must be within 1.5 times that of the neighbouring columns beside the edge in each
+// image (0.51 against 1.00 levels measured at 256 x 192; the pixel grids of two planes 60
+// degrees apart cannot line up exactly, so no tighter pixel-for-pixel bound holds),
+// while columns 60 degrees apart (the right channel's own right edge) differ many times more.
+TEST(CigiView, TwoChannelsMeetAtTheirSharedEdge) {
+    World world;
+    sim::CigiOptions options = world.options();
+    options.startPose.position = {1900.0, 1000.0, world.map.maxHeight() + 100.0};
+    options.startPose.yaw = 45.0 * kDeg;
+    options.viewId = 0;
+    sim::CigiPoseSource left(world.map, options);
+    options.viewId = 1;
+    sim::CigiPoseSource right(world.map, options);
+    std::string error;
+    ASSERT_EQ(left.open(&error), 0) << error;
+    ASSERT_EQ(right.open(&error), 0) << error;
+
+    const glm::dvec3 g = left.session().geo().geodeticFromWorld(options.startPose.position);
+    cigi::EntityControl e;
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    e.yawDeg = 45.0f;
+    e.pitchDeg = -20.0f;
+    std::vector<cigi::Packet> packets{e};
+    for (std::uint16_t view : {0, 1}) {
+        cigi::ViewControl vc;
+        vc.viewId = view;
+        vc.yawEnable = true;
+        vc.yawDeg = view == 0 ? 330.0f : 30.0f;
+        cigi::ViewDefinition vd;
+        vd.viewId = view;
+        vd.leftEnable = vd.rightEnable = true;
+        vd.leftDeg = -30.0f;
+        vd.rightDeg = 30.0f;
+        packets.push_back(vc);
+        packets.push_back(vd);
+    }
+    // One host message to each image generator (one sender, as a host with two channels).
+    const std::vector<std::uint8_t> bytes = world.host.encode(packets);
+    ASSERT_EQ(world.host.socket.sendTo(bytes, left.session().localEndpoint()), 0);
+    ASSERT_EQ(world.host.socket.sendTo(bytes, right.session().localEndpoint()), 0);
+    const ig::Pose l = left.advanceTo(0.0), r = right.advanceTo(0.0);
+    EXPECT_EQ(world.host.receiveAll().size(), 2u) << "a Start of Frame from each channel";
+    EXPECT_LT(glm::length(l.position - r.position), 1e-9);
+    EXPECT_NEAR(left.session().viewHfov(), 60.0 * kDeg, 1e-7);
+    EXPECT_NEAR(right.session().viewHfov(), 60.0 * kDeg, 1e-7);
+    // Pitched down, each eye's heading is not just the entity's plus 30 degrees: compare the
+    // shared edge's direction instead: the left eye's right edge and the right eye's left edge.
+    const ig::Intrinsics k = ig::Intrinsics::fromFov(256, 192, left.session().viewHfov());
+    const ig::CameraBasis bl = ig::CameraBasis::fromPose(l), br = ig::CameraBasis::fromPose(r);
+    for (double v : {-1.0, 0.0, 1.0}) {
+        const double half = 0.5 * k.width, vy = v * 0.5 * k.height;
+        const glm::dvec3 dl = glm::normalize(bl.forward * k.focal + bl.right * half + bl.up * vy);
+        const glm::dvec3 dr = glm::normalize(br.forward * k.focal - br.right * half + br.up * vy);
+        EXPECT_LT(glm::length(dl - dr), 1e-6) << "edge row " << v;
+    }
+
+    const auto caster = ig::makeCaster(ig::CasterKind::Reference, world.map);
+    const ig::RenderedFrame fl = ig::renderFrame(*caster, world.map, l, k);
+    const ig::RenderedFrame fr = ig::renderFrame(*caster, world.map, r, k);
+    const auto columnDiff = [&](const ig::RenderedFrame& a, int xa, const ig::RenderedFrame& b,
+                                int xb) {
+        double sum = 0.0;
+        for (int y = 0; y < k.height; ++y) {
+            const ig::Rgb8 pa = a.color[static_cast<std::size_t>(y * k.width + xa)];
+            const ig::Rgb8 pb = b.color[static_cast<std::size_t>(y * k.width + xb)];
+            sum += std::abs(pa.r - pb.r) + std::abs(pa.g - pb.g) + std::abs(pa.b - pb.b);
+        }
+        return sum / (3.0 * k.height);
+    };
+    // Neighbouring columns beside the edge, in each image.
+    const double typical =
+        0.5 * (columnDiff(fl, k.width - 2, fl, k.width - 1) + columnDiff(fr, 0, fr, 1));
+    const double seam = columnDiff(fl, k.width - 1, fr, 0);
+    const double wrong = columnDiff(fl, k.width - 1, fr, k.width - 1);
+    EXPECT_GT(typical, 0.5) << "the terrain is too plain to tell a seam from a column";
+    EXPECT_LE(seam, 1.5 * typical);
+    EXPECT_GT(wrong, 4.0 * typical);
+    RecordProperty("seam_mean_abs", figure(seam));
+    RecordProperty("neighbour_columns_median", figure(typical));
+    RecordProperty("far_edges_mean_abs", figure(wrong));
+}
+
+}  // namespace
