@@ -495,7 +495,7 @@ PipelineResult Pipeline::run() {
             break;
         }
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
-                         field.frameSequence});
+                         field.frameSequence, field.warp.model});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {

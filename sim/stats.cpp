@@ -63,6 +63,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             ++s.fallbacks;
         }
         ++s.fallbacksByKind[static_cast<std::size_t>(r.fallback)];
+        ++s.fieldsByModel[static_cast<std::size_t>(r.model)];
         if (r.frameSequence != lastSequence) {
             ++s.framesShown;
             lastSequence = r.frameSequence;
@@ -104,8 +105,16 @@ nlohmann::json toJson(const StatsSummary& s) {
     for (prp::Fallback f : {prp::Fallback::Affine, prp::Fallback::Rotation, prp::Fallback::Hold}) {
         byKind[std::string(prp::fallbackName(f))] = s.fallbacksByKind[static_cast<std::size_t>(f)];
     }
+    nlohmann::json byModel = nlohmann::json::object();
+    for (std::size_t m = 0; m < s.fieldsByModel.size(); ++m) {
+        if (s.fieldsByModel[m] > 0) {
+            byModel[std::string(prp::warpModelName(static_cast<prp::WarpModel>(m)))] =
+                s.fieldsByModel[m];
+        }
+    }
     return {
         {"fields", s.fields},
+        {"fields_by_warp", byModel},
         {"missed_deadlines", s.missedDeadlines},
         {"field_interval_ms", toJson(s.fieldIntervalMs)},
         {"field_jitter_ms", toJson(s.jitterMs)},
@@ -146,6 +155,14 @@ std::string formatSummary(const StatsSummary& s) {
                   static_cast<unsigned long long>(s.fallbacksByKind[2]),
                   static_cast<unsigned long long>(s.fallbacksByKind[3]));
     std::string text = buf;
+    std::string models;
+    for (std::size_t m = 0; m < s.fieldsByModel.size(); ++m) {
+        if (s.fieldsByModel[m] == 0) continue;
+        models += (models.empty() ? "" : ", ") +
+                  std::string(prp::warpModelName(static_cast<prp::WarpModel>(m))) + " " +
+                  std::to_string(s.fieldsByModel[m]);
+    }
+    if (!models.empty()) text += "warp models     " + models + " fields\n";
     for (const RendererRestart& r : s.restarts) {
         std::snprintf(buf, sizeof buf,
                       "renderer restart at %.3f s: %s; gap %.1f ms (%.1f ms after it was "

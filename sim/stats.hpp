@@ -30,6 +30,7 @@ struct FieldRecord {
     double warpMs = 0.0;
     prp::Fallback fallback = prp::Fallback::None;
     std::uint64_t frameSequence = 0;
+    prp::WarpModel model = prp::WarpModel::Poly;  // the warp the field used (auto: its choice)
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -52,6 +53,7 @@ struct StatsSummary {
     std::uint64_t framesShown = 0;                   // distinct frames the fields came from
     std::uint64_t fallbacks = 0;                     // fields whose warp fell back
     std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
+    std::array<std::uint64_t, 6> fieldsByModel{};    // indexed by prp::WarpModel
     Percentiles fieldIntervalMs;                     // between successive hand-offs
     Percentiles jitterMs;                            // |interval - field period|
     Percentiles latenessMs;                          // hand-off - slot start
