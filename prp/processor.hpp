@@ -28,7 +28,7 @@ struct PrpOptions {
     double holdAfter = 0.0;
     // Auto: a field whose quadratic misses any check point by more than this (rendered pixels),
     // or whose fit fell back, is warped by the depth model.
-    double autoThresholdPx = 0.5;
+    double autoThresholdPx = 0.25;
     // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).
     DepthKernel depthKernel = DepthKernel::Auto;

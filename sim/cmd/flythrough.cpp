@@ -123,7 +123,8 @@ int main(int argc, char** argv) {
     std::string contactPath = kDefaultContact;
     std::string sizeText = "720x486";
     std::string formatText = "uyvy";
-    std::string warpText = "poly";
+    std::string warpText = "auto";
+    double autoThreshold = 0.25;
     std::string clockText = "wall";
     std::string jsonPath;
     double fovDeg = 60.0;
@@ -170,7 +171,13 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--format", formatText, "Output pixels: uyvy | y8 | rgb8")
         ->capture_default_str();
-    app.add_option("--warp", warpText, "poly | affine | homography | depth | hold")
+    app.add_option("--warp", warpText,
+                   "auto | poly | affine | homography | depth | hold (auto: the quadratic, or the "
+                   "depth warp on fields where the quadratic misses its check points by more than "
+                   "--auto-threshold)")
+        ->capture_default_str();
+    app.add_option("--auto-threshold", autoThreshold,
+                   "Auto warp: largest check-point error of the quadratic, rendered pixels")
         ->capture_default_str();
     app.add_option("--clock", clockText, "wall | simulated")->capture_default_str();
     app.add_option("--json", jsonPath, "Write the run's statistics as JSON ('-': stdout)");
@@ -293,7 +300,10 @@ int main(int argc, char** argv) {
         const std::optional<prp::WarpModel> warp = prp::parseWarpModel(warpText);
         if (!warp) {
             throw ig::InputError("--warp '" + warpText +
-                                 "': expected poly, affine, homography, depth or hold");
+                                 "': expected auto, poly, affine, homography, depth or hold");
+        }
+        if (!(autoThreshold > 0.0 && autoThreshold <= 1e6)) {
+            throw ig::InputError("--auto-threshold: must be a positive number of pixels");
         }
         if (clockText != "wall" && clockText != "simulated") {
             throw ig::InputError("--clock '" + clockText + "': expected wall or simulated");
@@ -413,6 +423,7 @@ int main(int argc, char** argv) {
         options.fault = fault;
         options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;
+        options.prp.autoThresholdPx = autoThreshold;
         options.prp.agc = agc;
         options.prp.antiTwitter = antiTwitter;
         // Sky control points are directions: exact for the sky, and they keep a full

@@ -200,7 +200,7 @@ TEST(AutoWarp, PicksByTheCheckPointError) {
     moving.process(frame, at, 0.0, 8, field);
     const double e = field.warp.checkErrorPx;
     ASSERT_GT(e, 0.0);
-    EXPECT_EQ(field.warp.model, e > 0.5 ? WarpModel::Depth : WarpModel::Poly);
+    EXPECT_EQ(field.warp.model, e > 0.25 ? WarpModel::Depth : WarpModel::Poly);
     // A threshold either side of the measured error flips the choice.
     for (const double t : {0.5 * e, 2.0 * e}) {
         PrpOptions o = options(WarpModel::Auto);
