@@ -15,8 +15,8 @@ struct EvalConfig {
     int margin = 32;                // rendered margin on every side, pixels
     double hfov = 1.0471975511965976;
     std::vector<int> horizons{1, 2, 3, 4, 5, 6, 7, 8};  // fields ahead of the frame
-    std::vector<WarpModel> models{WarpModel::Poly, WarpModel::Affine, WarpModel::Homography,
-                                  WarpModel::Depth, WarpModel::Auto, WarpModel::Hold};
+    std::vector<WarpModel> models{WarpModel::Poly,  WarpModel::Affine, WarpModel::Homography,
+                                  WarpModel::Depth, WarpModel::Auto,   WarpModel::Hold};
     int baseFrames = 4;     // base frames spread along the time range
     int timingRepeats = 3;  // each warp is timed this many times; the fastest counts
     bool useSky = true;

@@ -31,6 +31,13 @@ struct FieldRecord {
     prp::Fallback fallback = prp::Fallback::None;
     std::uint64_t frameSequence = 0;
     prp::WarpModel model = prp::WarpModel::Poly;  // the warp the field used (auto: its choice)
+    // Stereo (the fields above are the left eye's): the right eye's warp time (-1: mono),
+    // fallback and model, and the vertical disparity of the two quadratic fits in output rows
+    // (-1: not measured).
+    double rightWarpMs = -1.0;
+    prp::Fallback rightFallback = prp::Fallback::None;
+    prp::WarpModel rightModel = prp::WarpModel::Poly;
+    double verticalDisparityPx = -1.0;
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -54,9 +61,15 @@ struct StatsSummary {
     std::uint64_t fallbacks = 0;                     // fields whose warp fell back
     std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
     std::array<std::uint64_t, 6> fieldsByModel{};    // indexed by prp::WarpModel
-    Percentiles fieldIntervalMs;                     // between successive hand-offs
-    Percentiles jitterMs;                            // |interval - field period|
-    Percentiles latenessMs;                          // hand-off - slot start
+    // Stereo: the right eye's, and the vertical disparity of the two fits (output rows).
+    bool stereo = false;
+    Percentiles rightWarpMs;
+    std::uint64_t rightFallbacks = 0;
+    std::array<std::uint64_t, 6> rightFieldsByModel{};
+    Percentiles verticalDisparityPx;
+    Percentiles fieldIntervalMs;  // between successive hand-offs
+    Percentiles jitterMs;         // |interval - field period|
+    Percentiles latenessMs;       // hand-off - slot start
     Percentiles frameAgeMs;
     Percentiles warpMs;
     double renderFps = 0.0;

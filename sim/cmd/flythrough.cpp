@@ -131,6 +131,8 @@ int main(int argc, char** argv) {
     int margin = 48;
     int renderThreads = 0;
     std::string rendererText = "process";
+    std::optional<double> stereoSeparation;
+    std::string stereoLayoutText = "sbs";
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     std::string faultText;
     std::string levelsText = "auto";
@@ -175,6 +177,13 @@ int main(int argc, char** argv) {
                    "auto | poly | affine | homography | depth | hold (auto: the quadratic, or the "
                    "depth warp on fields where the quadratic misses its check points by more than "
                    "--auto-threshold)")
+        ->capture_default_str();
+    app.add_option("--stereo", stereoSeparation,
+                   "Stereo: eye separation in metres (centred on the aircraft); --size is per eye, "
+                   "the renderer a thread");
+    app.add_option("--stereo-layout", stereoLayoutText,
+                   "Stereo output: sbs (side by side, 2W x H) | tb (top-bottom, W x 2H) | "
+                   "anaglyph (red-cyan preview, W x H)")
         ->capture_default_str();
     app.add_option("--auto-threshold", autoThreshold,
                    "Auto warp: largest check-point error of the quadratic, rendered pixels")
@@ -241,6 +250,30 @@ int main(int argc, char** argv) {
         if (rendererText != "process" && rendererText != "thread") {
             throw ig::InputError("--renderer " + base::quoted(rendererText) +
                                  ": expected process or thread");
+        }
+        std::optional<sim::StereoOutput> stereo;
+        if (stereoSeparation) {
+            if (!(std::isfinite(*stereoSeparation) && *stereoSeparation >= 0.0 &&
+                  *stereoSeparation <= 1000.0)) {
+                throw ig::InputError("--stereo " + base::number(*stereoSeparation) +
+                                     ": eye separation must be 0..1000 metres");
+            }
+            const std::optional<sim::StereoLayout> layout =
+                sim::parseStereoLayout(stereoLayoutText);
+            if (!layout) {
+                throw ig::InputError("--stereo-layout " + base::quoted(stereoLayoutText) +
+                                     ": expected sbs, tb or anaglyph");
+            }
+            // Stereo frames cross a renderer thread only (the frame ring carries one eye).
+            if (app.count("--renderer") > 0 && rendererText == "process") {
+                throw ig::InputError(
+                    "--stereo needs --renderer thread (the renderer process "
+                    "carries one eye)");
+            }
+            rendererText = "thread";
+            stereo = sim::StereoOutput{*stereoSeparation, *layout};
+        } else if (app.count("--stereo-layout") > 0) {
+            throw ig::InputError("--stereo-layout needs --stereo SEPARATION_M");
         }
         const bool rendererProcess = rendererText == "process";
         if (!(renderTimeoutMs >= 0.0 && renderTimeoutMs <= 600000.0)) {
@@ -313,6 +346,13 @@ int main(int argc, char** argv) {
         format.width = width;
         format.height = height;
         format.format = *prpFormat;
+        if (stereo) {
+            if (stereo->layout == sim::StereoLayout::TopBottom && height % 2 != 0) {
+                throw ig::InputError("--size " + sizeText +
+                                     ": top-bottom stereo needs an even height per eye");
+            }
+            sim::stereoOutputSize(stereo->layout, width, height, format.width, format.height);
+        }
         if (const std::string bad = io::checkVideoFormat(format); !bad.empty()) {
             throw ig::InputError("--size " + sizeText + ": " + bad);
         }
@@ -424,6 +464,7 @@ int main(int argc, char** argv) {
         options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;
         options.prp.autoThresholdPx = autoThreshold;
+        options.stereo = stereo;
         options.prp.agc = agc;
         options.prp.antiTwitter = antiTwitter;
         // Sky control points are directions: exact for the sky, and they keep a full
@@ -459,15 +500,16 @@ int main(int argc, char** argv) {
         // The rendered frame: the output window at --fov plus margins, square pixels. The
         // renderer's threads live in the pipeline's own arena (--render-threads).
         sim::RenderGeometry geometry;
-        geometry.windowWidth = opened.width;
-        geometry.windowHeight = opened.height;
+        geometry.windowWidth = width;  // per eye
+        geometry.windowHeight = height;
         geometry.hfov = ig::degToRad(fovDeg);
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions);
+            stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+                   : sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions);
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
 
@@ -477,6 +519,12 @@ int main(int argc, char** argv) {
                      opened.width, opened.height, io::pixelFormatName(opened.format), level.width,
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
+        if (stereo) {
+            std::fprintf(stderr,
+                         "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer thread)\n",
+                         std::string(sim::stereoLayoutName(stereo->layout)).c_str(), width, height,
+                         stereo->separation);
+        }
         options.stop = &io::stopFlag();
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();
@@ -530,6 +578,12 @@ int main(int argc, char** argv) {
             j["margin"] = margin;
             j["roll_margin"] = geometry.coverRoll;
             j["warp"] = warpText;
+            if (stereo) {
+                j["stereo"] = {{"separation_m", stereo->separation},
+                               {"layout", sim::stereoLayoutName(stereo->layout)},
+                               {"eye_width", width},
+                               {"eye_height", height}};
+            }
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
             if (cigiSource) {

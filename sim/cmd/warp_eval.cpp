@@ -124,7 +124,8 @@ void printTable(const std::string& title, const prp::EvalResult& r,
         std::fprintf(tableOut, "  %9.2f %9d %8.3f %7.1f\n", ns / n, fb, 100.0 * edge / n,
                      100.0 * depth / std::max(fields, 1));
     }
-    std::fprintf(tableOut, "(cells: PSNR dB / mean absolute error %% of full scale; depth%%: fields warped "
+    std::fprintf(tableOut,
+                 "(cells: PSNR dB / mean absolute error %% of full scale; depth%%: fields warped "
                  "by the depth model)\n");
 }
 

@@ -52,8 +52,8 @@ TEST(AutoWarp, NoWorseThanTheBetterModelLowOverTerrain) {
         const prp::EvalCell& depth = r.cells[nk + k];
         const prp::EvalCell& autoCell = r.cells[2 * nk + k];
         EXPECT_GE(autoCell.psnrDb, std::max(poly.psnrDb, depth.psnrDb) - 0.25)
-            << "k " << config.horizons[k] << ": poly " << poly.psnrDb << " depth "
-            << depth.psnrDb << " auto " << autoCell.psnrDb;
+            << "k " << config.horizons[k] << ": poly " << poly.psnrDb << " depth " << depth.psnrDb
+            << " auto " << autoCell.psnrDb;
     }
     EXPECT_GT(r.cells[3 * nk - 1].psnrDb, r.cells[nk - 1].psnrDb + 3.0);  // k = 8 vs poly
     const prp::EvalResult again = run();
