@@ -107,12 +107,14 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 }
 
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
-                                     double time, std::uint64_t fieldIndex, Field& out) {
+                                     double time, std::uint64_t fieldIndex, Field& out,
+                                     std::optional<WarpModel> forced) {
     const auto start = std::chrono::steady_clock::now();
     const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
-    const WarpModel model = stale ? WarpModel::Hold : options_.model;
+    const WarpModel chosen = forced.value_or(options_.model);
+    const WarpModel model = stale ? WarpModel::Hold : chosen;
     const bool depthModel = model == WarpModel::Depth || model == WarpModel::Auto;
-    checkFrame(frame, options_.model == WarpModel::Depth || options_.model == WarpModel::Auto);
+    checkFrame(frame, chosen == WarpModel::Depth || chosen == WarpModel::Auto);
 
     out.index = fieldIndex;
     out.parity = fieldParity(fieldIndex);

@@ -8,6 +8,7 @@
 #include "prp/warp_fit.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace prp {
@@ -45,8 +46,11 @@ class PostRenderingProcessor {
     // included), writing only the lines of fieldParity(fieldIndex) into `out`. Allocates only
     // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose
     // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
+    // `model`, when given, replaces options().model for this field (stereo forces the depth
+    // model on a field whose two quadratic fits disagree on rows).
     void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
-                 std::uint64_t fieldIndex, Field& out);
+                 std::uint64_t fieldIndex, Field& out,
+                 std::optional<WarpModel> model = std::nullopt);
 
     const PrpOptions& options() const { return options_; }
     // AGC gain the next field will use.

@@ -434,6 +434,7 @@ PipelineResult Pipeline::run() {
     std::optional<prp::PostRenderingProcessor> rightProcessor;
     std::optional<StereoComposer> composer;
     prp::Field leftField, rightField;
+    std::uint64_t stereoDepthFields = 0;  // fields whose eyes took the depth model for rows
     if (stereo) {
         rightProcessor.emplace(options_.prp);
         composer.emplace(options_.stereo->layout, sink_.format().format);
@@ -513,7 +514,7 @@ PipelineResult Pipeline::run() {
         frames_.fetch();
         const ig::RenderedFrame& frame = frames_.front();
         noteFrameShown(frame, clock_.now());
-        double rightWarpMs = -1.0, disparity = -1.0;
+        double rightWarpMs = -1.0, disparity = -1.0, firstDisparity = -1.0;
         prp::Fallback rightFallback = prp::Fallback::None;
         prp::WarpModel rightModel = prp::WarpModel::Poly;
         if (stereo) {
@@ -526,15 +527,33 @@ PipelineResult Pipeline::run() {
             const EyePoses eyes = eyePoses(pose, options_.stereo->separation);
             processor.process(frame, eyes.left, t, n, leftField);
             rightProcessor->process(*frame.right, eyes.right, t, n, rightField);
+            const prp::OutputGeometry geometry = prp::OutputGeometry::of(
+                frame.intrinsics, options_.prp.outWidth, options_.prp.outHeight);
+            disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
+                                          eyes, geometry);
+            firstDisparity = disparity;
+            if (disparity > kMaxVerticalDisparityRows) {
+                // The fits disagree on rows: the eyes warped by a quadratic take the depth
+                // model, which puts every point on its own row.
+                const double leftMs = leftField.warpMs, rightMs = rightField.warpMs;
+                if (leftField.warp.model != prp::WarpModel::Depth) {
+                    processor.process(frame, eyes.left, t, n, leftField, prp::WarpModel::Depth);
+                    leftField.warpMs += leftMs;
+                }
+                if (rightField.warp.model != prp::WarpModel::Depth) {
+                    rightProcessor->process(*frame.right, eyes.right, t, n, rightField,
+                                            prp::WarpModel::Depth);
+                    rightField.warpMs += rightMs;
+                }
+                disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
+                                              eyes, geometry);
+                ++stereoDepthFields;
+            }
             composer->compose(leftField, rightField, field);
             field.warpMs = leftField.warpMs;
             rightWarpMs = rightField.warpMs;
             rightFallback = rightField.warp.fallback;
             rightModel = rightField.warp.model;
-            disparity = quadraticVerticalDisparity(
-                frame, *frame.right, leftField.warp, rightField.warp, eyes,
-                prp::OutputGeometry::of(frame.intrinsics, options_.prp.outWidth,
-                                        options_.prp.outHeight));
         } else {
             processor.process(frame, pose, t, n, field);
         }
@@ -550,7 +569,7 @@ PipelineResult Pipeline::run() {
         }
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
                          field.frameSequence, field.warp.model, rightWarpMs, rightFallback,
-                         rightModel, disparity});
+                         rightModel, disparity, firstDisparity});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {
@@ -578,6 +597,7 @@ PipelineResult Pipeline::run() {
     if (simulated) renderEndClock_ = clock_.now();
     std::lock_guard lock(restartMutex_);
     result.stats = stats_.summarize(renderEndClock_ - renderStartClock_, simulated);
+    result.stats.depthForRows = stereoDepthFields;
     return result;
 }
 

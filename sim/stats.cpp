@@ -41,7 +41,8 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     }
     if (renderSeconds > 0.0) s.renderFps = static_cast<double>(s.framesRendered) / renderSeconds;
 
-    std::vector<double> intervals, jitter, lateness, ages, warps, rightWarps, disparities;
+    std::vector<double> intervals, jitter, lateness, ages, warps, rightWarps, disparities,
+        fitDisparities;
     intervals.reserve(records_.size());
     jitter.reserve(records_.size());
     lateness.reserve(records_.size());
@@ -70,6 +71,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             s.rightFallbacks += r.rightFallback != prp::Fallback::None;
             ++s.rightFieldsByModel[static_cast<std::size_t>(r.rightModel)];
             if (r.verticalDisparityPx >= 0.0) disparities.push_back(r.verticalDisparityPx);
+            if (r.fitVerticalDisparityPx >= 0.0) fitDisparities.push_back(r.fitVerticalDisparityPx);
         }
         if (r.frameSequence != lastSequence) {
             ++s.framesShown;
@@ -84,6 +86,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     s.warpMs = percentiles(std::move(warps));
     s.rightWarpMs = percentiles(std::move(rightWarps));
     s.verticalDisparityPx = percentiles(std::move(disparities));
+    s.fitVerticalDisparityPx = percentiles(std::move(fitDisparities));
     s.restarts = restarts_;
     return s;
 }
@@ -148,6 +151,8 @@ nlohmann::json toJson(const StatsSummary& s) {
                           {"fallbacks", s.rightFallbacks},
                           {"fields_by_warp", modelsJson(s.rightFieldsByModel)}};
         j["vertical_disparity_px"] = toJson(s.verticalDisparityPx);
+        j["fit_vertical_disparity_px"] = toJson(s.fitVerticalDisparityPx);
+        j["fields_depth_for_rows"] = s.depthForRows;
     }
     return j;
 }
@@ -185,10 +190,13 @@ std::string formatSummary(const StatsSummary& s) {
     if (s.stereo) {
         std::snprintf(buf, sizeof buf,
                       "right eye warp  p50 %.2f  p99 %.2f  max %.2f ms, fallbacks %llu\n"
-                      "vertical disparity of the two fits  p50 %.3f  p99 %.3f  max %.3f rows\n",
+                      "vertical disparity  p50 %.3f  p99 %.3f  max %.3f rows (of the fits: max "
+                      "%.3f; %llu fields took the depth model for it)\n",
                       s.rightWarpMs.p50, s.rightWarpMs.p99, s.rightWarpMs.max,
                       static_cast<unsigned long long>(s.rightFallbacks), s.verticalDisparityPx.p50,
-                      s.verticalDisparityPx.p99, s.verticalDisparityPx.max);
+                      s.verticalDisparityPx.p99, s.verticalDisparityPx.max,
+                      s.fitVerticalDisparityPx.max,
+                      static_cast<unsigned long long>(s.depthForRows));
         text += buf;
     }
     for (const RendererRestart& r : s.restarts) {

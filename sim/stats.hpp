@@ -38,6 +38,8 @@ struct FieldRecord {
     prp::Fallback rightFallback = prp::Fallback::None;
     prp::WarpModel rightModel = prp::WarpModel::Poly;
     double verticalDisparityPx = -1.0;
+    // The same before any eye was switched to the depth model for it (kMaxVerticalDisparityRows).
+    double fitVerticalDisparityPx = -1.0;
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -66,10 +68,12 @@ struct StatsSummary {
     Percentiles rightWarpMs;
     std::uint64_t rightFallbacks = 0;
     std::array<std::uint64_t, 6> rightFieldsByModel{};
-    Percentiles verticalDisparityPx;
-    Percentiles fieldIntervalMs;  // between successive hand-offs
-    Percentiles jitterMs;         // |interval - field period|
-    Percentiles latenessMs;       // hand-off - slot start
+    Percentiles verticalDisparityPx;     // as shown
+    Percentiles fitVerticalDisparityPx;  // of the fits, before the depth model took over
+    std::uint64_t depthForRows = 0;      // fields whose eyes took the depth model for rows
+    Percentiles fieldIntervalMs;         // between successive hand-offs
+    Percentiles jitterMs;                // |interval - field period|
+    Percentiles latenessMs;              // hand-off - slot start
     Percentiles frameAgeMs;
     Percentiles warpMs;
     double renderFps = 0.0;

@@ -88,14 +88,19 @@ ig::Intrinsics windowOf(const ig::Intrinsics& in) {
 
 // Output row at which `warp` shows world point `world` in the eye at `eye`: its true output
 // position moved by the fit's residual there (one Newton step). False when not visible.
-bool warpedRow(const ig::RenderedFrame& frame, const prp::Quadratic& q, const ig::Pose& eye,
-               const prp::OutputGeometry& g, const glm::dvec3& world, double& row) {
+bool warpedRow(const ig::RenderedFrame& frame, const prp::Quadratic& q, bool exact,
+               const ig::Pose& eye, const prp::OutputGeometry& g, const glm::dvec3& world,
+               double& row) {
     const auto p = ig::Camera(frame.pose, frame.intrinsics).project(world, 1.0);
     const auto w = ig::Camera(eye, windowOf(frame.intrinsics)).project(world, 1.0);
     if (!p || !w) return false;
     const double sx = static_cast<double>(g.width) / g.windowWidth;
     const double sy = static_cast<double>(g.height) / g.windowHeight;
     const glm::dvec2 u{w->x * sx, w->y * sy};
+    if (exact) {
+        row = u.y;
+        return std::isfinite(row);
+    }
     const glm::dvec2 r = q(u) - *p;
     const auto& a = q.a;
     const auto& b = q.b;
@@ -110,16 +115,18 @@ bool warpedRow(const ig::RenderedFrame& frame, const prp::Quadratic& q, const ig
 
 }  // namespace
 
-double quadraticVerticalDisparity(const ig::RenderedFrame& left, const ig::RenderedFrame& right,
-                                  const prp::WarpInfo& leftWarp, const prp::WarpInfo& rightWarp,
-                                  const EyePoses& eyes, const prp::OutputGeometry& geometry) {
+double verticalDisparity(const ig::RenderedFrame& left, const ig::RenderedFrame& right,
+                         const prp::WarpInfo& leftWarp, const prp::WarpInfo& rightWarp,
+                         const EyePoses& eyes, const prp::OutputGeometry& geometry) {
     if (leftWarp.projective || rightWarp.projective) return -1.0;
     const prp::Quadratic ql = prp::quadraticOf(leftWarp), qr = prp::quadraticOf(rightWarp);
+    const bool exactL = leftWarp.model == prp::WarpModel::Depth;
+    const bool exactR = rightWarp.model == prp::WarpModel::Depth;
     double worst = -1.0;
     auto point = [&](const glm::dvec3& world) {
         double yl = 0, yr = 0;
-        if (warpedRow(left, ql, eyes.left, geometry, world, yl) &&
-            warpedRow(right, qr, eyes.right, geometry, world, yr)) {
+        if (warpedRow(left, ql, exactL, eyes.left, geometry, world, yl) &&
+            warpedRow(right, qr, exactR, eyes.right, geometry, world, yr)) {
             worst = std::max(worst, std::abs(yl - yr));
         }
     };

@@ -47,14 +47,18 @@ EyePoses eyePoses(const ig::Pose& head, double separation);
 FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                  double separation, const ig::RenderOptions& options = {});
 
-// Largest difference, in output rows, between where the two eyes' quadratic warps show the
-// same world point: the pair's control points (terrain ones) and the left frame's check points,
-// each moved by its eye's fit residual at its true position (one Newton step through the warp's
-// Jacobian). True rows agree exactly (parallel eyes sharing the head's orientation), so this is
+// Largest difference, in output rows, between where the two eyes' warps show the same world
+// point: the pair's control points (terrain ones) and the left frame's check points. A
+// quadratic warp shows a point moved by its fit residual at its true position (one Newton step
+// through the warp's Jacobian); the depth warp where it truly is (its error is sampling, not
+// geometry). True rows agree exactly (parallel eyes sharing the head's orientation), so this is
 // what the two independent fits add. -1 when no point is usable.
-double quadraticVerticalDisparity(const ig::RenderedFrame& left, const ig::RenderedFrame& right,
-                                  const prp::WarpInfo& leftWarp, const prp::WarpInfo& rightWarp,
-                                  const EyePoses& eyes, const prp::OutputGeometry& geometry);
+double verticalDisparity(const ig::RenderedFrame& left, const ig::RenderedFrame& right,
+                         const prp::WarpInfo& leftWarp, const prp::WarpInfo& rightWarp,
+                         const EyePoses& eyes, const prp::OutputGeometry& geometry);
+// Rows the two eyes may disagree by before a field's quadratic eyes are warped by the depth
+// model instead (stereo only; see docs/design/stereo.md).
+inline constexpr double kMaxVerticalDisparityRows = 0.25;
 
 // Puts the two eyes' fields of one field index into the layout's field (`out`, whose pixels are
 // reused). Side by side and top-bottom copy the eyes' lines (eye fields in the output format);
