@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string_view>
 #include <vector>
 
@@ -47,6 +48,9 @@ struct RenderedFrame {
     std::vector<float> depth;  // Euclidean distance from the eye in metres; +inf for sky
     std::array<ControlPoint, kControlPointCount> controlPoints{};
     RenderStats stats;
+    // Stereo: the right eye of the pair this frame is the left eye of (its own pose, depth and
+    // control points; same sequence, time and intrinsics), or null.
+    std::shared_ptr<const RenderedFrame> right;
 
     int width() const { return intrinsics.width; }
     int height() const { return intrinsics.height; }

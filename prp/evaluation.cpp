@@ -61,6 +61,7 @@ EvalResult evaluateWarps(const ig::TerrainMap& map, const ig::Caster& frameCaste
             o.format = PixelFormat::Rgb8;
             o.model = m;
             o.useSky = config.useSky;
+            o.autoThresholdPx = config.autoThresholdPx;
             prps.emplace_back(o);
         }
         for (std::size_t hi = 0; hi < config.horizons.size(); ++hi) {
@@ -96,6 +97,7 @@ EvalResult evaluateWarps(const ig::TerrainMap& map, const ig::Caster& frameCaste
                 c.nsPerPixel += best * 1e6 / pixels;
                 c.edgeFraction += field.edgeSamples / pixels;
                 c.fallbacks += field.warp.fallback != Fallback::None;
+                c.depthFields += field.warp.model == WarpModel::Depth;
                 ++c.fallbackCounts[static_cast<int>(field.warp.fallback)];
                 ++c.samples;
             }
@@ -119,7 +121,7 @@ EvalResult combine(const std::vector<EvalResult>& parts) {
     out.cells = parts.front().cells;
     for (EvalCell& c : out.cells) {
         c.psnrDb = c.maePct = c.nsPerPixel = c.edgeFraction = 0.0;
-        c.fallbacks = c.samples = 0;
+        c.fallbacks = c.samples = c.depthFields = 0;
         c.fallbackCounts = {};
     }
     for (const EvalResult& p : parts) {
@@ -134,6 +136,7 @@ EvalResult combine(const std::vector<EvalResult>& parts) {
             c.nsPerPixel += s.nsPerPixel * s.samples;
             c.edgeFraction += s.edgeFraction * s.samples;
             c.fallbacks += s.fallbacks;
+            c.depthFields += s.depthFields;
             for (int f = 0; f < 4; ++f)
                 c.fallbackCounts[f] += s.fallbackCounts[f];
             c.samples += s.samples;

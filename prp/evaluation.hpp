@@ -15,11 +15,12 @@ struct EvalConfig {
     int margin = 32;                // rendered margin on every side, pixels
     double hfov = 1.0471975511965976;
     std::vector<int> horizons{1, 2, 3, 4, 5, 6, 7, 8};  // fields ahead of the frame
-    std::vector<WarpModel> models{WarpModel::Poly, WarpModel::Affine, WarpModel::Homography,
-                                  WarpModel::Depth, WarpModel::Hold};
+    std::vector<WarpModel> models{WarpModel::Poly,  WarpModel::Affine, WarpModel::Homography,
+                                  WarpModel::Depth, WarpModel::Auto,   WarpModel::Hold};
     int baseFrames = 4;     // base frames spread along the time range
     int timingRepeats = 3;  // each warp is timed this many times; the fastest counts
     bool useSky = true;
+    double autoThresholdPx = 0.25;  // the auto model's threshold (PrpOptions::autoThresholdPx)
 };
 
 // One model at one horizon, averaged over base frames.
@@ -32,6 +33,7 @@ struct EvalCell {
     double edgeFraction = 0.0;            // edge-repeated samples / output samples
     int fallbacks = 0;                    // fields whose fit fell back, over all base frames
     std::array<int, 4> fallbackCounts{};  // by Fallback value
+    int depthFields = 0;                  // fields warped by the depth model (auto: its choice)
     int samples = 0;                      // base frames averaged
 };
 

@@ -8,6 +8,7 @@ std::optional<WarpModel> parseWarpModel(std::string_view name) {
     if (name == "homography") return WarpModel::Homography;
     if (name == "depth") return WarpModel::Depth;
     if (name == "hold") return WarpModel::Hold;
+    if (name == "auto") return WarpModel::Auto;
     return std::nullopt;
 }
 
@@ -23,6 +24,8 @@ std::string_view warpModelName(WarpModel model) {
             return "depth";
         case WarpModel::Hold:
             return "hold";
+        case WarpModel::Auto:
+            return "auto";
     }
     return "?";
 }

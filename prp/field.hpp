@@ -23,12 +23,13 @@ using base::kFieldPeriod;
 using base::parsePixelFormat;
 using base::PixelFormat;
 
-// How a field is made from the latest rendered frame.
-enum class WarpModel { Poly, Affine, Homography, Depth, Hold };
+// How a field is made from the latest rendered frame. Auto picks Poly or Depth per field by the
+// quadratic's measured error on check points (PrpOptions::autoThresholdPx).
+enum class WarpModel { Poly, Affine, Homography, Depth, Hold, Auto };
 // What the fit fell back to when the model's own fit was unusable.
 enum class Fallback { None, Affine, Rotation, Hold };
 
-// "poly" | "affine" | "homography" | "depth" | "hold"; empty for anything else.
+// "poly" | "affine" | "homography" | "depth" | "hold" | "auto"; empty for anything else.
 std::optional<WarpModel> parseWarpModel(std::string_view name);
 std::string_view warpModelName(WarpModel model);
 std::string_view fallbackName(Fallback fallback);
@@ -47,6 +48,8 @@ struct WarpInfo {
     int pointsUsed = 0;       // control points used by the fit
     bool projective = false;  // true: `h` holds the warp (homography model)
     std::array<double, 9> h{};
+    // Auto: the quadratic's largest error on the check points, rendered pixels (-1: not measured).
+    double checkErrorPx = -1.0;
 };
 
 // One field: only the lines of its parity. `pixels` is reused from field to field.
@@ -65,6 +68,7 @@ struct Field {
     std::size_t stride = 0;  // bytes per field line
     WarpInfo warp;
     std::uint64_t edgeSamples = 0;  // samples that fell outside the rendered frame (edge repeated)
+    std::uint64_t holeSamples = 0;  // depth model: pixels no rendered pixel landed on
     double warpMs = 0.0;            // time spent in process(), milliseconds
     double gain = 1.0;              // AGC gain applied to this field
 

@@ -18,7 +18,6 @@ namespace prp {
 namespace {
 
 constexpr float kEmpty = std::numeric_limits<float>::max();
-constexpr float kSkySplat = 1e38f;  // behind every terrain point, in front of "empty"
 
 void checkFrame(const ig::RenderedFrame& frame, bool needDepth) {
     const ig::Intrinsics& in = frame.intrinsics;
@@ -64,6 +63,10 @@ PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options) : opti
           options.maxGain <= 16.0)) {
         throw ig::InputError("AGC gain limits: need 0 < min <= 1 <= max <= 16");
     }
+    if (!(options.autoThresholdPx > 0.0 && options.autoThresholdPx <= 1e6)) {
+        throw ig::InputError("auto threshold " + base::number(options.autoThresholdPx) +
+                             " px: must be positive");
+    }
     if (!(options.holdAfter >= 0.0 && options.holdAfter <= 3600.0)) {
         throw ig::InputError("hold after " + base::number(options.holdAfter) +
                              " s: must be from 0 (never) to 3600 s");
@@ -104,12 +107,14 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 }
 
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
-                                     double time, std::uint64_t fieldIndex, Field& out) {
+                                     double time, std::uint64_t fieldIndex, Field& out,
+                                     std::optional<WarpModel> forced) {
     const auto start = std::chrono::steady_clock::now();
     const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
-    const WarpModel model = stale ? WarpModel::Hold : options_.model;
-    const bool depthModel = model == WarpModel::Depth;
-    checkFrame(frame, options_.model == WarpModel::Depth);
+    const WarpModel chosen = forced.value_or(options_.model);
+    const WarpModel model = stale ? WarpModel::Hold : chosen;
+    const bool depthModel = model == WarpModel::Depth || model == WarpModel::Auto;
+    checkFrame(frame, chosen == WarpModel::Depth || chosen == WarpModel::Auto);
 
     out.index = fieldIndex;
     out.parity = fieldParity(fieldIndex);
@@ -123,6 +128,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     out.format = options_.format;
     out.stride = static_cast<std::size_t>(out.width) * bytesPerPixel(out.format);
     out.pixels.resize(out.stride * static_cast<std::size_t>(out.lines));
+    out.holeSamples = 0;
 
     const OutputGeometry geometry =
         OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight);
@@ -131,25 +137,46 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     std::uint64_t lumaSum = 0;
 
     const bool poseOk = poseAtField.isFinite() && frame.pose.isFinite();
-    if (depthModel && poseOk) {
-        warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);
+    FitOptions fit;
+    fit.model = depthModel ? WarpModel::Poly : model;
+    fit.useSky = options_.useSky;
+    out.warp = fitWarp(frame, poseAtField, geometry, fit, hasPrevious_ ? &previous_ : nullptr);
+    previous_ = out.warp;
+    hasPrevious_ = true;
+    bool useDepth = depthModel && poseOk;
+    if (useDepth && model == WarpModel::Auto) {
+        // The quadratic where it is good enough: its error on the check points, and no fallback.
+        std::array<Correspondence, kCheckPointCount> check;
+        const std::size_t n = checkCorrespondences(frame, poseAtField, geometry, check);
+        out.warp.checkErrorPx = warpCheckError(out.warp, {check.data(), n});
+        useDepth = out.warp.fallback != Fallback::None ||
+                   !(out.warp.checkErrorPx <= options_.autoThresholdPx);
+    }
+    const FieldView view{out.pixels.data(),          out.stride, out.width,
+                         fieldFirstLine(out.parity), out.lines,  out.format};
+    if (useDepth) {
+        if (options_.depthReference) {
+            const WarpInfo fitted = out.warp;
+            warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);
+            out.warp = fitted;
+        } else {
+            const DepthWarpResult r = depthWarp_.apply(frame, sourcePixels(frame), poseAtField,
+                                                       geometry, quadraticOf(out.warp), view,
+                                                       gainQ8, options_.agc, options_.depthKernel);
+            out.edgeSamples = r.edgeSamples;
+            out.holeSamples = r.holes;
+            lumaSum = r.lumaSum;
+        }
+        out.warp.model = WarpModel::Depth;
     } else {
-        FitOptions fit;
-        fit.model = depthModel ? WarpModel::Poly : model;
-        fit.useSky = options_.useSky;
-        out.warp = fitWarp(frame, poseAtField, geometry, fit, hasPrevious_ ? &previous_ : nullptr);
-        if (depthModel) out.warp.model = WarpModel::Depth;
+        if (depthModel) out.warp.model = model == WarpModel::Auto ? WarpModel::Poly : model;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
-        const FieldView view{out.pixels.data(),          out.stride, out.width,
-                             fieldFirstLine(out.parity), out.lines,  out.format};
         const ApplyResult r =
             out.warp.projective
                 ? applyHomography(source, Homography{out.warp.h}, view, gainQ8, options_.agc)
                 : applyQuadratic(source, quadraticOf(out.warp), view, gainQ8, options_.agc);
         out.edgeSamples = r.edgeSamples;
         lumaSum = r.lumaSum;
-        previous_ = out.warp;
-        hasPrevious_ = true;
     }
 
     out.gain = options_.agc ? gainQ8 / static_cast<double>(kUnityGain) : 1.0;
@@ -286,9 +313,6 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
                    out.pixels.data() + static_cast<std::size_t>(line) * out.stride, lumaSum);
     }
     out.edgeSamples = edge;
-    out.warp = WarpInfo{};
-    out.warp.model = WarpModel::Depth;
-    out.warp.fallback = Fallback::None;
 }
 
 }  // namespace prp

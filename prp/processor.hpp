@@ -3,10 +3,12 @@
 
 #include "ig/camera.hpp"
 #include "ig/frame.hpp"
+#include "prp/depth_warp.hpp"
 #include "prp/field.hpp"
 #include "prp/warp_fit.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace prp {
@@ -25,20 +27,30 @@ struct PrpOptions {
     // holds it (the Hold model: the frame as rendered, roll applied), as when the renderer has
     // stopped delivering; 0: never.
     double holdAfter = 0.0;
+    // Auto: a field whose quadratic misses any check point by more than this (rendered pixels),
+    // or whose fit fell back, is warped by the depth model.
+    double autoThresholdPx = 0.25;
+    // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
+    // double-precision per-pixel reference (tests and comparisons: tens of times slower).
+    DepthKernel depthKernel = DepthKernel::Auto;
+    bool depthReference = false;
 };
 
 class PostRenderingProcessor {
   public:
     // Throws ig::InputError naming the option when the options are unusable (size below 2 x 2,
-    // odd width for UYVY, AGC target or rate out of range).
+    // odd width for UYVY, AGC target or rate out of range, auto threshold not positive).
     explicit PostRenderingProcessor(const PrpOptions& options);
 
     // Warps `frame` (rendered at frame.pose with roll 0, with margins) to `poseAtField` (roll
     // included), writing only the lines of fieldParity(fieldIndex) into `out`. Allocates only
     // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose
     // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
+    // `model`, when given, replaces options().model for this field (stereo forces the depth
+    // model on a field whose two quadratic fits disagree on rows).
     void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
-                 std::uint64_t fieldIndex, Field& out);
+                 std::uint64_t fieldIndex, Field& out,
+                 std::optional<WarpModel> model = std::nullopt);
 
     const PrpOptions& options() const { return options_; }
     // AGC gain the next field will use.
@@ -63,6 +75,7 @@ class PostRenderingProcessor {
     std::vector<float> splatSource_;
     std::vector<float> splatDepth_;
     std::vector<std::uint8_t> rowRgb_;
+    DepthWarp depthWarp_;
 };
 
 }  // namespace prp

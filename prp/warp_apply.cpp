@@ -70,6 +70,30 @@ ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFrom
     return dispatch(source, QuadraticRows{sourceFromOutput}, field, gainQ8, agc);
 }
 
+ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const std::int64_t* ys,
+                        std::size_t stride, const FieldView& field, int gainQ8, bool agc,
+                        WarpKernel kernel) {
+#if VIG_PRP_HAVE_AVX2
+    if (kernel != WarpKernel::Scalar && avx2Takes(source, gainQ8) && cpuHasAvx2()) {
+        return applyPointsAvx2(source, xs, ys, stride, field, gainQ8, agc);
+    }
+#else
+    (void)kernel;
+#endif
+    return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
+        Sampler s(source);
+        std::uint64_t luma = 0;
+        for (int line = 0; line < field.lines; ++line) {
+            LinePositions pos{xs + static_cast<std::size_t>(line) * stride,
+                              ys + static_cast<std::size_t>(line) * stride};
+            writePixels<F, G, A>(s, pos, field.width, gainQ8,
+                                 field.pixels + static_cast<std::size_t>(line) * field.stride,
+                                 luma);
+        }
+        return ApplyResult{s.edge, luma};
+    });
+}
+
 ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
                             const FieldView& field, int gainQ8, bool agc) {
     return dispatch(source, ProjectiveRows{sourceFromOutput}, field, gainQ8, agc);

@@ -52,6 +52,13 @@ bool warpKernelSupported(WarpKernel kernel);
 ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFromOutput,
                            const FieldView& field, int gainQ8, bool agc,
                            WarpKernel kernel = WarpKernel::Auto);
+// Samples given source points: field line L's pixel x at (xs, ys)[L * stride + x], rendered-frame
+// coordinates minus half a pixel in 32.32 fixed point (as the quadratic kernel's points), with
+// the same bilinear taps, edge handling and colour conversion. Kernels as for applyQuadratic
+// (AVX-512 runs the AVX2 kernel).
+ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const std::int64_t* ys,
+                        std::size_t stride, const FieldView& field, int gainQ8, bool agc,
+                        WarpKernel kernel = WarpKernel::Auto);
 // Same with a projective map (one division per pixel); its denominator must be positive.
 ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
                             const FieldView& field, int gainQ8, bool agc);

@@ -20,6 +20,7 @@
 #if VIG_PRP_HAVE_AVX2
 
 #include <cstring>
+#include <type_traits>
 
 namespace prp::detail {
 
@@ -101,11 +102,90 @@ VIG_TARGET_AVX2 inline __m256i fractions(__m256i a, __m256i b) {
         24);
 }
 
-template <PixelFormat kFormat, bool kGain, bool kAgc>
-VIG_TARGET_AVX2 ApplyResult quadraticAvx2(const SourceView& source, const Quadratic& q,
-                                          const FieldView& field, int gainQ8) {
+// Source points of the quadratic: each lane keeps the scalar recurrence's point of its pixel.
+struct QuadraticLanes {
+    QuadraticRows rows;
+    __m256i xa, xb, ya, yb;  // 64-bit points of pixels 0, 1, 4, 5 (a) and 2, 3, 6, 7 (b)
+    __m256i sxa, sya, ddx16, ddy16, ddx64, ddy64;
+
+    VIG_TARGET_AVX2 void start(int frameLine) {
+        alignas(32) std::int64_t px[8], py[8], psx[8], psy[8];
+        rows.start(frameLine + 0.5);
+        // Lane k starts at pixel k of the scalar recurrence (wrapping arithmetic, as the lanes'
+        // adds) and moves 8 pixels per step: x += sx, sx += 64 ddx with sx = 8 dx + 28 ddx.
+        std::uint64_t x = static_cast<std::uint64_t>(rows.x);
+        std::uint64_t y = static_cast<std::uint64_t>(rows.y);
+        std::uint64_t dx = static_cast<std::uint64_t>(rows.dx);
+        std::uint64_t dy = static_cast<std::uint64_t>(rows.dy);
+        const std::uint64_t ddx = static_cast<std::uint64_t>(rows.ddx);
+        const std::uint64_t ddy = static_cast<std::uint64_t>(rows.ddy);
+        for (int k = 0; k < 8; ++k) {
+            px[kSlot[k]] = static_cast<std::int64_t>(x);
+            py[kSlot[k]] = static_cast<std::int64_t>(y);
+            psx[kSlot[k]] = static_cast<std::int64_t>(8 * dx + 28 * ddx);
+            psy[kSlot[k]] = static_cast<std::int64_t>(8 * dy + 28 * ddy);
+            x += dx;
+            dx += ddx;
+            y += dy;
+            dy += ddy;
+        }
+        xa = load(px);
+        xb = load(px + 4);
+        ya = load(py);
+        yb = load(py + 4);
+        // Slots b are 2 pixels ahead of slots a: their steps are 16 dd larger.
+        sxa = load(psx);
+        sya = load(psy);
+        ddx16 = _mm256_set1_epi64x(static_cast<long long>(16 * ddx));
+        ddy16 = _mm256_set1_epi64x(static_cast<long long>(16 * ddy));
+        ddx64 = _mm256_set1_epi64x(static_cast<long long>(64 * ddx));
+        ddy64 = _mm256_set1_epi64x(static_cast<long long>(64 * ddy));
+    }
+    VIG_TARGET_AVX2 void step() {
+        xa = _mm256_add_epi64(xa, sxa);
+        xb = _mm256_add_epi64(xb, _mm256_add_epi64(sxa, ddx16));
+        ya = _mm256_add_epi64(ya, sya);
+        yb = _mm256_add_epi64(yb, _mm256_add_epi64(sya, ddy16));
+        sxa = _mm256_add_epi64(sxa, ddx64);
+        sya = _mm256_add_epi64(sya, ddy64);
+    }
+};
+
+// Source points given per pixel (32.32, minus half a pixel), one array pair per field line.
+struct ArrayLanes {
+    const std::int64_t* xs;  // line L's points at xs + L * stride
+    const std::int64_t* ys;
+    std::size_t stride;
+    const std::int64_t* x = nullptr;
+    const std::int64_t* y = nullptr;
+    __m256i xa, xb, ya, yb;
+
+    VIG_TARGET_AVX2 void start(int line) {
+        x = xs + static_cast<std::size_t>(line) * stride;
+        y = ys + static_cast<std::size_t>(line) * stride;
+    }
+    // Loads the next 8 points: called only when 8 more pixels follow (the caller's loop bound).
+    VIG_TARGET_AVX2 void read() {
+        // Natural order (0 1 2 3 | 4 5 6 7) to the slots: a = 0 1 4 5, b = 2 3 6 7.
+        const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x));
+        const __m256i x1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x + 4));
+        const __m256i y0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(y));
+        const __m256i y1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(y + 4));
+        xa = _mm256_permute2x128_si256(x0, x1, 0x20);
+        xb = _mm256_permute2x128_si256(x0, x1, 0x31);
+        ya = _mm256_permute2x128_si256(y0, y1, 0x20);
+        yb = _mm256_permute2x128_si256(y0, y1, 0x31);
+    }
+    VIG_TARGET_AVX2 void step() {
+        x += 8;
+        y += 8;
+    }
+};
+
+template <PixelFormat kFormat, bool kGain, bool kAgc, class Lanes>
+VIG_TARGET_AVX2 ApplyResult warpAvx2(const SourceView& source, Lanes& lanes, const FieldView& field,
+                                     int gainQ8) {
     Sampler s(source);
-    QuadraticRows rows{q};
     std::uint64_t luma = 0;
     const int width = field.width;
     const std::uint8_t* row0 = s.base;
@@ -133,39 +213,20 @@ VIG_TARGET_AVX2 ApplyResult quadraticAvx2(const SourceView& source, const Quadra
         _mm256_setr_epi32(words(kCbB, 0), words(kCrB, 0), words(kCbB, 0), words(kCrB, 0),
                           words(kCbB, 0), words(kCrB, 0), words(kCbB, 0), words(kCrB, 0));
 
-    alignas(32) std::int64_t px[8], py[8], psx[8], psy[8];
+    alignas(32) std::int64_t px[8], py[8];
     for (int line = 0; line < field.lines; ++line) {
         std::uint8_t* out = field.pixels + static_cast<std::size_t>(line) * field.stride;
-        rows.start(field.firstLine + 2 * line + 0.5);
-        // Lane k starts at pixel k of the scalar recurrence (wrapping arithmetic, as the lanes'
-        // adds) and moves 8 pixels per step: x += sx, sx += 64 ddx with sx = 8 dx + 28 ddx.
-        std::uint64_t x = static_cast<std::uint64_t>(rows.x);
-        std::uint64_t y = static_cast<std::uint64_t>(rows.y);
-        std::uint64_t dx = static_cast<std::uint64_t>(rows.dx);
-        std::uint64_t dy = static_cast<std::uint64_t>(rows.dy);
-        const std::uint64_t ddx = static_cast<std::uint64_t>(rows.ddx);
-        const std::uint64_t ddy = static_cast<std::uint64_t>(rows.ddy);
-        for (int k = 0; k < 8; ++k) {
-            px[kSlot[k]] = static_cast<std::int64_t>(x);
-            py[kSlot[k]] = static_cast<std::int64_t>(y);
-            psx[kSlot[k]] = static_cast<std::int64_t>(8 * dx + 28 * ddx);
-            psy[kSlot[k]] = static_cast<std::int64_t>(8 * dy + 28 * ddy);
-            x += dx;
-            dx += ddx;
-            y += dy;
-            dy += ddy;
+        if constexpr (std::is_same_v<Lanes, QuadraticLanes>) {
+            lanes.start(field.firstLine + 2 * line);
+        } else {
+            lanes.start(line);
         }
-        __m256i xa = load(px), xb = load(px + 4), ya = load(py), yb = load(py + 4);
-        // Slots b are 2 pixels ahead of slots a: their steps are 16 dd larger.
-        __m256i sxa = load(psx), sya = load(psy);
-        const __m256i ddx16 = _mm256_set1_epi64x(static_cast<long long>(16 * ddx));
-        const __m256i ddy16 = _mm256_set1_epi64x(static_cast<long long>(16 * ddy));
-        const __m256i ddx64 = _mm256_set1_epi64x(static_cast<long long>(64 * ddx));
-        const __m256i ddy64 = _mm256_set1_epi64x(static_cast<long long>(64 * ddy));
         __m256i lumaSum = _mm256_setzero_si256();
 
         int i = 0;
         for (; i + 8 <= width; i += 8) {
+            if constexpr (!std::is_same_v<Lanes, QuadraticLanes>) lanes.read();
+            const __m256i xa = lanes.xa, xb = lanes.xb, ya = lanes.ya, yb = lanes.yb;
             const __m256i xi = highDwords(xa, xb), yi = highDwords(ya, yb);
             // Outside the interior: x0 > w - 3, y0 > h - 2 or either negative (sign bit).
             const __m256i outside = _mm256_or_si256(
@@ -278,20 +339,21 @@ VIG_TARGET_AVX2 ApplyResult quadraticAvx2(const SourceView& source, const Quadra
                 ArrayPositions pos{px, py, kSlot};
                 out = writePixels<kFormat, kGain, kAgc>(s, pos, 8, gainQ8, out, luma);
             }
-            xa = _mm256_add_epi64(xa, sxa);
-            xb = _mm256_add_epi64(xb, _mm256_add_epi64(sxa, ddx16));
-            ya = _mm256_add_epi64(ya, sya);
-            yb = _mm256_add_epi64(yb, _mm256_add_epi64(sya, ddy16));
-            sxa = _mm256_add_epi64(sxa, ddx64);
-            sya = _mm256_add_epi64(sya, ddy64);
+            lanes.step();
         }
         if (i < width) {
-            store(px, xa);
-            store(px + 4, xb);
-            store(py, ya);
-            store(py + 4, yb);
-            ArrayPositions pos{px, py, kSlot};
-            writePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
+            if constexpr (std::is_same_v<Lanes, QuadraticLanes>) {
+                store(px, lanes.xa);
+                store(px + 4, lanes.xb);
+                store(py, lanes.ya);
+                store(py + 4, lanes.yb);
+                ArrayPositions pos{px, py, kSlot};
+                writePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
+            } else {
+                // The line's last width % 8 points, in natural order.
+                LinePositions pos{lanes.x, lanes.y};
+                writePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
+            }
         }
         if constexpr (kAgc) luma += sumLanes(lumaSum);
     }
@@ -303,7 +365,18 @@ VIG_TARGET_AVX2 ApplyResult quadraticAvx2(const SourceView& source, const Quadra
 ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& sourceFromOutput,
                                const FieldView& field, int gainQ8, bool agc) {
     return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
-        return quadraticAvx2<F, G, A>(source, sourceFromOutput, field, gainQ8);
+        QuadraticLanes lanes{
+            QuadraticRows{sourceFromOutput}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {}};
+        return warpAvx2<F, G, A>(source, lanes, field, gainQ8);
+    });
+}
+
+ApplyResult applyPointsAvx2(const SourceView& source, const std::int64_t* xs,
+                            const std::int64_t* ys, std::size_t stride, const FieldView& field,
+                            int gainQ8, bool agc) {
+    return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
+        ArrayLanes lanes{xs, ys, stride, nullptr, nullptr, {}, {}, {}, {}};
+        return warpAvx2<F, G, A>(source, lanes, field, gainQ8);
     });
 }
 

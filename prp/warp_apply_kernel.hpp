@@ -158,6 +158,17 @@ struct ArrayPositions {
     inline std::int64_t py() const { return y[slot[k]]; }
 };
 
+// Source points of consecutive pixels held in natural order.
+struct LinePositions {
+    const std::int64_t* x;
+    const std::int64_t* y;
+    int k = 0;
+
+    inline void next() { ++k; }
+    inline std::int64_t px() const { return x[k]; }
+    inline std::int64_t py() const { return y[k]; }
+};
+
 template <bool kGain>
 inline void applyGain(int& r, int& g, int& b, int gainQ8) {
     if constexpr (kGain) {
@@ -233,6 +244,11 @@ inline bool cpuHasAvx512() {
 // avx2Takes(source, gainQ8).
 ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& sourceFromOutput,
                                const FieldView& field, int gainQ8, bool agc);
+// applyPoints' AVX2 kernel; bit-identical to the scalar one. Needs cpuHasAvx2() and
+// avx2Takes(source, gainQ8).
+ApplyResult applyPointsAvx2(const SourceView& source, const std::int64_t* xs,
+                            const std::int64_t* ys, std::size_t stride, const FieldView& field,
+                            int gainQ8, bool agc);
 // The same with AVX-512, 16 pixels per step. Needs cpuHasAvx512() and avx2Takes(...).
 ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sourceFromOutput,
                                  const FieldView& field, int gainQ8, bool agc);

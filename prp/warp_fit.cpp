@@ -3,10 +3,12 @@
 #include "ig/caster.hpp"
 
 #include <Eigen/Dense>
+#include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <span>
 
 namespace prp {
@@ -495,6 +497,53 @@ WarpInfo fitWarp(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
     info.rank = 0;
     info.pointsUsed = static_cast<int>(n);
     return info;
+}
+
+std::size_t checkCorrespondences(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
+                                 const OutputGeometry& geometry,
+                                 std::array<Correspondence, kCheckPointCount>& out) {
+    if (!fieldPose.isFinite() || !frame.pose.isFinite()) return 0;
+    const ig::Intrinsics& in = frame.intrinsics;
+    if (frame.depth.size() !=
+        static_cast<std::size_t>(in.width) * static_cast<std::size_t>(in.height)) {
+        return 0;
+    }
+    const ig::Camera src(frame.pose, in);
+    const ig::Camera cam(fieldPose, windowIntrinsics(in));
+    const double sx = static_cast<double>(geometry.width) / geometry.windowWidth;
+    const double sy = static_cast<double>(geometry.height) / geometry.windowHeight;
+    std::size_t n = 0;
+    for (int j = 0; j < kCheckGrid; ++j) {
+        for (int i = 0; i < kCheckGrid; ++i) {
+            const int x = in.margin + static_cast<int>((i + 0.5) * in.windowWidth() / kCheckGrid);
+            const int y = in.margin + static_cast<int>((j + 0.5) * in.windowHeight() / kCheckGrid);
+            const double d = frame.depth[static_cast<std::size_t>(y) * in.width + x];
+            const glm::dvec2 pixel{x + 0.5, y + 0.5};
+            const glm::dvec3 dir = glm::normalize(src.rayDirection(pixel.x, pixel.y));
+            std::optional<glm::dvec2> q;
+            if (std::isfinite(d) && d >= 0.0) {
+                q = cam.project(frame.pose.position + d * dir, 1.0);
+            } else if (d == std::numeric_limits<double>::infinity()) {
+                q = cam.project(dir, 0.0);
+            }
+            if (!q || !finite(*q)) continue;
+            out[n++] = {{q->x * sx, q->y * sy}, pixel};
+        }
+    }
+    return n;
+}
+
+double warpCheckError(const WarpInfo& warp, std::span<const Correspondence> pairs) {
+    double worst = 0.0;
+    const Quadratic q = quadraticOf(warp);
+    const Homography hm{warp.h};
+    for (const Correspondence& c : pairs) {
+        const glm::dvec2 p = warp.projective ? hm(c.field) : q(c.field);
+        const double e = std::hypot(p.x - c.source.x, p.y - c.source.y);
+        if (!std::isfinite(e)) return std::numeric_limits<double>::infinity();
+        worst = std::max(worst, e);
+    }
+    return worst;
 }
 
 }  // namespace prp

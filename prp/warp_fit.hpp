@@ -136,4 +136,19 @@ WarpInfo fitWarp(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
 
 Quadratic quadraticOf(const WarpInfo& info);
 
+// Check points of the automatic model choice: a kCheckGrid x kCheckGrid grid of window pixels
+// (cell centres) and the world point each shows, read from the frame's depth (the same
+// registration as the control points: the pixel centre's ray at its depth).
+inline constexpr int kCheckGrid = 5;
+inline constexpr int kCheckPointCount = kCheckGrid * kCheckGrid;
+// The check points seen from `fieldPose` (roll included): output pixel (`field`) -> rendered
+// pixel (`source`) pairs. Points with no usable depth (NaN, negative), behind the camera or
+// non-finite are dropped; sky pixels are directions. Returns the number written.
+std::size_t checkCorrespondences(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
+                                 const OutputGeometry& geometry,
+                                 std::array<Correspondence, kCheckPointCount>& out);
+// Largest distance, in rendered pixels, from `warp` of each pair's output pixel to its rendered
+// pixel; 0 without pairs, +inf when a result is not finite.
+double warpCheckError(const WarpInfo& warp, std::span<const Correspondence> pairs);
+
 }  // namespace prp

@@ -488,6 +488,32 @@ def warp(p):
               NO_TARGET, cmd)
 
 
+def depth_warp(p):
+    p.group = "Post-rendering processor"
+    doc = p.load("depth_warp_bench.json")
+    if not doc:
+        return
+    cmd = p.command("depth_warp_bench")
+    depth = gbench_find(doc, "BM_PrpDepthUyvyField")
+    scalar = gbench_find(doc, "BM_PrpDepthUyvyFieldScalar")
+    poly = gbench_find(doc, "BM_PrpPolyUyvyFieldWithFit")
+    if not (depth and poly):
+        return
+    # The counter is an inverted rate: seconds per pixel.
+    d = [x * 1e9 for x in gbench_runs(doc, depth, "ns_per_px")]
+    q = [x * 1e9 for x in gbench_runs(doc, poly, "ns_per_px")]
+    load = p.loads.get("depth_warp_bench")
+    p.row("Depth warp of one 720×243 field (float splat of the 816×582 frame with a z-test, "
+          "AVX2 projection, holes from the quadratic; fit included), UYVY, 1 thread",
+          "≤ 10 ns/px", f"{spread(d, 1, ' ns/px')}; the quadratic with its fit "
+          f"{spread(q, 2, ' ns/px')} ({spread(ratios(d, q), 1, '×')})",
+          status(statistics.median(d) <= 10.0), cmd)
+    if scalar:
+        sc = [x * 1e9 for x in gbench_runs(doc, scalar, "ns_per_px")]
+        p.row("The same with the scalar projection (its bit-identical twin)", "—",
+              spread(sc, 1, " ns/px"), NO_TARGET, cmd)
+
+
 def warp_eval(p):
     p.group = "Post-rendering processor"
     doc = p.load("warp_eval.json")
@@ -509,6 +535,30 @@ def warp_eval(p):
           "—", f"k = 1 field: {fmt(poly1['psnr_db'], 1)} dB / {fmt(poly1['mae_pct'], 2)} %; "
           f"k = {kmax}: {fmt(polyk['psnr_db'], 1)} dB / {fmt(polyk['mae_pct'], 2)} % "
           f"(mean of {frames} base frames)", NO_TARGET, cmd)
+    if "auto" in models and "depth" in models:
+        diffs = [by[("auto", k)]["psnr_db"] - max(by[("poly", k)]["psnr_db"],
+                                                  by[("depth", k)]["psnr_db"]) for k in horizons]
+        share = sum(by[("auto", k)].get("depth_fields", 0) for k in horizons) / max(
+            1, sum(by[("auto", k)]["base_frames"] for k in horizons))
+        ns_auto = statistics.mean(by[("auto", k)]["ns_per_pixel"] for k in horizons)
+        ns_depth = statistics.mean(by[("depth", k)]["ns_per_pixel"] for k in horizons)
+        ns_poly = statistics.mean(by[("poly", k)]["ns_per_pixel"] for k in horizons)
+        p.row("Auto warp (per field: the quadratic, or the depth warp where the quadratic misses "
+              "its 5×5 check points by more than 0.25 px), all trajectories: PSNR against the "
+              "better of the quadratic and the depth warp alone, worst horizon",
+              "≥ −0.25 dB", f"{fmt(min(diffs), 2)} dB (best {fmt(max(diffs), 2)} dB); depth "
+              f"warp on {fmt(100 * share, 0)} % of the fields; {fmt(ns_auto, 1)} ns/px against "
+              f"{fmt(ns_poly, 1)} (quadratic) and {fmt(ns_depth, 1)} (depth)",
+              status(min(diffs) >= -0.25), cmd)
+        low = [t for t in doc["trajectories"] if t["trajectory"].endswith("low.csv")]
+        if low:
+            lb = {(c["model"], c["horizon"]): c for c in low[0]["results"]}
+            p.row("Low and fast (low.csv, 40 m at 200 m/s): PSNR at k = 1 → k = "
+                  f"{kmax} fields", "—",
+                  "; ".join(f"{m} {fmt(lb[(m, 1)]['psnr_db'], 1)} → "
+                            f"{fmt(lb[(m, kmax)]['psnr_db'], 1)} dB"
+                            for m in ("poly", "depth", "auto") if (m, 1) in lb),
+                  NO_TARGET, cmd)
     zero = p.load("warp_eval_levels0.json")
     if zero:
         other = {(c["model"], c["horizon"]): c for c in zero["results"]}
@@ -638,6 +688,41 @@ def pipeline(p):
               status(age["max"] < 1000.0 / 12), p.command("flythrough_simulated"))
 
 
+def stereo_pipeline(p):
+    p.group = "Real-time pipeline and output"
+    st = p.load("flythrough_stereo.json")
+    mono = p.load("flythrough_stereo_mono.json")
+    if not st:
+        return
+    cmd = p.command("flythrough_stereo")
+    eye = st.get("stereo", {})
+    size = f"{eye.get('eye_width', '?')}×{eye.get('eye_height', '?')}"
+    load = p.loads.get("flythrough_stereo")
+    at = f"; load average {fmt(load, 1)} as it started" if load is not None else ""
+    p.row(f"Stereo pipeline on the wall clock, {fmt(st['elapsed_s'], 0)} s, {size} per eye side "
+          f"by side, {eye.get('separation_m', '?')} m between the eyes, renderer thread: missed "
+          "field deadlines", "0",
+          f"{st['missed_deadlines']} of {st['fields']} fields{at}; field interval max "
+          f"{fmt(st['field_interval_ms']['max'], 1)} ms",
+          status(st["missed_deadlines"] == 0), cmd)
+    if mono:
+        p.row("Render rate of the stereo pair (left eye cast, right eye reprojected) against "
+              "mono, same renderer thread and scenario", "—",
+              f"{fmt(st['render_fps'], 1)} fps against {fmt(mono['render_fps'], 1)} fps "
+              f"({fmt(st['render_fps'] / mono['render_fps'], 2)}×)", NO_TARGET,
+              cmd + " and " + p.command("flythrough_stereo_mono"))
+    right = st["right_eye"]["warp_ms"]
+    p.row("Field time per eye, p50 / p99 (fit, check, warp; auto model)", "—",
+          f"left {fmt(st['warp_ms']['p50'], 2)} / {fmt(st['warp_ms']['p99'], 2)} ms, right "
+          f"{fmt(right['p50'], 2)} / {fmt(right['p99'], 2)} ms", NO_TARGET, cmd)
+    vd = st["vertical_disparity_px"]
+    p.row("Vertical disparity between the eyes (rows), max over the run: as shown / of the two "
+          "quadratic fits", "≤ 0.25 rows",
+          f"{fmt(vd['max'], 3)} / {fmt(st['fit_vertical_disparity_px']['max'], 3)} rows; "
+          f"{st.get('fields_depth_for_rows', 0)} fields took the depth model for it",
+          status(vd["max"] <= 0.25), cmd)
+
+
 def renderer_process(p):
     p.group = "Real-time pipeline and output"
     doc = p.load("field_clock.json")
@@ -754,9 +839,11 @@ def render(data_dir):
     appearance(p)
     callgrind(p)
     warp(p)
+    depth_warp(p)
     warp_eval(p)
     stereo(p)
     pipeline(p)
+    stereo_pipeline(p)
     renderer_process(p)
     cigi(p)
     io_layer(p)

@@ -130,6 +130,11 @@ if wanted warp; then
     run warp_bench "$bin/bench-warp" --benchmark_repetitions=8 --benchmark_min_time=0.2 \
         --benchmark_enable_random_interleaving=true \
         --benchmark_out="$data/warp_bench.json" --benchmark_out_format=json
+    # The whole processor on a field of a frame with depth: the depth warp against the quadratic.
+    run depth_warp_bench "$bin/bench-warp" \
+        --benchmark_filter='BM_Prp[DP][eo][pl]' \
+        --benchmark_repetitions=5 --benchmark_enable_random_interleaving=true \
+        --benchmark_out="$data/depth_warp_bench.json" --benchmark_out_format=json
 fi
 
 if wanted warp-eval; then
@@ -161,6 +166,12 @@ if wanted stereo; then
 fi
 
 if wanted flythrough; then
+    # Stereo (2 m between the eyes, 720x486 per eye, side by side) against mono, both with the
+    # renderer as a thread (stereo frames cross only a thread for now).
+    run flythrough_stereo "$bin/flythrough" --stereo 2 --duration 60 --out null --contact none \
+        --quiet --json "$data/flythrough_stereo.json"
+    run flythrough_stereo_mono "$bin/flythrough" --renderer thread --duration 60 --out null \
+        --contact none --quiet --json "$data/flythrough_stereo_mono.json"
     # The default scenario over Puget Sound, unthrottled renderer, on the wall clock: three runs
     # with the default multiresolution caster, two with the exact single level.
     for i in 1 2 3; do

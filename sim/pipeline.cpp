@@ -1,6 +1,7 @@
 #include "sim/pipeline.hpp"
 
 #include "base/check.hpp"
+#include "ig/error.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -162,6 +163,26 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
     options_.prp.outWidth = sink.format().width;
     options_.prp.outHeight = sink.format().height;
     options_.prp.format = sink.format().format;
+    if (options_.stereo) {
+        // Each eye's processor makes the eye's part of the sink's frame.
+        if (options_.rendererMode != RendererMode::Thread) {
+            throw ig::InputError("stereo: the renderer must run as a thread (--renderer thread)");
+        }
+        const StereoLayout layout = options_.stereo->layout;
+        stereoEyeSize(layout, sink.format().width, sink.format().height, options_.prp.outWidth,
+                      options_.prp.outHeight);
+        int w = 0, h = 0;
+        stereoOutputSize(layout, options_.prp.outWidth, options_.prp.outHeight, w, h);
+        if (w != sink.format().width || h != sink.format().height ||
+            (layout == StereoLayout::TopBottom && options_.prp.outHeight % 2 != 0)) {
+            throw ig::InputError("stereo " + std::string(stereoLayoutName(layout)) + ": output " +
+                                 std::to_string(sink.format().width) + "x" +
+                                 std::to_string(sink.format().height) +
+                                 " does not split into two equal eyes (top-bottom: of even "
+                                 "height)");
+        }
+        options_.prp.format = StereoComposer(layout, options_.prp.format).eyeFormat();
+    }
 }
 
 Pipeline::~Pipeline() = default;
@@ -410,6 +431,16 @@ PipelineResult Pipeline::run() {
     const bool process = options_.rendererMode == RendererMode::Process;
     prp::PostRenderingProcessor processor(options_.prp);
     stats_.reserve(fieldCount_);
+    // Stereo: the right eye's processor, the eyes' fields and the composer.
+    const bool stereo = options_.stereo.has_value();
+    std::optional<prp::PostRenderingProcessor> rightProcessor;
+    std::optional<StereoComposer> composer;
+    prp::Field leftField, rightField;
+    std::uint64_t stereoDepthFields = 0;  // fields whose eyes took the depth model for rows
+    if (stereo) {
+        rightProcessor.emplace(options_.prp);
+        composer.emplace(options_.stereo->layout, sink_.format().format);
+    }
 
     // Frame 0 is rendered before the first slot, at the start pose, so field 0 has a frame.
     t0_ = poses_.startTime();
@@ -485,7 +516,49 @@ PipelineResult Pipeline::run() {
         frames_.fetch();
         const ig::RenderedFrame& frame = frames_.front();
         noteFrameShown(frame, clock_.now());
-        processor.process(frame, pose, t, n, field);
+        double rightWarpMs = -1.0, disparity = -1.0, firstDisparity = -1.0;
+        prp::Fallback rightFallback = prp::Fallback::None;
+        prp::WarpModel rightModel = prp::WarpModel::Poly;
+        if (stereo) {
+            if (!frame.right) {
+                result.error = "stereo: frame " + std::to_string(frame.sequence) +
+                               " has no right eye (the renderer is not a stereo renderer)";
+                break;
+            }
+            // Each eye at the field instant, roll about the head; each warped by its own fit.
+            const EyePoses eyes = eyePoses(pose, options_.stereo->separation);
+            processor.process(frame, eyes.left, t, n, leftField);
+            rightProcessor->process(*frame.right, eyes.right, t, n, rightField);
+            const prp::OutputGeometry geometry = prp::OutputGeometry::of(
+                frame.intrinsics, options_.prp.outWidth, options_.prp.outHeight);
+            disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
+                                          eyes, geometry);
+            firstDisparity = disparity;
+            if (disparity > kMaxVerticalDisparityRows) {
+                // The fits disagree on rows: the eyes warped by a quadratic take the depth
+                // model, which puts every point on its own row.
+                const double leftMs = leftField.warpMs, rightMs = rightField.warpMs;
+                if (leftField.warp.model != prp::WarpModel::Depth) {
+                    processor.process(frame, eyes.left, t, n, leftField, prp::WarpModel::Depth);
+                    leftField.warpMs += leftMs;
+                }
+                if (rightField.warp.model != prp::WarpModel::Depth) {
+                    rightProcessor->process(*frame.right, eyes.right, t, n, rightField,
+                                            prp::WarpModel::Depth);
+                    rightField.warpMs += rightMs;
+                }
+                disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
+                                              eyes, geometry);
+                ++stereoDepthFields;
+            }
+            composer->compose(leftField, rightField, field);
+            field.warpMs = leftField.warpMs;
+            rightWarpMs = rightField.warpMs;
+            rightFallback = rightField.warp.fallback;
+            rightModel = rightField.warp.model;
+        } else {
+            processor.process(frame, pose, t, n, field);
+        }
         noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);
         const int rc = sink_.writeField(buffer);
@@ -497,7 +570,8 @@ PipelineResult Pipeline::run() {
             break;
         }
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
-                         field.frameSequence});
+                         field.frameSequence, field.warp.model, rightWarpMs, rightFallback,
+                         rightModel, disparity, firstDisparity});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {
@@ -525,6 +599,7 @@ PipelineResult Pipeline::run() {
     if (simulated) renderEndClock_ = clock_.now();
     std::lock_guard lock(restartMutex_);
     result.stats = stats_.summarize(renderEndClock_ - renderStartClock_, simulated);
+    result.stats.depthForRows = stereoDepthFields;
     return result;
 }
 

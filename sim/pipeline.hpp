@@ -10,6 +10,7 @@
 #include "sim/pose_source.hpp"
 #include "sim/render_process.hpp"
 #include "sim/stats.hpp"
+#include "sim/stereo_output.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -67,6 +68,10 @@ struct PipelineOptions {
     bool raiseFieldPriority = true;
     double startDelay = 0.05;  // wall clock: seconds from the first frame to the first field slot
     prp::PrpOptions prp;
+    // Stereo: frames carry a right eye (makeStereoRenderer); each field warps each eye to its
+    // own pose and the sink takes both in one frame (its size is the layout's). The renderer
+    // must be a thread for now (the frame ring carries one eye).
+    std::optional<StereoOutput> stereo;
     // Extra seconds render `sequence` takes (wall: it sleeps; simulated: added to its time).
     std::function<double(std::uint64_t sequence)> renderStall;
     // After the sink took a field (field thread).

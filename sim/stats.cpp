@@ -41,7 +41,8 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     }
     if (renderSeconds > 0.0) s.renderFps = static_cast<double>(s.framesRendered) / renderSeconds;
 
-    std::vector<double> intervals, jitter, lateness, ages, warps;
+    std::vector<double> intervals, jitter, lateness, ages, warps, rightWarps, disparities,
+        fitDisparities;
     intervals.reserve(records_.size());
     jitter.reserve(records_.size());
     lateness.reserve(records_.size());
@@ -63,6 +64,15 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             ++s.fallbacks;
         }
         ++s.fallbacksByKind[static_cast<std::size_t>(r.fallback)];
+        ++s.fieldsByModel[static_cast<std::size_t>(r.model)];
+        if (r.rightWarpMs >= 0.0) {
+            s.stereo = true;
+            rightWarps.push_back(r.rightWarpMs);
+            s.rightFallbacks += r.rightFallback != prp::Fallback::None;
+            ++s.rightFieldsByModel[static_cast<std::size_t>(r.rightModel)];
+            if (r.verticalDisparityPx >= 0.0) disparities.push_back(r.verticalDisparityPx);
+            if (r.fitVerticalDisparityPx >= 0.0) fitDisparities.push_back(r.fitVerticalDisparityPx);
+        }
         if (r.frameSequence != lastSequence) {
             ++s.framesShown;
             lastSequence = r.frameSequence;
@@ -74,6 +84,9 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     s.latenessMs = percentiles(std::move(lateness));
     s.frameAgeMs = percentiles(std::move(ages));
     s.warpMs = percentiles(std::move(warps));
+    s.rightWarpMs = percentiles(std::move(rightWarps));
+    s.verticalDisparityPx = percentiles(std::move(disparities));
+    s.fitVerticalDisparityPx = percentiles(std::move(fitDisparities));
     s.restarts = restarts_;
     return s;
 }
@@ -101,13 +114,24 @@ nlohmann::json restartsJson(const std::vector<RendererRestart>& restarts) {
 }
 }  // namespace
 
+static nlohmann::json modelsJson(const std::array<std::uint64_t, 6>& counts) {
+    nlohmann::json byModel = nlohmann::json::object();
+    for (std::size_t m = 0; m < counts.size(); ++m) {
+        if (counts[m] > 0) {
+            byModel[std::string(prp::warpModelName(static_cast<prp::WarpModel>(m)))] = counts[m];
+        }
+    }
+    return byModel;
+}
+
 nlohmann::json toJson(const StatsSummary& s) {
     nlohmann::json byKind = nlohmann::json::object();
     for (prp::Fallback f : {prp::Fallback::Affine, prp::Fallback::Rotation, prp::Fallback::Hold}) {
         byKind[std::string(prp::fallbackName(f))] = s.fallbacksByKind[static_cast<std::size_t>(f)];
     }
-    return {
+    nlohmann::json j = {
         {"fields", s.fields},
+        {"fields_by_warp", modelsJson(s.fieldsByModel)},
         {"missed_deadlines", s.missedDeadlines},
         {"field_interval_ms", toJson(s.fieldIntervalMs)},
         {"field_jitter_ms", toJson(s.jitterMs)},
@@ -124,6 +148,15 @@ nlohmann::json toJson(const StatsSummary& s) {
         {"clock", s.simulatedClock ? "simulated" : "wall"},
         {"renderer_restarts", restartsJson(s.restarts)},
     };
+    if (s.stereo) {
+        j["right_eye"] = {{"warp_ms", toJson(s.rightWarpMs)},
+                          {"fallbacks", s.rightFallbacks},
+                          {"fields_by_warp", modelsJson(s.rightFieldsByModel)}};
+        j["vertical_disparity_px"] = toJson(s.verticalDisparityPx);
+        j["fit_vertical_disparity_px"] = toJson(s.fitVerticalDisparityPx);
+        j["fields_depth_for_rows"] = s.depthForRows;
+    }
+    return j;
 }
 
 std::string formatSummary(const StatsSummary& s) {
@@ -148,6 +181,26 @@ std::string formatSummary(const StatsSummary& s) {
                   static_cast<unsigned long long>(s.fallbacksByKind[2]),
                   static_cast<unsigned long long>(s.fallbacksByKind[3]));
     std::string text = buf;
+    std::string models;
+    for (std::size_t m = 0; m < s.fieldsByModel.size(); ++m) {
+        if (s.fieldsByModel[m] == 0) continue;
+        models += (models.empty() ? "" : ", ") +
+                  std::string(prp::warpModelName(static_cast<prp::WarpModel>(m))) + " " +
+                  std::to_string(s.fieldsByModel[m]);
+    }
+    if (!models.empty()) text += "warp models     " + models + " fields\n";
+    if (s.stereo) {
+        std::snprintf(buf, sizeof buf,
+                      "right eye warp  p50 %.2f  p99 %.2f  max %.2f ms, fallbacks %llu\n"
+                      "vertical disparity  p50 %.3f  p99 %.3f  max %.3f rows (of the fits: max "
+                      "%.3f; %llu fields took the depth model for it)\n",
+                      s.rightWarpMs.p50, s.rightWarpMs.p99, s.rightWarpMs.max,
+                      static_cast<unsigned long long>(s.rightFallbacks), s.verticalDisparityPx.p50,
+                      s.verticalDisparityPx.p99, s.verticalDisparityPx.max,
+                      s.fitVerticalDisparityPx.max,
+                      static_cast<unsigned long long>(s.depthForRows));
+        text += buf;
+    }
     for (const RendererRestart& r : s.restarts) {
         std::snprintf(buf, sizeof buf,
                       "renderer restart at %.3f s: %s; gap %.1f ms (%.1f ms after it was "

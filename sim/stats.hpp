@@ -30,6 +30,16 @@ struct FieldRecord {
     double warpMs = 0.0;
     prp::Fallback fallback = prp::Fallback::None;
     std::uint64_t frameSequence = 0;
+    prp::WarpModel model = prp::WarpModel::Poly;  // the warp the field used (auto: its choice)
+    // Stereo (the fields above are the left eye's): the right eye's warp time (-1: mono),
+    // fallback and model, and the vertical disparity of the two quadratic fits in output rows
+    // (-1: not measured).
+    double rightWarpMs = -1.0;
+    prp::Fallback rightFallback = prp::Fallback::None;
+    prp::WarpModel rightModel = prp::WarpModel::Poly;
+    double verticalDisparityPx = -1.0;
+    // The same before any eye was switched to the depth model for it (kMaxVerticalDisparityRows).
+    double fitVerticalDisparityPx = -1.0;
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -55,9 +65,18 @@ struct StatsSummary {
     std::uint64_t framesShown = 0;                   // distinct frames the fields came from
     std::uint64_t fallbacks = 0;                     // fields whose warp fell back
     std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
-    Percentiles fieldIntervalMs;                     // between successive hand-offs
-    Percentiles jitterMs;                            // |interval - field period|
-    Percentiles latenessMs;                          // hand-off - slot start
+    std::array<std::uint64_t, 6> fieldsByModel{};    // indexed by prp::WarpModel
+    // Stereo: the right eye's, and the vertical disparity of the two fits (output rows).
+    bool stereo = false;
+    Percentiles rightWarpMs;
+    std::uint64_t rightFallbacks = 0;
+    std::array<std::uint64_t, 6> rightFieldsByModel{};
+    Percentiles verticalDisparityPx;     // as shown
+    Percentiles fitVerticalDisparityPx;  // of the fits, before the depth model took over
+    std::uint64_t depthForRows = 0;      // fields whose eyes took the depth model for rows
+    Percentiles fieldIntervalMs;         // between successive hand-offs
+    Percentiles jitterMs;                // |interval - field period|
+    Percentiles latenessMs;              // hand-off - slot start
     Percentiles frameAgeMs;
     Percentiles warpMs;
     double renderFps = 0.0;

@@ -134,13 +134,16 @@ int main(int argc, char** argv) {
     std::string contactPath = kDefaultContact;
     std::string sizeText = "720x486";
     std::string formatText = "uyvy";
-    std::string warpText = "poly";
+    std::string warpText = "auto";
+    double autoThreshold = 0.25;
     std::string clockText = "wall";
     std::string jsonPath;
     double fovDeg = 60.0;
     int margin = 48;
     int renderThreads = 0;
     std::string rendererText = "process";
+    std::optional<double> stereoSeparation;
+    std::string stereoLayoutText = "sbs";
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     std::string faultText;
     std::string levelsText = "auto";
@@ -192,7 +195,20 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--format", formatText, "Output pixels: uyvy | y8 | rgb8")
         ->capture_default_str();
-    app.add_option("--warp", warpText, "poly | affine | homography | depth | hold")
+    app.add_option("--warp", warpText,
+                   "auto | poly | affine | homography | depth | hold (auto: the quadratic, or the "
+                   "depth warp on fields where the quadratic misses its check points by more than "
+                   "--auto-threshold)")
+        ->capture_default_str();
+    app.add_option("--stereo", stereoSeparation,
+                   "Stereo: eye separation in metres (centred on the aircraft); --size is per eye, "
+                   "the renderer a thread");
+    app.add_option("--stereo-layout", stereoLayoutText,
+                   "Stereo output: sbs (side by side, 2W x H) | tb (top-bottom, W x 2H) | "
+                   "anaglyph (red-cyan preview, W x H)")
+        ->capture_default_str();
+    app.add_option("--auto-threshold", autoThreshold,
+                   "Auto warp: largest check-point error of the quadratic, rendered pixels")
         ->capture_default_str();
     app.add_option("--clock", clockText, "wall | simulated")->capture_default_str();
     app.add_option("--json", jsonPath, "Write the run's statistics as JSON ('-': stdout)");
@@ -260,6 +276,30 @@ int main(int argc, char** argv) {
         if (rendererText != "process" && rendererText != "thread") {
             throw ig::InputError("--renderer " + base::quoted(rendererText) +
                                  ": expected process or thread");
+        }
+        std::optional<sim::StereoOutput> stereo;
+        if (stereoSeparation) {
+            if (!(std::isfinite(*stereoSeparation) && *stereoSeparation >= 0.0 &&
+                  *stereoSeparation <= 1000.0)) {
+                throw ig::InputError("--stereo " + base::number(*stereoSeparation) +
+                                     ": eye separation must be 0..1000 metres");
+            }
+            const std::optional<sim::StereoLayout> layout =
+                sim::parseStereoLayout(stereoLayoutText);
+            if (!layout) {
+                throw ig::InputError("--stereo-layout " + base::quoted(stereoLayoutText) +
+                                     ": expected sbs, tb or anaglyph");
+            }
+            // Stereo frames cross a renderer thread only (the frame ring carries one eye).
+            if (app.count("--renderer") > 0 && rendererText == "process") {
+                throw ig::InputError(
+                    "--stereo needs --renderer thread (the renderer process "
+                    "carries one eye)");
+            }
+            rendererText = "thread";
+            stereo = sim::StereoOutput{*stereoSeparation, *layout};
+        } else if (app.count("--stereo-layout") > 0) {
+            throw ig::InputError("--stereo-layout needs --stereo SEPARATION_M");
         }
         const bool rendererProcess = rendererText == "process";
         if (!(renderTimeoutMs >= 0.0 && renderTimeoutMs <= 600000.0)) {
@@ -330,6 +370,11 @@ int main(int argc, char** argv) {
         if (!ig::casterNeedsLevelRoll(casterKind)) {
             throw ig::InputError("--caster " + casterText + ": expected fast or span");
         }
+        if (stereoSeparation && casterKind != ig::CasterKind::Fast) {
+            throw ig::InputError(
+                "--stereo: the stereo renderer draws the left eye with the fast "
+                "caster (--caster fast)");
+        }
         const auto [width, height] = ig::parseSize(sizeText);
         const std::optional<prp::PixelFormat> prpFormat = prp::parsePixelFormat(formatText);
         if (!prpFormat) {
@@ -338,7 +383,10 @@ int main(int argc, char** argv) {
         const std::optional<prp::WarpModel> warp = prp::parseWarpModel(warpText);
         if (!warp) {
             throw ig::InputError("--warp '" + warpText +
-                                 "': expected poly, affine, homography, depth or hold");
+                                 "': expected auto, poly, affine, homography, depth or hold");
+        }
+        if (!(autoThreshold > 0.0 && autoThreshold <= 1e6)) {
+            throw ig::InputError("--auto-threshold: must be a positive number of pixels");
         }
         if (clockText != "wall" && clockText != "simulated") {
             throw ig::InputError("--clock '" + clockText + "': expected wall or simulated");
@@ -348,6 +396,13 @@ int main(int argc, char** argv) {
         format.width = width;
         format.height = height;
         format.format = *prpFormat;
+        if (stereo) {
+            if (stereo->layout == sim::StereoLayout::TopBottom && height % 2 != 0) {
+                throw ig::InputError("--size " + sizeText +
+                                     ": top-bottom stereo needs an even height per eye");
+            }
+            sim::stereoOutputSize(stereo->layout, width, height, format.width, format.height);
+        }
         if (const std::string bad = io::checkVideoFormat(format); !bad.empty()) {
             throw ig::InputError("--size " + sizeText + ": " + bad);
         }
@@ -459,6 +514,8 @@ int main(int argc, char** argv) {
         options.fault = fault;
         options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;
+        options.prp.autoThresholdPx = autoThreshold;
+        options.stereo = stereo;
         options.prp.agc = agc;
         options.prp.antiTwitter = antiTwitter;
         // Sky control points are directions: exact for the sky, and they keep a full
@@ -494,8 +551,8 @@ int main(int argc, char** argv) {
         // The rendered frame: the output window at --fov plus margins, square pixels. The
         // renderer's threads live in the pipeline's own arena (--render-threads).
         sim::RenderGeometry geometry;
-        geometry.windowWidth = opened.width;
-        geometry.windowHeight = opened.height;
+        geometry.windowWidth = width;  // per eye
+        geometry.windowHeight = height;
         geometry.hfov = ig::degToRad(fovDeg);
         if (cigiSource) {
             // The host's View Definition, when one came before the run, sets the field of view.
@@ -511,7 +568,8 @@ int main(int argc, char** argv) {
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+                   : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
 
@@ -521,6 +579,12 @@ int main(int argc, char** argv) {
                      opened.width, opened.height, io::pixelFormatName(opened.format), level.width,
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
+        if (stereo) {
+            std::fprintf(stderr,
+                         "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer thread)\n",
+                         std::string(sim::stereoLayoutName(stereo->layout)).c_str(), width, height,
+                         stereo->separation);
+        }
         options.stop = &io::stopFlag();
         // On the wall clock the field process keeps its memory resident: no field waits on a
         // page fault (the renderer process, forked later, does not inherit the lock).
@@ -599,6 +663,12 @@ int main(int argc, char** argv) {
             j["margin"] = margin;
             j["roll_margin"] = geometry.coverRoll;
             j["warp"] = warpText;
+            if (stereo) {
+                j["stereo"] = {{"separation_m", stereo->separation},
+                               {"layout", sim::stereoLayoutName(stereo->layout)},
+                               {"eye_width", width},
+                               {"eye_height", height}};
+            }
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
             j["memory_locked"] = memoryLock.locked;

@@ -71,7 +71,7 @@ std::vector<prp::WarpModel> parseModels(const std::string& text) {
         const auto m = prp::parseWarpModel(item);
         if (!m) {
             throw ig::InputError("--models: unknown model '" + item +
-                                 "' (poly, affine, homography, depth, hold)");
+                                 "' (poly, affine, homography, depth, auto, hold)");
         }
         if (std::find(models.begin(), models.end(), *m) == models.end()) models.push_back(*m);
     }
@@ -92,6 +92,7 @@ nlohmann::json cellsJson(const prp::EvalResult& r) {
                      {"fallback_rotation", c.fallbackCounts[2]},
                      {"fallback_hold", c.fallbackCounts[3]},
                      {"edge_fraction", c.edgeFraction},
+                     {"depth_fields", c.depthFields},
                      {"base_frames", c.samples}});
     }
     return a;
@@ -103,24 +104,29 @@ void printTable(const std::string& title, const prp::EvalResult& r,
     std::fprintf(tableOut, "%-11s", "model");
     for (const int k : horizons)
         std::fprintf(tableOut, "  k=%-10d", k);
-    std::fprintf(tableOut, "  %9s %9s %8s\n", "ns/px", "fallbacks", "edge%");
+    std::fprintf(tableOut, "  %9s %9s %8s %7s\n", "ns/px", "fallbacks", "edge%", "depth%");
     std::size_t i = 0;
     while (i < r.cells.size()) {
         const prp::WarpModel m = r.cells[i].model;
         std::fprintf(tableOut, "%-11s", std::string(prp::warpModelName(m)).c_str());
         double ns = 0, edge = 0;
-        int fb = 0, n = 0;
+        int fb = 0, n = 0, depth = 0, fields = 0;
         for (; i < r.cells.size() && r.cells[i].model == m; ++i) {
             const prp::EvalCell& c = r.cells[i];
             std::fprintf(tableOut, "  %5.2f/%5.2f%%", c.psnrDb, c.maePct);
             ns += c.nsPerPixel;
             edge += c.edgeFraction;
             fb += c.fallbacks;
+            depth += c.depthFields;
+            fields += c.samples;
             ++n;
         }
-        std::fprintf(tableOut, "  %9.2f %9d %8.3f\n", ns / n, fb, 100.0 * edge / n);
+        std::fprintf(tableOut, "  %9.2f %9d %8.3f %7.1f\n", ns / n, fb, 100.0 * edge / n,
+                     100.0 * depth / std::max(fields, 1));
     }
-    std::fprintf(tableOut, "(cells: PSNR dB / mean absolute error %% of full scale)\n");
+    std::fprintf(tableOut,
+                 "(cells: PSNR dB / mean absolute error %% of full scale; depth%%: fields warped "
+                 "by the depth model)\n");
 }
 
 }  // namespace
@@ -134,11 +140,12 @@ int main(int argc, char** argv) {
     ig::addAppearanceOptions(app, look);
     std::vector<std::string> trajectories;
     std::string sizeText = "320x240", horizonsText = "1..8",
-                modelsText = "poly,affine,homography,depth,hold";
+                modelsText = "poly,affine,homography,depth,auto,hold";
     std::string jsonPath, csvPath, levelsText = "auto", casterText = "fast";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
     bool noSky = false;
+    prp::EvalConfig config;
     app.add_option("--trajectory", trajectories, "Trajectory CSV (repeatable)");
     app.add_option("--size", sizeText, "Output window WxH")->capture_default_str();
     app.add_option("--margin", margin, "Rendered margin, pixels per side")->capture_default_str();
@@ -154,6 +161,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--levels", levelsText,
                    "Fast caster: auto (the multiresolution caster) | 0 (single level, exact)")
+        ->capture_default_str();
+    app.add_option("--auto-threshold", config.autoThresholdPx,
+                   "Auto model: largest check-point error of the quadratic, rendered pixels")
         ->capture_default_str();
     app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
     app.add_option("--json", jsonPath, "Results as JSON");
@@ -185,7 +195,9 @@ int main(int argc, char** argv) {
         if (!ig::casterNeedsLevelRoll(casterKind)) {
             throw ig::InputError("--caster " + casterText + ": expected fast or span");
         }
-        prp::EvalConfig config;
+        if (!(config.autoThresholdPx > 0.0 && config.autoThresholdPx <= 1e6)) {
+            throw ig::InputError("--auto-threshold: must be a positive number of pixels");
+        }
         std::tie(config.width, config.height) = ig::parseSize(sizeText);
         if (config.width % 2 != 0) throw ig::InputError("--size: width must be even");
         config.margin = margin;

@@ -18,7 +18,7 @@ set grid
 set key outside right top
 set xtics 1
 
-models = "poly affine homography depth hold"
+models = "poly affine homography depth auto hold"
 # A model's cell of the "all" rows, NaN elsewhere (gnuplot skips NaN points).
 cell(m, col) = (strcol(1) eq "all" && strcol(2) eq m) ? column(col) : NaN
 

@@ -4,6 +4,7 @@
 
 void* operator new(std::size_t size) {
     gAllocations.fetch_add(1, std::memory_order_relaxed);
+    ++tThreadAllocations;
     if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
     throw std::bad_alloc();
 }
@@ -14,6 +15,7 @@ void* operator new[](std::size_t size) {
 
 void* operator new(std::size_t size, std::align_val_t align) {
     gAllocations.fetch_add(1, std::memory_order_relaxed);
+    ++tThreadAllocations;
     const auto a = static_cast<std::size_t>(align);
     if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
     throw std::bad_alloc();
@@ -52,6 +54,7 @@ void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
 // malloc as the others, or a sanitizer sees memory from its own operator new freed with free.
 void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
     gAllocations.fetch_add(1, std::memory_order_relaxed);
+    ++tThreadAllocations;
     return std::malloc(size == 0 ? 1 : size);
 }
 void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept {
@@ -59,6 +62,7 @@ void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept {
 }
 void* operator new(std::size_t size, std::align_val_t align, const std::nothrow_t&) noexcept {
     gAllocations.fetch_add(1, std::memory_order_relaxed);
+    ++tThreadAllocations;
     const auto a = static_cast<std::size_t>(align);
     return std::aligned_alloc(a, (size + a - 1) / a * a);
 }

@@ -9,3 +9,5 @@
 #include <new>
 
 inline std::atomic<std::size_t> gAllocations{0};
+// The same counted per thread: allocations made by the thread that reads it.
+inline thread_local std::size_t tThreadAllocations = 0;

@@ -17,7 +17,7 @@ TEST(ProcessorAllocation, NoneAfterTheFirstField) {
     const ig::Pose pose = test::lookingDown(-40.0);
     const ig::RenderedFrame frame = test::renderPlane(pose, in);
     for (const WarpModel model : {WarpModel::Poly, WarpModel::Affine, WarpModel::Homography,
-                                  WarpModel::Depth, WarpModel::Hold}) {
+                                  WarpModel::Depth, WarpModel::Hold, WarpModel::Auto}) {
         for (const PixelFormat format : {PixelFormat::Uyvy, PixelFormat::Rgb8, PixelFormat::Y8}) {
             PrpOptions o;
             o.outWidth = in.windowWidth();

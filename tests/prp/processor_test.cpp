@@ -17,7 +17,7 @@ const ig::Intrinsics kIn = ig::Intrinsics::fromFov(96, 72, 1.0, 12);
 
 TEST(WarpModelNames, RoundTrip) {
     for (const WarpModel m : {WarpModel::Poly, WarpModel::Affine, WarpModel::Homography,
-                              WarpModel::Depth, WarpModel::Hold}) {
+                              WarpModel::Depth, WarpModel::Hold, WarpModel::Auto}) {
         EXPECT_EQ(parseWarpModel(warpModelName(m)), m);
     }
     EXPECT_FALSE(parseWarpModel("Poly"));

@@ -1,0 +1,234 @@
+#include "prp/depth_warp.hpp"
+
+#include "prp/processor.hpp"
+#include "prp/synthetic_frame.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+namespace prp {
+namespace {
+
+const ig::Intrinsics kIn = ig::Intrinsics::fromFov(160, 120, 1.0, 16);
+
+PrpOptions options(WarpModel m, PixelFormat f = PixelFormat::Rgb8) {
+    PrpOptions o;
+    o.outWidth = kIn.windowWidth();
+    o.outHeight = kIn.windowHeight();
+    o.format = f;
+    o.model = m;
+    return o;
+}
+
+ig::Intrinsics windowOf(const ig::Intrinsics& in) {
+    ig::Intrinsics win = in;
+    win.width = in.windowWidth();
+    win.height = in.windowHeight();
+    win.margin = 0;
+    return win;
+}
+
+// PSNR (dB) of an RGB field against the truth's lines.
+double fieldPsnr(const Field& field, const ig::RenderedFrame& truth) {
+    double sum = 0;
+    for (int line = 0; line < field.lines; ++line) {
+        const ig::Rgb8* t =
+            truth.color.data() + static_cast<std::size_t>(field.frameLine(line)) * truth.width();
+        const std::uint8_t* p = field.line(line);
+        for (int x = 0; x < field.width; ++x) {
+            const double dr = p[3 * x] - t[x].r, dg = p[3 * x + 1] - t[x].g,
+                         db = p[3 * x + 2] - t[x].b;
+            sum += dr * dr + dg * dg + db * db;
+        }
+    }
+    const double mse = sum / (3.0 * field.width * field.lines);
+    return mse == 0.0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+ig::Pose moved(const ig::Pose& p, int k) {
+    ig::Pose at = p;
+    at.position += glm::dvec3{2.5, 6.0, -1.5} * static_cast<double>(k);
+    at.yaw += 0.004 * k;
+    at.pitch -= 0.003 * k;
+    at.roll = 0.02 * k;
+    return at;
+}
+
+// The AVX2 projection gives the scalar one's bits: every index, and depth and source point of
+// every pixel that lands, over random poses, depths (sky, NaN, negative, zero, huge, behind
+// the eye) and row widths that leave partial groups of eight.
+TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
+    if (!depthKernelSupported(DepthKernel::Avx2)) GTEST_SKIP() << "no AVX2 on this processor";
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const float specials[] = {std::numeric_limits<float>::infinity(),
+                              -std::numeric_limits<float>::infinity(),
+                              std::numeric_limits<float>::quiet_NaN(),
+                              0.0f,
+                              -5.0f,
+                              1e30f,
+                              1e-20f};
+    std::uint64_t landed = 0;
+    for (const int width : {1, 5, 8, 13, 203, 784}) {
+        for (int trial = 0; trial < 40; ++trial) {
+            const ig::Intrinsics in = ig::Intrinsics::fromFov(width + 2, 40, 1.0 + 0.5 * u(rng), 1);
+            ig::RenderedFrame frame;
+            frame.intrinsics = in;
+            frame.pose = test::lookingDown(-30.0 + 20.0 * u(rng), 200.0 + 150.0 * u(rng));
+            ig::Pose field = frame.pose;
+            field.position += glm::dvec3{30.0 * u(rng), 30.0 * u(rng), 20.0 * u(rng)};
+            field.yaw += 0.2 * u(rng);
+            field.pitch += 0.2 * u(rng);
+            field.roll = 0.5 * u(rng);
+            const OutputGeometry g = OutputGeometry::of(in, 2 * (width / 2 + 1), 38);
+            const DepthProjection p = DepthProjection::of(frame, field, g);
+            std::vector<float> depth(static_cast<std::size_t>(in.width));
+            for (float& d : depth) {
+                const double r = 0.5 * (u(rng) + 1.0);
+                d = r < 0.15 ? specials[static_cast<std::size_t>(7 * (0.5 * (u(rng) + 1.0))) % 7]
+                             : static_cast<float>(50.0 + 3000.0 * r);
+            }
+            const int n = in.width;
+            std::vector<std::int32_t> i0(n), i1(n);
+            std::vector<float> z0(n), z1(n), x0(n), x1(n), y0(n), y1(n);
+            for (int y : {0, 7, 39}) {
+                for (int parity : {0, 1}) {
+                    detail::projectRowScalar(p, depth.data(), 0, n, y, parity,
+                                             {i0.data(), z0.data(), x0.data(), y0.data()});
+                    detail::projectRowAvx2(p, depth.data(), n, y, parity,
+                                           {i1.data(), z1.data(), x1.data(), y1.data()});
+                    for (int x = 0; x < n; ++x) {
+                        ASSERT_EQ(i0[x], i1[x]) << "width " << width << " x " << x;
+                        if (i0[x] < 0) continue;
+                        ++landed;
+                        EXPECT_EQ(std::memcmp(&z0[x], &z1[x], 4), 0);
+                        EXPECT_EQ(std::memcmp(&x0[x], &x1[x], 4), 0);
+                        EXPECT_EQ(std::memcmp(&y0[x], &y1[x], 4), 0);
+                    }
+                }
+            }
+        }
+    }
+    EXPECT_GT(landed, 10000u);  // the comparison saw many landing pixels
+}
+
+// Whole fields are the same bytes with either kernel, in every pixel format.
+TEST(DepthWarp, FieldsAreTheSameWithEitherKernel) {
+    if (!depthKernelSupported(DepthKernel::Avx2)) GTEST_SKIP() << "no AVX2 on this processor";
+    const ig::Pose pose = test::lookingDown(-25.0, 120.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    for (const PixelFormat f : {PixelFormat::Rgb8, PixelFormat::Uyvy, PixelFormat::Y8}) {
+        for (int k = 1; k <= 8; k += 7) {
+            Field a, b;
+            PrpOptions o = options(WarpModel::Depth, f);
+            o.depthKernel = DepthKernel::Scalar;
+            PostRenderingProcessor(o).process(frame, moved(pose, k), 0.0, k, a);
+            o.depthKernel = DepthKernel::Avx2;
+            PostRenderingProcessor(o).process(frame, moved(pose, k), 0.0, k, b);
+            EXPECT_EQ(a.pixels, b.pixels) << "k " << k;
+            EXPECT_EQ(a.holeSamples, b.holeSamples);
+            EXPECT_EQ(a.edgeSamples, b.edgeSamples);
+        }
+    }
+}
+
+// Nothing lands where there is no depth: every pixel is a hole and samples the quadratic, so
+// the field is the polynomial model's, byte for byte.
+TEST(DepthWarp, HolesTakeThePolynomialWarp) {
+    const ig::Pose pose = test::lookingDown(-35.0, 300.0);
+    ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    std::fill(frame.depth.begin(), frame.depth.end(), std::numeric_limits<float>::quiet_NaN());
+    for (const PixelFormat f : {PixelFormat::Rgb8, PixelFormat::Uyvy}) {
+        Field depth, poly;
+        PostRenderingProcessor(options(WarpModel::Depth, f))
+            .process(frame, moved(pose, 3), 0.0, 3, depth);
+        PostRenderingProcessor(options(WarpModel::Poly, f))
+            .process(frame, moved(pose, 3), 0.0, 3, poly);
+        EXPECT_EQ(depth.pixels, poly.pixels);
+        EXPECT_EQ(depth.holeSamples, static_cast<std::uint64_t>(depth.width) *
+                                         static_cast<std::uint64_t>(depth.lines));
+        EXPECT_EQ(depth.warp.model, WarpModel::Depth);
+    }
+}
+
+// The float splat is about as accurate as the double-precision reference against true renders
+// (within 1 dB; the camera descends 7 % of its height, so the ground is magnified and the splat
+// leaves holes), and beats the quadratic low over the ground, where parallax is large.
+TEST(DepthWarp, AsAccurateAsTheReference) {
+    const ig::Pose pose = test::lookingDown(-20.0, 40.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    for (int k = 1; k <= 8; ++k) {
+        ig::Pose at = pose;
+        at.position += glm::dvec3{1.0, 3.0, -0.35} * static_cast<double>(k);
+        at.yaw += 0.004 * k;
+        at.roll = 0.02 * k;
+        const ig::RenderedFrame truth = test::renderPlane(at, windowOf(kIn));
+        Field fast, ref;
+        PostRenderingProcessor(options(WarpModel::Depth)).process(frame, at, 0.0, k, fast);
+        PrpOptions o = options(WarpModel::Depth);
+        o.depthReference = true;
+        PostRenderingProcessor(o).process(frame, at, 0.0, k, ref);
+        Field poly;
+        PostRenderingProcessor(options(WarpModel::Poly)).process(frame, at, 0.0, k, poly);
+        const double f = fieldPsnr(fast, truth), r = fieldPsnr(ref, truth);
+        EXPECT_GT(f, r - 1.0) << "k " << k;
+        if (k >= 7) {
+            EXPECT_GT(f, fieldPsnr(poly, truth) + 1.0) << "k " << k;
+        }
+    }
+}
+
+// Auto keeps the quadratic where it is exact (no motion) and takes the depth model when the
+// quadratic misses the check points by more than the threshold; the choice is recorded.
+TEST(AutoWarp, PicksByTheCheckPointError) {
+    const ig::Pose pose = test::lookingDown(-20.0, 40.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    PostRenderingProcessor still(options(WarpModel::Auto));
+    Field field;
+    still.process(frame, pose, 0.0, 0, field);
+    EXPECT_EQ(field.warp.model, WarpModel::Poly);
+    EXPECT_GE(field.warp.checkErrorPx, 0.0);
+    EXPECT_LT(field.warp.checkErrorPx, 1e-3);
+
+    const ig::Pose at = moved(pose, 8);
+    PostRenderingProcessor moving(options(WarpModel::Auto));
+    moving.process(frame, at, 0.0, 8, field);
+    const double e = field.warp.checkErrorPx;
+    ASSERT_GT(e, 0.0);
+    EXPECT_EQ(field.warp.model, e > 0.25 ? WarpModel::Depth : WarpModel::Poly);
+    // A threshold either side of the measured error flips the choice.
+    for (const double t : {0.5 * e, 2.0 * e}) {
+        PrpOptions o = options(WarpModel::Auto);
+        o.autoThresholdPx = t;
+        PostRenderingProcessor prp(o);
+        prp.process(frame, at, 0.0, 8, field);
+        EXPECT_EQ(field.warp.checkErrorPx, e);
+        EXPECT_EQ(field.warp.model, t < e ? WarpModel::Depth : WarpModel::Poly);
+    }
+}
+
+// Check points of the frame at its own pose map through the identity-like warp exactly, at any
+// roll (the warp composes roll, the check points are projected with it).
+TEST(AutoWarp, CheckPointsAreExactAtTheFramePoseAnyRoll) {
+    const ig::Pose pose = test::lookingDown(-10.0, 300.0);  // horizon in view: sky points too
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    const OutputGeometry g = OutputGeometry::of(kIn, kIn.windowWidth(), kIn.windowHeight());
+    for (const double roll : {0.0, 0.3, -0.7}) {
+        ig::Pose at = pose;
+        at.roll = roll;
+        std::array<Correspondence, kCheckPointCount> pts;
+        const std::size_t n = checkCorrespondences(frame, at, g, pts);
+        EXPECT_EQ(n, static_cast<std::size_t>(kCheckPointCount));
+        FitOptions fo;
+        const WarpInfo w = fitWarp(frame, at, g, fo, nullptr);
+        EXPECT_LT(warpCheckError(w, {pts.data(), n}), 1e-6) << "roll " << roll;
+    }
+}
+
+}  // namespace
+}  // namespace prp
