@@ -8,8 +8,11 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace ig {
+
+class ObjectLayer;
 
 enum class CasterKind { Reference, Naive, Fast };
 
@@ -61,6 +64,11 @@ struct RenderOptions {
     // Fast caster, multiresolution: a long march passes max-height nodes the rays stay above
     // instead of sampling every grid line in them. Same image; off for tests and measurement.
     bool skipNodes = true;
+    // Voxel objects drawn over the terrain (not owned; all on the caster's map and one object
+    // grid): the static layer, and the moving objects stamped at the frame's instant. Drawn by
+    // the reference and naive casters, which then fill the frame's object-id image; empty: no
+    // objects, and the images are the terrain's alone, bit for bit.
+    std::vector<const ObjectLayer*> objects;
 };
 
 // Parses --levels: "auto" or a count >= 0; throws InputError otherwise.
