@@ -256,7 +256,8 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
         for (const Json& s : j.at("scatter")) {
             const std::string entry = "scatter[" + std::to_string(i++) + "]";
             checkKeys(ctx, s, entry,
-                      {"model", "count", "area", "seed", "max_slope_deg", "scale", "first_id"});
+                      {"model", "count", "area", "seed", "max_slope_deg", "min_ground_m", "scale",
+                       "first_id"});
             const int model = modelOf(s, entry);
             const double count = number(ctx, s, entry, "count");
             if (!(count >= 0 && count <= 65535 && count == std::floor(count))) {
@@ -282,6 +283,7 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
             if (!(maxSlope > 0.0 && maxSlope <= 90.0)) {
                 ctx.fail(entry + ".max_slope_deg", "must be in (0, 90]");
             }
+            const double minGround = number(ctx, s, entry, "min_ground_m", -HUGE_VAL);
             const double scale = positiveScale(ctx, s, entry);
             if (s.contains("first_id")) {
                 const double f = number(ctx, s, entry, "first_id");
@@ -299,16 +301,19 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
             const auto wanted = static_cast<int>(count);
             for (long tries = 0; placed < wanted; ++tries) {
                 if (tries > 100L * wanted) {
-                    ctx.fail(entry,
-                             "placed " + std::to_string(placed) + " of " + std::to_string(wanted) +
-                                 " copies in " + std::to_string(tries) +
-                                 " tries: too little ground within max_slope_deg in the area");
+                    ctx.fail(entry, "placed " + std::to_string(placed) + " of " +
+                                        std::to_string(wanted) + " copies in " +
+                                        std::to_string(tries) +
+                                        " tries: too little ground within max_slope_deg (and above "
+                                        "min_ground_m) in "
+                                        "the area");
                 }
                 Placement p;
                 p.x = ux(rng);
                 p.y = uy(rng);
                 p.heading = uh(rng);
                 if (slopeAt(map, p.x, p.y) > tanMax) continue;
+                if (map.surfaceHeight(p.x, p.y) < minGround) continue;
                 if (nextId > 65535) ctx.fail(entry, "ids run past 65535");
                 p.id = objectId(ctx, nextId++, entry + " (scattered id)", used);
                 p.z = map.surfaceHeight(p.x, p.y);

@@ -3,10 +3,13 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/object_trace.hpp"
+#include "ig/scene.hpp"
 #include "ig/stereo.hpp"
 #include "io/image_file.hpp"
 #include "io/output_file.hpp"
 #include "io/stop_signals.hpp"
+#include "sim/scene_motion.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -41,6 +44,10 @@ constexpr const char* kConventions = R"(Conventions:
   horizontal field of view of the WxH window; --margin PX adds PX pixels on every side at the
   same focal length (the written image is (W+2PX) x (H+2PX)).
   Depth (PFM): Euclidean distance from the eye in metres, +inf for sky.
+  Objects (--scene, reference and naive casters): --objects-out writes each pixel's object id
+  as a 16-bit grey PNG (0: terrain or sky); --json lists each visible object's pixel count and
+  box [x0, y0, x1, y1] (inclusive). Moving objects are placed at --time (default: the earliest
+  trajectory start).
   The fast caster renders roll = 0 (the post-rendering processor applies roll as a 2D rotation);
   the naive and reference casters honour any roll.
   A path of '-' writes to standard output.)";
@@ -223,6 +230,16 @@ int main(int argc, char** argv) {
                    "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
                    "the same image with each, refused where the processor lacks it")
         ->capture_default_str();
+    std::string scenePath, objectsOut;
+    std::optional<double> sceneTime;
+    app.add_option("--scene", scenePath,
+                   "Scene file (JSON): voxel objects placed and scattered over the terrain; drawn "
+                   "by the reference and naive casters");
+    app.add_option("--objects-out", objectsOut,
+                   "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene)");
+    app.add_option("--time", sceneTime,
+                   "Scene time, seconds, for the moving objects (default: the earliest start of "
+                   "their trajectories)");
     StereoFlags stereo;
     addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
@@ -239,6 +256,8 @@ int main(int argc, char** argv) {
                            {"--out", stereo.enabled() ? std::string() : outPath, out},
                            {"--depth", depthPath, out},
                            {"--json", jsonPath, out},
+                           {"--scene", scenePath, io::PathRole::Input},
+                           {"--objects-out", objectsOut, out},
                            {"--out-left", stereo.outLeft, out},
                            {"--out-right", stereo.outRight, out},
                            {"--out-sbs", stereo.outSbs, out},
@@ -252,7 +271,18 @@ int main(int argc, char** argv) {
         if (!(haze >= 0.0) || !std::isfinite(haze)) throw ig::InputError("--haze: must be >= 0");
         const auto [w, h] = ig::parseSize(sizeText);
         const ig::CasterKind kind = ig::parseCasterKind(casterText);
-        const ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        if (!objectsOut.empty() && scenePath.empty()) {
+            throw ig::InputError("--objects-out: give a --scene to draw objects from");
+        }
+        if (sceneTime && scenePath.empty()) throw ig::InputError("--time: give a --scene");
+        if (sceneTime && !std::isfinite(*sceneTime))
+            throw ig::InputError("--time: not a finite number");
+        if (!scenePath.empty() && (kind == ig::CasterKind::Fast || stereo.enabled())) {
+            throw ig::InputError(
+                "--scene: objects are drawn by the reference and naive casters; "
+                "add --caster reference (or naive), without --stereo");
+        }
+        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
         const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
                               : shippedMap      ? ig::parsePose(shippedPose, map)
@@ -279,8 +309,30 @@ int main(int argc, char** argv) {
         }
         if (stereo.enabled())
             return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
+        // The scene: the static layer, and the moving objects stamped at the frame's time.
+        std::optional<ig::Scene> scene;
+        std::optional<sim::SceneMotion> motion;
+        std::optional<ig::ObjectLayer> moving;
+        double time = 0.0;
+        if (!scenePath.empty()) {
+            scene.emplace(ig::loadScene(scenePath, map));
+            motion.emplace(*scene);
+            time = sceneTime.value_or(motion->startTime());
+            moving.emplace(motion->stamp(time));
+            // The max-height bounds cover the objects (static ones: the moving ones are
+            // stamped per frame and looked up by the casters directly).
+            ig::includeStickTops(map, *scene->staticLayer);
+            options.objects = {&*scene->staticLayer, &*moving};
+        }
         const auto caster = ig::makeCaster(kind, map, options);
-        const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr);
+        const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr, time);
+        if (!objectsOut.empty()) {
+            std::string idError;
+            if (io::writePng16(objectsOut, frame.width(), frame.height(), frame.objectId,
+                               &idError) != 0) {
+                throw ig::InputError("--objects-out " + idError);
+            }
+        }
 
         std::string error;
         const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
@@ -312,6 +364,23 @@ int main(int argc, char** argv) {
             j["control_points"].push_back(
                 {{"px", {cp.pixel.x, cp.pixel.y}},
                  {"world", {cp.world.x, cp.world.y, cp.world.z, cp.world.w}}});
+        }
+        if (scene) {
+            const ig::ObjectLayer& layer = *scene->staticLayer;
+            j["scene"] = {{"file", scenePath},
+                          {"time", time},
+                          {"static_objects", layer.objects().size()},
+                          {"moving_objects", scene->moving.size()},
+                          {"object_cell_m", layer.cellSizeX()},
+                          {"object_cells", layer.cellEntries()},
+                          {"stick_lists", layer.table().lists()},
+                          {"stick_table_bytes", layer.table().bytes()},
+                          {"layer_bytes", layer.bytes()}};
+            j["objects"] = nlohmann::json::array();
+            for (const ig::ObjectPixels& o : ig::objectPixelStats(frame)) {
+                j["objects"].push_back(
+                    {{"id", o.id}, {"pixels", o.pixels}, {"box", {o.x0, o.y0, o.x1, o.y1}}});
+            }
         }
         if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         if (outPath != "-") {
