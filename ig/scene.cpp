@@ -178,7 +178,8 @@ ObjectLayer Scene::stampMoving(std::span<const Placement> where) const {
     return layer;
 }
 
-Scene parseScene(std::string_view content, const std::string& path, const TerrainMap& map) {
+Scene parseScene(std::string_view content, const std::string& path, const TerrainMap& map,
+                 bool shareSticks) {
     const Ctx ctx{path};
     Json j;
     try {
@@ -197,7 +198,7 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
                                "terrain spacing (" +
                                base::number(map.spacingX()) + " m) and at least 1/4096 of it");
     }
-    scene.staticLayer = std::make_unique<ObjectLayer>(map, scene.cellSize);
+    scene.staticLayer = std::make_unique<ObjectLayer>(map, scene.cellSize, shareSticks);
     if (!j.contains("models") || !j.at("models").is_object()) {
         ctx.fail("models", "expected an object of named models");
     }
@@ -327,14 +328,14 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
     return scene;
 }
 
-Scene loadScene(const std::string& path, const TerrainMap& map) {
+Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path + ": cannot open the scene file");
     std::ostringstream ss;
     ss << in.rdbuf();
     const std::string content = ss.str();
     if (content.size() > (std::size_t{64} << 20)) throw InputError(path + ": larger than 64 MiB");
-    return parseScene(content, path, map);
+    return parseScene(content, path, map, shareSticks);
 }
 
 }  // namespace ig

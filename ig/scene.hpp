@@ -47,7 +47,9 @@ class Scene {
 // (models.tank.sculpt.side, objects[2].scale, scatter[0].area): bad JSON, an unknown model or
 // key, a NaN or negative scale, a placement off the map, an id reused or out of 1..65535, a
 // model file that does not load.
-Scene loadScene(const std::string& path, const TerrainMap& map);
-Scene parseScene(std::string_view text, const std::string& path, const TerrainMap& map);
+// `shareSticks` false stores every cell's stick list anew (for measuring what sharing saves).
+Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks = true);
+Scene parseScene(std::string_view text, const std::string& path, const TerrainMap& map,
+                 bool shareSticks = true);
 
 }  // namespace ig
