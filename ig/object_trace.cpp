@@ -78,8 +78,9 @@ void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dve
         const StickRun run = table.run(cell.stick, r);
         const double runLo = cell.baseZ + run.first * h, runHi = runLo + run.count * h;
         if (zHi < runLo || zLo > runHi) continue;
-        const int k0 = std::max(0, static_cast<int>(std::floor((zLo - runLo) / h)));
-        const int k1 = std::min(run.count - 1, static_cast<int>(std::floor((zHi - runLo) / h)));
+        const double last = run.count - 1;
+        const int k0 = static_cast<int>(std::clamp(std::floor((zLo - runLo) / h), 0.0, last));
+        const int k1 = static_cast<int>(std::clamp(std::floor((zHi - runLo) / h), 0.0, last));
         for (int k = k0; k <= k1; ++k) {
             const double zb = runLo + k * h, zt = zb + h;
             double enter = ta, exit = tb;

@@ -60,8 +60,8 @@ std::string text(const Ctx& ctx, const Json& j, const std::string& entry, const 
 
 double positiveScale(const Ctx& ctx, const Json& j, const std::string& entry) {
     const double s = number(ctx, j, entry, "scale", 1.0);
-    if (!(s > 0.0) || s > 1000.0) {
-        ctx.fail(entry + ".scale", base::number(s) + ": metres per voxel must be in (0, 1000]");
+    if (!(s >= 0.001) || s > 1000.0) {
+        ctx.fail(entry + ".scale", base::number(s) + ": metres per voxel must be in [0.001, 1000]");
     }
     return s;
 }

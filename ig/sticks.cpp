@@ -124,29 +124,34 @@ ObjectLayer::ObjectLayer(const TerrainMap& map, double cellSize, bool shareStick
     maxTop_ = -std::numeric_limits<float>::infinity();
 }
 
-const std::vector<std::uint32_t>& ObjectLayer::columns(const ObjectModel& model, double scale) {
+std::vector<std::uint32_t>& ObjectLayer::columns(const ObjectModel& model, double scale) {
+    // Without sharing, every copy encodes its own lists (what sharing saves is measured so).
+    if (!table_.sharing()) columnCache_.clear();
     std::string key(sizeof(const void*) + sizeof(double), '\0');
     const void* ptr = &model;
     std::memcpy(key.data(), &ptr, sizeof ptr);
     std::memcpy(key.data() + sizeof ptr, &scale, sizeof scale);
     auto [it, fresh] = columnCache_.try_emplace(std::move(key));
-    if (!fresh) return it->second;
+    if (fresh) {
+        it->second.assign(static_cast<std::size_t>(model.grid.sizeX) * model.grid.sizeY,
+                          kUnencoded);
+    }
+    return it->second;
+}
+
+std::uint32_t ObjectLayer::column(const ObjectModel& model, double scale,
+                                  std::vector<std::uint32_t>& cols, int x, int y) {
+    std::uint32_t& c = cols[static_cast<std::size_t>(y) * model.grid.sizeX + x];
+    if (c != kUnencoded) return c;
     const VoxModel& g = model.grid;
-    std::vector<std::uint32_t>& cols = it->second;
-    cols.resize(static_cast<std::size_t>(g.sizeX) * g.sizeY);
     std::vector<Rgba8> colors(static_cast<std::size_t>(g.sizeZ));
     std::vector<std::uint8_t> present(static_cast<std::size_t>(g.sizeZ));
-    for (int y = 0; y < g.sizeY; ++y) {
-        for (int x = 0; x < g.sizeX; ++x) {
-            for (int z = 0; z < g.sizeZ; ++z) {
-                present[static_cast<std::size_t>(z)] = model.present(x, y, z);
-                colors[static_cast<std::size_t>(z)] = model.color(x, y, z);
-            }
-            cols[static_cast<std::size_t>(y) * g.sizeX + x] =
-                table_.addColumn(colors, present, static_cast<float>(scale));
-        }
+    for (int z = 0; z < g.sizeZ; ++z) {
+        present[static_cast<std::size_t>(z)] = model.present(x, y, z);
+        colors[static_cast<std::size_t>(z)] = model.color(x, y, z);
     }
-    return cols;
+    c = table_.addColumn(colors, present, static_cast<float>(scale));
+    return c;
 }
 
 void ObjectLayer::place(const ObjectModel& model, const Placement& p) {
@@ -154,7 +159,7 @@ void ObjectLayer::place(const ObjectModel& model, const Placement& p) {
           std::isfinite(p.heading) && p.scale > 0.0 && std::isfinite(p.scale));
     CHECK(p.x >= 0.0 && p.y >= 0.0 && p.x <= map_->extentX() && p.y <= map_->extentY())
         << "placement at " << p.x << ", " << p.y;
-    const std::vector<std::uint32_t>& cols = columns(model, p.scale);
+    std::vector<std::uint32_t>& cols = columns(model, p.scale);
     const VoxModel& g = model.grid;
     // Model axes in the world: +y along the heading, +x to its right.
     const double s = std::sin(p.heading), c = std::cos(p.heading);
@@ -177,7 +182,7 @@ void ObjectLayer::place(const ObjectModel& model, const Placement& p) {
             const double my = (dx * s + dy * c) / p.scale + halfY;
             if (!(mx >= 0.0 && my >= 0.0 && mx < g.sizeX && my < g.sizeY)) continue;
             const std::uint32_t stick =
-                cols[static_cast<std::size_t>(my) * g.sizeX + static_cast<std::size_t>(mx)];
+                column(model, p.scale, cols, static_cast<int>(mx), static_cast<int>(my));
             if (stick == StickTable::kNone) continue;
             const auto baseZ = static_cast<float>(p.z);
             entries_.push_back({static_cast<std::uint64_t>(cy) * static_cast<std::uint64_t>(nx_) +

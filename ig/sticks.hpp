@@ -83,6 +83,7 @@ class StickTable {
     // Bottom of the lowest run above its base, metres.
     float bottom(std::uint32_t offset) const;
 
+    bool sharing() const { return share_; }
     std::size_t words() const { return words_.size(); }
     std::size_t lists() const { return lists_; }
     std::size_t bytes() const { return words_.size() * sizeof(std::uint32_t); }
@@ -122,6 +123,7 @@ struct PlacedObject {
 // ray skips the terrain cells it passes above or below.
 class ObjectLayer {
   public:
+    // shareSticks false: every copy stores its own stick lists (for measurement).
     ObjectLayer(const TerrainMap& map, double cellSize, bool shareSticks = true);
 
     // Resamples `model` into the cells whose centres its rotated footprint covers (the voxel
@@ -164,8 +166,12 @@ class ObjectLayer {
     std::size_t blockIndex(int bx, int by) const {
         return static_cast<std::size_t>(by) * static_cast<std::size_t>(map_->width() - 1) + bx;
     }
-    // Encoded columns of a model at a scale: offsets per (x, y) column.
-    const std::vector<std::uint32_t>& columns(const ObjectModel& model, double scale);
+    // Encoded columns of a model at a scale: offsets per (x, y) column, each encoded when a
+    // placement first uses it (kUnencoded before).
+    static constexpr std::uint32_t kUnencoded = 0xfffffffeu;
+    std::vector<std::uint32_t>& columns(const ObjectModel& model, double scale);
+    std::uint32_t column(const ObjectModel& model, double scale, std::vector<std::uint32_t>& cols,
+                         int x, int y);
 
     const TerrainMap* map_;
     int k_ = 1;

@@ -30,9 +30,11 @@ struct Stat {
 };
 Stat stat(const std::vector<double>& v) {
     Stat s;
-    for (double x : v) s.mean += x;
+    for (double x : v)
+        s.mean += x;
     s.mean /= static_cast<double>(v.size());
-    for (double x : v) s.sd += (x - s.mean) * (x - s.mean);
+    for (double x : v)
+        s.sd += (x - s.mean) * (x - s.mean);
     s.sd = v.size() > 1 ? std::sqrt(s.sd / static_cast<double>(v.size() - 1)) : 0.0;
     return s;
 }
@@ -43,12 +45,15 @@ int main(int argc, char** argv) {
     std::string scenePath = std::string(VIG_DATA_DIR) + "/scenes/puget-sound.json";
     int repeat = 3, w = 360, h = 243;
     for (int i = 1; i < argc; ++i) {
-        if (!std::strcmp(argv[i], "--scene") && i + 1 < argc) scenePath = argv[++i];
-        else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = std::atoi(argv[++i]);
+        if (!std::strcmp(argv[i], "--scene") && i + 1 < argc)
+            scenePath = argv[++i];
+        else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc)
+            repeat = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--image") && i + 1 < argc) {
             if (std::sscanf(argv[++i], "%dx%d", &w, &h) != 2) return 2;
         } else {
-            std::fprintf(stderr, "usage: bench-objects [--scene FILE] [--repeat N] [--image WxH]\n");
+            std::fprintf(stderr,
+                         "usage: bench-objects [--scene FILE] [--repeat N] [--image WxH]\n");
             return 2;
         }
     }
@@ -70,13 +75,14 @@ int main(int argc, char** argv) {
             lists = l.table().lists();
         }
         const Stat s = stat(loads);
-        std::printf("%s sticks: %zu objects, %zu cell entries (%.1f per object), %zu stick lists; "
-                    "table %zu B, cells %zu B, per-terrain-cell ranges %zu B; "
-                    "(table + cells) / object = %.0f B; load %.0f +- %.0f ms\n",
-                    share ? "shared" : "unshared", objects, entries,
-                    static_cast<double>(entries) / static_cast<double>(objects), lists, table, cells,
-                    total - table - cells, static_cast<double>(table + cells) / static_cast<double>(objects),
-                    s.mean, s.sd);
+        std::printf(
+            "%s sticks: %zu objects, %zu cell entries (%.1f per object), %zu stick lists; "
+            "table %zu B, cells %zu B, per-terrain-cell ranges %zu B; "
+            "(table + cells) / object = %.0f B; load %.0f +- %.0f ms\n",
+            share ? "shared" : "unshared", objects, entries,
+            static_cast<double>(entries) / static_cast<double>(objects), lists, table, cells,
+            total - table - cells,
+            static_cast<double>(table + cells) / static_cast<double>(objects), s.mean, s.sd);
     }
     // The reference caster at the demo view, without and with the objects.
     const ig::Scene scene = ig::loadScene(scenePath, map);
