@@ -55,7 +55,11 @@ double number(const Ctx& ctx, const Json& j, const std::string& entry, const cha
 std::string text(const Ctx& ctx, const Json& j, const std::string& entry, const char* key) {
     if (!j.contains(key)) ctx.fail(entry, std::string("missing \"") + key + "\"");
     if (!j.at(key).is_string()) ctx.fail(entry + "." + key, "expected a string");
-    return j.at(key).get<std::string>();
+    std::string v = j.at(key).get<std::string>();
+    if (v.size() > 512) {
+        ctx.fail(entry + "." + key, base::quoted(v, 60) + ": longer than 512 bytes");
+    }
+    return v;
 }
 
 double positiveScale(const Ctx& ctx, const Json& j, const std::string& entry) {
@@ -64,6 +68,13 @@ double positiveScale(const Ctx& ctx, const Json& j, const std::string& entry) {
         ctx.fail(entry + ".scale", base::number(s) + ": metres per voxel must be in [0.001, 1000]");
     }
     return s;
+}
+
+// A base height, metres: within 100 km of sea level, as the terrain's heights are.
+double height(const Ctx& ctx, const Json& j, const std::string& entry) {
+    const double z = number(ctx, j, entry, "z");
+    if (std::abs(z) > 1e5) ctx.fail(entry + ".z", base::number(z) + ": must be within +-100 km");
+    return z;
 }
 
 std::string resolve(const std::string& scenePath, const std::string& p) {
@@ -99,6 +110,9 @@ double slopeAt(const TerrainMap& map, double x, double y) {
 }
 
 ObjectModel loadModel(const Ctx& ctx, const std::string& name, const Json& m) {
+    if (name.empty() || name.size() > 64) {
+        ctx.fail("models", "model name " + base::quoted(name, 60) + ": 1..64 bytes expected");
+    }
     const std::string entry = "models." + name;
     checkKeys(ctx, m, entry, {"vox", "model", "sculpt"});
     if (m.contains("vox") == m.contains("sculpt"))
@@ -179,13 +193,16 @@ ObjectLayer Scene::stampMoving(std::span<const Placement> where) const {
 }
 
 Scene parseScene(std::string_view content, const std::string& path, const TerrainMap& map,
-                 bool shareSticks) {
+                 bool shareSticks, double maxCellVisits) {
     const Ctx ctx{path};
     Json j;
     try {
         j = Json::parse(content);
     } catch (const Json::parse_error& e) {
-        throw InputError(path + ": not valid JSON (" + e.what() + ")");
+        // The parser's message without its echo of the input ("; last read: ...").
+        std::string what = e.what();
+        what = what.substr(0, std::min<std::size_t>(what.find("; last read"), 300));
+        throw InputError(path + ": not valid JSON (" + what + ")");
     }
     checkKeys(ctx, j, "scene", {"cell_m", "models", "objects", "scatter"});
     Scene scene;
@@ -206,6 +223,22 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
         scene.models.push_back(std::make_unique<ObjectModel>(loadModel(ctx, name, m)));
         scene.modelNames.push_back(name);
     }
+    // The object cells a placement's footprint box sweeps, counted against the budget.
+    double visits = 0.0;
+    auto charge = [&](int model, double scale, const std::string& entry) {
+        const VoxModel& g = scene.models[static_cast<std::size_t>(model)]->grid;
+        const double r = scale * std::hypot(0.5 * g.sizeX, 0.5 * g.sizeY);
+        const double nx = std::min(2.0 * r / scene.staticLayer->cellSizeX() + 3.0,
+                                   static_cast<double>(scene.staticLayer->cellsX()));
+        const double ny = std::min(2.0 * r / scene.staticLayer->cellSizeY() + 3.0,
+                                   static_cast<double>(scene.staticLayer->cellsY()));
+        visits += nx * ny;
+        if (visits > maxCellVisits) {
+            ctx.fail(entry, "the placements so far sweep " + base::number(visits) +
+                                " object cells (at most " + base::number(maxCellVisits) +
+                                "): use a larger cell_m, a smaller scale or fewer copies");
+        }
+    };
     auto modelOf = [&](const Json& o, const std::string& entry) {
         const std::string name = text(ctx, o, entry, "model");
         const int k = scene.modelIndex(name);
@@ -232,10 +265,11 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
                              "a moving object takes its position and heading from its "
                              "trajectory; drop x, y and heading");
                 }
+                charge(model, scale, entry);
                 MovingObject mo{
                     id,    model,        resolve(path, text(ctx, o, entry, "trajectory")),
                     scale, std::nullopt, entry};
-                if (o.contains("z")) mo.z = number(ctx, o, entry, "z");
+                if (o.contains("z")) mo.z = height(ctx, o, entry);
                 scene.moving.push_back(std::move(mo));
                 continue;
             }
@@ -244,9 +278,10 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
             p.x = number(ctx, o, entry, "x");
             p.y = number(ctx, o, entry, "y");
             checkOnMap(ctx, map, entry, p.x, p.y);
-            p.z = o.contains("z") ? number(ctx, o, entry, "z") : map.surfaceHeight(p.x, p.y);
+            p.z = o.contains("z") ? height(ctx, o, entry) : map.surfaceHeight(p.x, p.y);
             p.heading = number(ctx, o, entry, "heading", 0.0) * std::numbers::pi / 180.0;
             p.scale = scale;
+            charge(model, scale, entry);
             scene.staticLayer->place(*scene.models[static_cast<std::size_t>(model)], p);
         }
     }
@@ -280,6 +315,9 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
             checkOnMap(ctx, map, entry + ".area", a[0], a[1]);
             checkOnMap(ctx, map, entry + ".area", a[2], a[3]);
             const double seed = number(ctx, s, entry, "seed", 1.0);
+            if (!(seed >= 0.0 && seed <= 9007199254740992.0 && seed == std::floor(seed))) {
+                ctx.fail(entry + ".seed", "expected a whole number 0..2^53");
+            }
             const double maxSlope = number(ctx, s, entry, "max_slope_deg", 90.0);
             if (!(maxSlope > 0.0 && maxSlope <= 90.0)) {
                 ctx.fail(entry + ".max_slope_deg", "must be in (0, 90]");
@@ -319,6 +357,7 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
                 p.id = objectId(ctx, nextId++, entry + " (scattered id)", used);
                 p.z = map.surfaceHeight(p.x, p.y);
                 p.scale = scale;
+                charge(model, scale, entry);
                 scene.staticLayer->place(*scene.models[static_cast<std::size_t>(model)], p);
                 ++placed;
             }

@@ -47,9 +47,13 @@ class Scene {
 // (models.tank.sculpt.side, objects[2].scale, scatter[0].area): bad JSON, an unknown model or
 // key, a NaN or negative scale, a placement off the map, an id reused or out of 1..65535, a
 // model file that does not load.
+// The object cells all placements together may sweep (their footprints' bounding boxes) before
+// a scene is refused as too costly to resample: a 256-voxel model at 1000 m per voxel over
+// 4 cm cells would otherwise run for hours.
+inline constexpr double kMaxSceneCellVisits = 1 << 28;
 // `shareSticks` false stores every cell's stick list anew (for measuring what sharing saves).
 Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks = true);
 Scene parseScene(std::string_view text, const std::string& path, const TerrainMap& map,
-                 bool shareSticks = true);
+                 bool shareSticks = true, double maxCellVisits = kMaxSceneCellVisits);
 
 }  // namespace ig

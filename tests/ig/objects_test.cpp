@@ -388,6 +388,21 @@ TEST(Scene, EveryBadEntryIsNamed) {
             R"(, "scatter": [{"model": "one", "count": 5, "area": [0, 0, 10, 10], "max_slope_deg": 0}]})",
         "scatter[0].max_slope_deg");
     has(R"({"cell_m": 50, "models": {}})", "cell_m: 50");
+    // A placement too costly to resample: a 1000 m-per-voxel copy over 1 cm cells.
+    has(R"({"cell_m": 0.01, )" + m +
+            R"(, "objects": [{"id": 1, "model": "one", "x": 1, "y": 1, "scale": 1000}]})",
+        "objects[0]: the placements so far sweep");
+    try {
+        parseScene(
+            "{" + m +
+                R"(, "scatter": [{"model": "one", "count": 50, "area": [0, 0, 600, 600], "scale": 100}]})",
+            tmpDir() + "/s.json", map, true, 10000);
+        ADD_FAILURE() << "no budget error";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("scatter[0]: the placements so far sweep"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace
