@@ -30,7 +30,7 @@ constexpr Rgb8 kBackground{250, 250, 250};
 // A view rendered from the analytic shape, 4 x 4 samples per pixel: each sample sees the part
 // (box or cylinder) the orthographic ray meets, coloured per view and part; pixels blend their
 // samples with the background (anti-aliased edges, as a photograph's).
-SculptView syntheticView(int which) {
+SculptView renderView(int which) {
     const Rgb8 box[3] = {{90, 60, 40}, {60, 90, 40}, {120, 100, 70}};
     const Rgb8 cyl[3] = {{40, 70, 110}, {30, 60, 140}, {70, 110, 160}};
     SculptView v;
@@ -71,6 +71,12 @@ SculptView syntheticView(int which) {
         }
     }
     return v;
+}
+
+// The three views, rendered once per test program.
+const SculptView& syntheticView(int which) {
+    static const SculptView views[3] = {renderView(0), renderView(1), renderView(2)};
+    return views[which];
 }
 
 // The background key of loadSculptView, applied in memory.
