@@ -8,8 +8,11 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace ig {
+
+class ObjectLayer;
 
 // Span: cost per terrain sample (docs/design/span_renderer.md); steep frames go to Fast.
 enum class CasterKind { Reference, Naive, Fast, Span };
@@ -68,6 +71,11 @@ struct RenderOptions {
     // Span caster: a frame is drawn on the vertical image plane when the pitched window's rows
     // stretch over at most this many vertical-plane columns per pixel, else by the fast caster.
     double spanMaxStretch = 2.0;
+    // Voxel objects drawn over the terrain (not owned; all on the caster's map and one object
+    // grid): the static layer, and the moving objects stamped at the frame's instant. Drawn by
+    // the reference and naive casters, which then fill the frame's object-id image; empty: no
+    // objects, and the images are the terrain's alone, bit for bit.
+    std::vector<const ObjectLayer*> objects;
 };
 
 // Columns of the vertical image plane per output pixel at the pitched window's most stretched

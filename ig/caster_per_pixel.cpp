@@ -3,6 +3,7 @@
 // ray marched independently from the eye, one grid line per step, no coherence (the baseline).
 #include "ig/caster_impl.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/object_trace.hpp"
 #include "ig/shading.hpp"
 #include "ig/surface_hit.hpp"
 
@@ -20,6 +21,9 @@ template <typename Trace>
 void renderRow(const TerrainMap& map, const RenderOptions& options, const Camera& camera,
                RenderedFrame& frame, int y, std::uint64_t& steps, Trace trace) {
     const int w = camera.intrinsics().width;
+    const bool objects = !options.objects.empty() && !frame.objectId.empty();
+    ObjectTraceScratch scratch;
+    ObjectShading shading;
     for (int x = 0; x < w; ++x) {
         const TerrainRay ray(map, camera.pose().position, camera.rayDirection(x + 0.5, y + 0.5));
         const std::size_t idx = static_cast<std::size_t>(y) * w + x;
@@ -33,6 +37,13 @@ void renderRow(const TerrainMap& map, const RenderOptions& options, const Camera
             frame.color[idx] = skyColor(options.sky, ray.dir.z);
             frame.depth[idx] = kSkyDepth;
         }
+        if (objects) {
+            traceObjects(options.objects, ray.origin, ray.dir, t >= 0.0 ? t : kSkyDepth,
+                         options.sky, scratch, shading);
+            frame.color[idx] = composeOver(shading, frame.color[idx]);
+            frame.objectId[idx] = shading.id;
+            if (shading.id != 0) frame.depth[idx] = static_cast<float>(shading.depth);
+        }
     }
 }
 
@@ -41,6 +52,7 @@ template <typename Trace>
 void renderPerPixel(const TerrainMap& map, const RenderOptions& options, const Camera& camera,
                     RenderedFrame& frame, Trace trace) {
     const int w = camera.intrinsics().width, h = camera.intrinsics().height;
+    if (!options.objects.empty()) frame.objectId.assign(static_cast<std::size_t>(w) * h, 0);
     tbb::combinable<std::uint64_t> steps([] { return std::uint64_t{0}; });
     runWithThreads(options.threads, [&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {

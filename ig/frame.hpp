@@ -46,6 +46,10 @@ struct RenderedFrame {
     Intrinsics intrinsics;
     std::vector<Rgb8> color;   // width * height, row-major from the top row
     std::vector<float> depth;  // Euclidean distance from the eye in metres; +inf for sky
+    // Object id per pixel (0: terrain or sky), width * height, when the frame was rendered with
+    // voxel objects; empty otherwise. Depth is then the distance to the first voxel of non-zero
+    // opacity where an object covers the pixel.
+    std::vector<std::uint16_t> objectId;
     std::array<ControlPoint, kControlPointCount> controlPoints{};
     RenderStats stats;
     // Stereo: the right eye of the pair this frame is the left eye of (its own pose, depth and

@@ -93,6 +93,13 @@ class TerrainMap {
     }
     // The cell maxima, (width-1) per row, followed by two spare entries.
     const std::uint16_t* cellMaxData() const { return cellMax_.data(); }
+    // Raises cell (cx, cy)'s maximum to at least `raw`, and the map's highest height with it
+    // (objects standing on the map; updateRange() drops what was raised).
+    void raiseCellMaxRaw(int cx, int cy, std::uint16_t raw) {
+        std::uint16_t& m = cellMax_[static_cast<std::size_t>(cy) * (width_ - 1) + cx];
+        if (raw > m) m = raw;
+        maxHeight_ = std::max(maxHeight_, raw * heightScale_ + heightOffset_);
+    }
     // Bound on the gradient magnitude of the bilinear surface anywhere on the map (m per m).
     double maxSlope() const { return maxSlope_; }
 

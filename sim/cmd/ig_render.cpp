@@ -3,11 +3,14 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/object_trace.hpp"
 #include "ig/pose_sweep.hpp"
+#include "ig/scene.hpp"
 #include "ig/stereo.hpp"
 #include "io/image_file.hpp"
 #include "io/output_file.hpp"
 #include "io/stop_signals.hpp"
+#include "sim/scene_motion.hpp"
 #include "sim/trajectory.hpp"
 
 #include <tbb/parallel_for.h>
@@ -53,6 +56,10 @@ constexpr const char* kConventions = R"(Conventions:
   The fast and span casters render roll = 0 (the post-rendering processor applies roll as a 2D
   rotation); the naive and reference casters honour any roll. The span caster hands steep frames
   to the fast caster (its JSON "path" says which drew the frame).
+  Objects (--scene, reference and naive casters): --objects-out writes each pixel's object id
+  as a 16-bit grey PNG (0: terrain or sky); --json lists each visible object's pixel count and
+  box [x0, y0, x1, y1] (inclusive). Moving objects are placed at --time (default: the earliest
+  trajectory start).
   A path of '-' writes to standard output.)";
 
 // ---- Stereo (--stereo): left eye by the fast caster, right eye reprojected or cast. ----------
@@ -396,6 +403,16 @@ int main(int argc, char** argv) {
                    "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
                    "the same image with each, refused where the processor lacks it")
         ->capture_default_str();
+    std::string scenePath, objectsOut;
+    std::optional<double> sceneTime;
+    app.add_option("--scene", scenePath,
+                   "Scene file (JSON): voxel objects placed and scattered over the terrain; drawn "
+                   "by the reference and naive casters");
+    app.add_option("--objects-out", objectsOut,
+                   "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene)");
+    app.add_option("--time", sceneTime,
+                   "Scene time, seconds, for the moving objects (default: the earliest start of "
+                   "their trajectories)");
     StereoFlags stereo;
     addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
@@ -424,6 +441,8 @@ int main(int argc, char** argv) {
                            {"--out", stereo.enabled() ? std::string() : outPath, out},
                            {"--depth", depthPath, out},
                            {"--json", jsonPath, out},
+                           {"--scene", scenePath, io::PathRole::Input},
+                           {"--objects-out", objectsOut, out},
                            {"--out-left", stereo.outLeft, out},
                            {"--out-right", stereo.outRight, out},
                            {"--out-sbs", stereo.outSbs, out},
@@ -436,6 +455,18 @@ int main(int argc, char** argv) {
         if (threads < 0 || threads > 1024) throw ig::InputError("--threads: must be 0..1024");
         const auto [w, h] = ig::parseSize(sizeText);
         const ig::CasterKind kind = ig::parseCasterKind(casterText);
+        if (!objectsOut.empty() && scenePath.empty()) {
+            throw ig::InputError("--objects-out: give a --scene to draw objects from");
+        }
+        if (sceneTime && scenePath.empty()) throw ig::InputError("--time: give a --scene");
+        if (sceneTime && !std::isfinite(*sceneTime))
+            throw ig::InputError("--time: not a finite number");
+        if (!scenePath.empty() && (kind == ig::CasterKind::Fast || kind == ig::CasterKind::Span ||
+                                   stereo.enabled() || batchMode)) {
+            throw ig::InputError(
+                "--scene: objects are drawn by the reference and naive casters; "
+                "add --caster reference (or naive), without --stereo or --poses");
+        }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
         const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
@@ -461,6 +492,21 @@ int main(int argc, char** argv) {
         }
         if (stereo.enabled())
             return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
+        // The scene: the static layer, and the moving objects stamped at the frame's time.
+        std::optional<ig::Scene> scene;
+        std::optional<sim::SceneMotion> motion;
+        std::optional<ig::ObjectLayer> moving;
+        double time = 0.0;
+        if (!scenePath.empty()) {
+            scene.emplace(ig::loadScene(scenePath, map));
+            motion.emplace(*scene);
+            time = sceneTime.value_or(motion->startTime());
+            moving.emplace(motion->stamp(time));
+            // The max-height bounds cover the objects (static ones: the moving ones are
+            // stamped per frame and looked up by the casters directly).
+            ig::includeStickTops(map, *scene->staticLayer);
+            options.objects = {&*scene->staticLayer, &*moving};
+        }
         const auto caster = ig::makeCaster(kind, map, options);
         if (batchMode) {
             nlohmann::json common;
@@ -478,7 +524,15 @@ int main(int argc, char** argv) {
             return renderBatch(batch, *caster, map, intr, threads, outPath, depthPath, jsonPath,
                                common);
         }
-        const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr);
+        const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr, time);
+        if (!objectsOut.empty()) {
+            std::string idError;
+            if (io::writePng16(objectsOut, frame.width(), frame.height(), frame.objectId,
+                               &idError) != 0) {
+                throw ig::InputError("--objects-out " + idError);
+            }
+        }
+
         std::string error;
         const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
         if (io::writePng8(outPath, frame.width(), frame.height(), 3,
@@ -512,6 +566,23 @@ int main(int argc, char** argv) {
             j["control_points"].push_back(
                 {{"px", {cp.pixel.x, cp.pixel.y}},
                  {"world", {cp.world.x, cp.world.y, cp.world.z, cp.world.w}}});
+        }
+        if (scene) {
+            const ig::ObjectLayer& layer = *scene->staticLayer;
+            j["scene"] = {{"file", scenePath},
+                          {"time", time},
+                          {"static_objects", layer.objects().size()},
+                          {"moving_objects", scene->moving.size()},
+                          {"object_cell_m", layer.cellSizeX()},
+                          {"object_cells", layer.cellEntries()},
+                          {"stick_lists", layer.table().lists()},
+                          {"stick_table_bytes", layer.table().bytes()},
+                          {"layer_bytes", layer.bytes()}};
+            j["objects"] = nlohmann::json::array();
+            for (const ig::ObjectPixels& o : ig::objectPixelStats(frame)) {
+                j["objects"].push_back(
+                    {{"id", o.id}, {"pixels", o.pixels}, {"box", {o.x0, o.y0, o.x1, o.y1}}});
+            }
         }
         if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
         if (outPath != "-") {

@@ -1,0 +1,228 @@
+// The objects' exact ray cast: a two-level walk (terrain cells, then the object cells inside the
+// ones whose stick range the ray meets) and a box test per voxel of the runs it meets.
+#include "ig/object_trace.hpp"
+
+#include "ig/shading.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ig {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Parameters where a + t * d lies in [lo, hi], intersected with [t0, t1].
+inline bool clipAxis(double a, double d, double lo, double hi, double& t0, double& t1) {
+    if (d == 0.0) return a >= lo && a <= hi;
+    double ta = (lo - a) / d, tb = (hi - a) / d;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    return t0 <= t1;
+}
+
+// Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
+// over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
+// (0 x, 1 y, -1 the first cell). Stops when visit returns false.
+template <typename Visit>
+void walkGrid(double ox, double oy, double dx, double dy, double baseX, double baseY, double sizeX,
+              double sizeY, std::int64_t x0, std::int64_t y0, std::int64_t x1, std::int64_t y1,
+              double t0, double t1, int axis, Visit visit) {
+    const double px = ox + t0 * dx - baseX, py = oy + t0 * dy - baseY;
+    std::int64_t cx = std::clamp(static_cast<std::int64_t>(std::floor(px / sizeX)) + x0, x0, x1);
+    std::int64_t cy = std::clamp(static_cast<std::int64_t>(std::floor(py / sizeY)) + y0, y0, y1);
+    const int stepX = dx > 0.0 ? 1 : -1, stepY = dy > 0.0 ? 1 : -1;
+    const double invX = dx != 0.0 ? 1.0 / dx : kInf, invY = dy != 0.0 ? 1.0 / dy : kInf;
+    auto nextX = [&] {
+        if (dx == 0.0) return kInf;
+        const double edge = baseX + static_cast<double>(cx - x0 + (dx > 0.0)) * sizeX;
+        return (edge - ox) * invX;
+    };
+    auto nextY = [&] {
+        if (dy == 0.0) return kInf;
+        const double edge = baseY + static_cast<double>(cy - y0 + (dy > 0.0)) * sizeY;
+        return (edge - oy) * invY;
+    };
+    double ta = t0;
+    double tx = nextX(), ty = nextY();
+    for (;;) {
+        const double tb = std::min({tx, ty, t1});
+        if (tb >= ta && !visit(cx, cy, ta, tb, axis)) return;
+        if (tb >= t1) return;
+        if (tx <= ty) {
+            cx += stepX;
+            axis = 0;
+            if (cx < x0 || cx > x1) return;
+            tx = nextX();
+        } else {
+            cy += stepY;
+            axis = 1;
+            if (cy < y0 || cy > y1) return;
+            ty = nextY();
+        }
+        ta = tb;
+    }
+}
+
+// The voxels of one cell entry that the ray meets over [ta, tb] (inside the cell's column).
+void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
+                 const glm::dvec3& d, double ta, double tb, int axis, std::vector<VoxelHit>& hits) {
+    const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
+    const double zLo = std::min(zA, zB), zHi = std::max(zA, zB);
+    const double h = table.voxelHeight(cell.stick);
+    const int runs = table.runCount(cell.stick);
+    const VoxelFace side = axis == 1 ? VoxelFace::Y : VoxelFace::X;
+    for (int r = 0; r < runs; ++r) {
+        const StickRun run = table.run(cell.stick, r);
+        const double runLo = cell.baseZ + run.first * h, runHi = runLo + run.count * h;
+        if (zHi < runLo || zLo > runHi) continue;
+        const double last = run.count - 1;
+        const int k0 = static_cast<int>(std::clamp(std::floor((zLo - runLo) / h), 0.0, last));
+        const int k1 = static_cast<int>(std::clamp(std::floor((zHi - runLo) / h), 0.0, last));
+        for (int k = k0; k <= k1; ++k) {
+            const double zb = runLo + k * h, zt = zb + h;
+            double enter = ta, exit = tb;
+            if (!clipAxis(o.z, d.z, zb, zt, enter, exit) || !(enter < exit)) continue;
+            const Rgba8 c = run.voxel(k);
+            if (c.a == 0) continue;
+            VoxelFace face = side;
+            if (enter > ta)
+                face = d.z < 0.0 ? VoxelFace::Top : VoxelFace::Bottom;
+            else if (axis < 0)
+                face = d.z < 0.0 ? VoxelFace::Top : VoxelFace::Bottom;
+            hits.push_back(VoxelHit{enter, c, face, cell.id});
+        }
+    }
+}
+
+}  // namespace
+
+float faceShade(VoxelFace face) {
+    switch (face) {
+        case VoxelFace::Top:
+            return kFaceShadeTop;
+        case VoxelFace::Bottom:
+            return kFaceShadeBottom;
+        case VoxelFace::X:
+            return kFaceShadeX;
+        case VoxelFace::Y:
+            return kFaceShadeY;
+    }
+    return 1.0f;
+}
+
+void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
+                  ObjectTraceScratch& scratch, ObjectShading& out) {
+    out = ObjectShading{};
+    if (layers.empty()) return;
+    const ObjectLayer& first = *layers[0];
+    const TerrainMap& map = first.map();
+    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+    for (const ObjectLayer* l : layers) {
+        if (l->empty()) continue;
+        lo = std::min(lo, l->minBottom());
+        hi = std::max(hi, l->maxTop());
+    }
+    if (!(lo <= hi)) return;
+    // The ray inside the objects' box: the map's footprint, their height range.
+    double t0 = 0.0, t1 = std::isfinite(tEnd) ? tEnd : kInf;
+    if (!clipAxis(origin.x, dir.x, 0.0, map.extentX(), t0, t1) ||
+        !clipAxis(origin.y, dir.y, 0.0, map.extentY(), t0, t1) ||
+        !clipAxis(origin.z, dir.z, lo, hi, t0, t1) || !(t0 < t1)) {
+        return;
+    }
+    const int k = first.subdivision();
+    const double csx = first.cellSizeX(), csy = first.cellSizeY();
+    const int bw = map.width() - 1, bh = map.height() - 1;
+    std::vector<VoxelHit>& hits = scratch.hits;
+    bool done = false;
+    walkGrid(
+        origin.x, origin.y, dir.x, dir.y, 0.0, 0.0, map.spacingX(), map.spacingY(), 0, 0, bw - 1,
+        bh - 1, t0, t1, -1, [&](std::int64_t bx, std::int64_t by, double ba, double bb, int baxis) {
+            const double zA = origin.z + ba * dir.z, zB = origin.z + bb * dir.z;
+            const double zLo = std::min(zA, zB), zHi = std::max(zA, zB);
+            bool meets = false;
+            for (const ObjectLayer* l : layers) {
+                const int ix = static_cast<int>(bx), iy = static_cast<int>(by);
+                meets = meets || (zLo <= l->blockTop(ix, iy) && zHi >= l->blockBottom(ix, iy));
+            }
+            if (!meets) return true;
+            // The object cells of this terrain cell, in order along the ray.
+            walkGrid(origin.x, origin.y, dir.x, dir.y, static_cast<double>(bx) * map.spacingX(),
+                     static_cast<double>(by) * map.spacingY(), csx, csy, bx * k, by * k,
+                     bx * k + k - 1, by * k + k - 1, ba, bb, baxis,
+                     [&](std::int64_t cx, std::int64_t cy, double ta, double tb, int axis) {
+                         hits.clear();
+                         for (const ObjectLayer* l : layers) {
+                             for (const ObjectCell& cell : l->cellsAt(cx, cy))
+                                 collectHits(l->table(), cell, origin, dir, ta, tb, axis, hits);
+                         }
+                         if (hits.empty()) return true;
+                         std::sort(hits.begin(), hits.end(),
+                                   [](const VoxelHit& a, const VoxelHit& b) {
+                                       return a.enter < b.enter;
+                                   });
+                         for (const VoxelHit& hit : hits) {
+                             const float a = hit.color.a / 255.0f;
+                             const float shade = faceShade(hit.face);
+                             float c[3] = {hit.color.r * shade, hit.color.g * shade,
+                                           hit.color.b * shade};
+                             applyHaze(sky, c, hit.enter);
+                             const float w = out.transmittance * a;
+                             for (int i = 0; i < 3; ++i)
+                                 out.rgb[i] += w * c[i];
+                             out.transmittance *= 1.0f - a;
+                             if (out.id == 0) {
+                                 out.id = hit.id;
+                                 out.depth = hit.enter;
+                             }
+                             if (out.transmittance < 1.0f / 1024.0f) {
+                                 out.transmittance = 0.0f;
+                                 done = true;
+                                 return false;
+                             }
+                         }
+                         return true;
+                     });
+            return !done;
+        });
+}
+
+Rgb8 composeOver(const ObjectShading& shading, Rgb8 background) {
+    if (shading.id == 0) return background;
+    const float t = shading.transmittance;
+    const float rgb[3] = {shading.rgb[0] + t * background.r, shading.rgb[1] + t * background.g,
+                          shading.rgb[2] + t * background.b};
+    return quantizeColor(rgb);
+}
+
+}  // namespace ig
+
+namespace ig {
+
+std::vector<ObjectPixels> objectPixelStats(const RenderedFrame& frame) {
+    std::vector<ObjectPixels> byId(65536);
+    const int w = frame.width();
+    for (std::size_t i = 0; i < frame.objectId.size(); ++i) {
+        const std::uint16_t id = frame.objectId[i];
+        if (id == 0) continue;
+        const int x = static_cast<int>(i % static_cast<std::size_t>(w));
+        const int y = static_cast<int>(i / static_cast<std::size_t>(w));
+        ObjectPixels& o = byId[id];
+        if (o.pixels == 0) o = ObjectPixels{id, 0, x, y, x, y};
+        ++o.pixels;
+        o.x0 = std::min(o.x0, x);
+        o.x1 = std::max(o.x1, x);
+        o.y0 = std::min(o.y0, y);
+        o.y1 = std::max(o.y1, y);
+    }
+    std::vector<ObjectPixels> out;
+    for (const ObjectPixels& o : byId)
+        if (o.pixels > 0) out.push_back(o);
+    return out;
+}
+
+}  // namespace ig

@@ -1,0 +1,72 @@
+// Exact ray casting of sticks: a ray walked through the object grid, each voxel a box,
+// semi-transparent voxels blended front to back over what lies behind (the secondary ray).
+#pragma once
+
+#include "ig/caster.hpp"
+#include "ig/sticks.hpp"
+
+#include <glm/vec3.hpp>
+
+#include <span>
+#include <vector>
+
+namespace ig {
+
+// Brightness of a voxel face by the axis it faces: a fixed light from above and the south-west.
+inline constexpr float kFaceShadeTop = 1.0f;
+inline constexpr float kFaceShadeBottom = 0.55f;
+inline constexpr float kFaceShadeX = 0.75f;  // faces looking east or west
+inline constexpr float kFaceShadeY = 0.88f;  // faces looking north or south
+
+enum class VoxelFace : std::uint8_t { Top, Bottom, X, Y };
+float faceShade(VoxelFace face);
+
+// One voxel a ray passes through.
+struct VoxelHit {
+    double enter = 0.0;  // ray parameter where it enters the voxel's box
+    Rgba8 color;
+    VoxelFace face = VoxelFace::Top;
+    std::uint16_t id = 0;
+};
+
+// What the objects in front of a background make of a pixel.
+struct ObjectShading {
+    float rgb[3] = {0.0f, 0.0f, 0.0f};  // accumulated colour, 0..255, already weighted
+    float transmittance = 1.0f;         // fraction of the background that shows through
+    std::uint16_t id = 0;               // first object with a voxel of non-zero opacity, or 0
+    double depth = 0.0;                 // where the ray enters that voxel
+};
+
+// Scratch of one worker, reused from pixel to pixel (no allocation per pixel once grown).
+struct ObjectTraceScratch {
+    std::vector<VoxelHit> hits;
+};
+
+// Walks the ray origin + t * dir (dir of unit length) from t = 0 to `tEnd` (the terrain hit, or
+// +inf) through every layer (all on one map and one object grid), every voxel box it crosses
+// in order, and accumulates their colours front to back (colour * face shade, hazed by
+// distance; a voxel of opacity a passes 1 - a of what is behind it; alpha 0 passes all). Stops
+// when less than 1/1024 of the background would show.
+void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
+                  ObjectTraceScratch& scratch, ObjectShading& out);
+
+// `background` seen through `shading`: the background itself (bit for bit) where nothing
+// covers it, else the blend, rounded.
+Rgb8 composeOver(const ObjectShading& shading, Rgb8 background);
+
+}  // namespace ig
+
+namespace ig {
+
+// Visible pixels of one object in a frame's object-id image, and their bounding box
+// (inclusive pixel coordinates).
+struct ObjectPixels {
+    std::uint16_t id = 0;
+    std::uint64_t pixels = 0;
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+// Every id present in frame.objectId (0 excluded), by increasing id.
+std::vector<ObjectPixels> objectPixelStats(const RenderedFrame& frame);
+
+}  // namespace ig

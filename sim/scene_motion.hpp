@@ -1,0 +1,33 @@
+// The moving objects of a scene: their trajectories loaded, and the objects stamped at any
+// instant into a layer apart from the static world.
+#pragma once
+
+#include "ig/scene.hpp"
+#include "sim/trajectory.hpp"
+
+#include <vector>
+
+namespace sim {
+
+class SceneMotion {
+  public:
+    // Loads the trajectory of each moving object of `scene` (which must outlive this); throws
+    // ig::InputError naming the scene file, the entry and the trajectory's own problem.
+    explicit SceneMotion(const ig::Scene& scene);
+
+    bool empty() const { return trajectories_.empty(); }
+    // Earliest start of the trajectories (0 when there are none).
+    double startTime() const;
+    // Base centre and heading of every moving object at time t (each clamped to its
+    // trajectory's range), in the scene's order.
+    std::vector<ig::Placement> placementsAt(double t) const;
+    // The moving objects at time t, on the static layer's object grid; an object whose
+    // trajectory takes it off the map is left out.
+    ig::ObjectLayer stamp(double t) const;
+
+  private:
+    const ig::Scene* scene_;
+    std::vector<Trajectory> trajectories_;
+};
+
+}  // namespace sim
