@@ -29,6 +29,18 @@ wait_for_bytes() {
     done
     fail "$file: still under $bytes bytes after 60 s"
 }
+# Waits (up to 30 s) until process PID catches SIGINT and SIGTERM (its SigCgt mask in
+# /proc): a signal sent after this is the program's to handle, not the default death of a
+# process still starting.
+wait_for_handlers() {
+    local pid="$1" i mask
+    for i in $(seq 1 600); do
+        mask=$(awk '/^SigCgt:/ {print $2}' "/proc/$pid/status" 2>/dev/null) || true
+        [ -n "$mask" ] && [ $((0x$mask & 0x4002)) -eq $((0x4002)) ] && return 0
+        sleep 0.05
+    done
+    fail "process $pid installed no SIGINT/SIGTERM handler in 30 s"
+}
 # Frames in a Y4M as ffprobe (FFmpeg, another implementation) decodes them; ffprobe is
 # installed by scripts/setup.sh, and its absence is a failure, not a skip.
 ffprobe_frames() {
@@ -243,9 +255,10 @@ signals_at_random_instants)
         "$fly" "${fly_small[@]}" --duration 30 --out "y4m:$tmp/v.y4m" --json "$tmp/s.json" \
             --contact none >/dev/null 2>&1 &
         pid=$!
-        # From 0.3 s (the program has installed its handlers) to 2 s: loading, the first
-        # frame, the fields.
-        sleep "$((RANDOM % 2)).$((RANDOM % 7 + 3))$((RANDOM % 10))"
+        # Once the program has installed its handlers (however loaded the machine), at a
+        # random instant from then to 1.7 s later: loading, the first frame, the fields.
+        wait_for_handlers "$pid"
+        sleep "$((RANDOM % 2)).$((RANDOM % 7))$((RANDOM % 10))"
         kill -s "$sig" "$pid"
         wait "$pid"; rc=$?
         want=$([ "$sig" = INT ] && echo 130 || echo 143)
