@@ -11,6 +11,8 @@
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
+#include "common/slow_flight.hpp"
+
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
@@ -546,36 +548,19 @@ TEST(MultiresCaster, NoWorseThanSingleLevelAgainstSupersampledReferenceSynthetic
     EXPECT_LE(e.multi, e.single);
 }
 
-// Frame-to-frame mean absolute difference along a slow straight flight.
+// Frame-to-frame differences along the slow flight with `levels` levels.
 std::vector<double> flightDifferences(const TerrainMap& map, int levels, int frames) {
-    const Intrinsics in = Intrinsics::fromFov(160, 90, ig::degToRad(60));
     ig::RenderOptions options;
     options.levels = levels;
-    const auto caster = ig::makeCaster(CasterKind::Fast, map, options);
-    std::vector<double> diffs;
-    std::vector<ig::Rgb8> prev;
-    for (int i = 0; i < frames; ++i) {
-        Pose pose;
-        pose.position = {1500.0 + 6.0 * i, 1500.0 + 6.0 * i, 0.0};
-        pose.position.z = 250.0 + map.surfaceHeight(1500.0, 1500.0);
-        pose.yaw = ig::degToRad(45.0);
-        pose.pitch = ig::degToRad(-4.0);
-        auto frame = ig::renderFrame(*caster, map, pose, in);
-        if (!prev.empty()) diffs.push_back(ig::meanAbsErrorPct(frame.color, prev));
-        prev = std::move(frame.color);
-    }
-    return diffs;
+    return vig_test::slowFlightDifferences(*ig::makeCaster(CasterKind::Fast, map, options), map,
+                                           frames);
 }
 
 TEST(MultiresCaster, NoSpikesAlongASlowFlight) {
     const TerrainMap& map = synthetic1024();
     std::vector<double> multi = flightDifferences(map, ig::kLevelsAuto, 40);
     std::vector<double> single = flightDifferences(map, 0, 40);
-    auto median = [](std::vector<double> v) {
-        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-        return v[v.size() / 2];
-    };
-    const double mMulti = median(multi), mSingle = median(single);
+    const double mMulti = vig_test::median(multi), mSingle = vig_test::median(single);
     const double worst = *std::max_element(multi.begin(), multi.end());
     std::printf("slow flight: multires median %.3f %% worst %.3f %%; single-level median %.3f %%\n",
                 mMulti, worst, mSingle);

@@ -10,6 +10,8 @@
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
+#include "common/slow_flight.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -166,34 +168,13 @@ TEST(SpanCaster, IdenticalImagesForAnyThreadCount) {
     }
 }
 
-// Frame-to-frame mean absolute difference along a slow straight flight (as the multires test).
-std::vector<double> flightDifferences(const TerrainMap& map, CasterKind kind, int frames) {
-    const Intrinsics in = Intrinsics::fromFov(160, 90, ig::degToRad(60));
-    const auto caster = makeWith(kind, map, ig::kLevelsAuto);
-    std::vector<double> diffs;
-    std::vector<ig::Rgb8> prev;
-    for (int i = 0; i < frames; ++i) {
-        Pose pose;
-        pose.position = {1500.0 + 6.0 * i, 1500.0 + 6.0 * i, 0.0};
-        pose.position.z = 250.0 + map.surfaceHeight(1500.0, 1500.0);
-        pose.yaw = ig::degToRad(45.0);
-        pose.pitch = ig::degToRad(-4.0);
-        auto frame = ig::renderFrame(*caster, map, pose, in);
-        if (!prev.empty()) diffs.push_back(ig::meanAbsErrorPct(frame.color, prev));
-        prev = std::move(frame.color);
-    }
-    return diffs;
-}
-
 TEST(SpanCaster, NoSpikesAlongASlowFlight) {
     const TerrainMap& map = synthetic512();
-    std::vector<double> span = flightDifferences(map, CasterKind::Span, 30);
-    std::vector<double> multi = flightDifferences(map, CasterKind::Fast, 30);
-    auto median = [](std::vector<double> v) {
-        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-        return v[v.size() / 2];
-    };
-    const double mSpan = median(span), mMulti = median(multi);
+    std::vector<double> span =
+        vig_test::slowFlightDifferences(*makeWith(CasterKind::Span, map, ig::kLevelsAuto), map, 30);
+    std::vector<double> multi =
+        vig_test::slowFlightDifferences(*makeWith(CasterKind::Fast, map, ig::kLevelsAuto), map, 30);
+    const double mSpan = vig_test::median(span), mMulti = vig_test::median(multi);
     const double worst = *std::max_element(span.begin(), span.end());
     std::printf("slow flight: span median %.3f %% worst %.3f %%; multires median %.3f %%\n", mSpan,
                 worst, mMulti);
