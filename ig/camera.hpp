@@ -40,6 +40,14 @@ struct Intrinsics {
     int windowWidth() const { return width - 2 * margin; }
     int windowHeight() const { return height - 2 * margin; }
     double windowHfov() const;
+    // The output window alone: the same focal length and centre, no margin.
+    Intrinsics window() const {
+        Intrinsics w = *this;
+        w.width = windowWidth();
+        w.height = windowHeight();
+        w.margin = 0;
+        return w;
+    }
 };
 
 // Orthonormal camera frame for a pose (roll included).

@@ -132,14 +132,6 @@ ig::Pose unrolled(ig::Pose pose) {
     return pose;
 }
 
-ig::Intrinsics windowIntrinsics(const ig::Intrinsics& in) {
-    ig::Intrinsics w = in;
-    w.width = in.windowWidth();
-    w.height = in.windowHeight();
-    w.margin = 0;
-    return w;
-}
-
 WarpInfo infoFrom(const Quadratic& q, const FitResult& fit, WarpModel model, Fallback fallback) {
     WarpInfo info;
     info.model = model;
@@ -322,7 +314,7 @@ HomographyFit fitHomography(std::span<const Correspondence> points) {
 std::size_t controlCorrespondences(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
                                    bool useSky, std::array<Correspondence, 9>& out) {
     if (!fieldPose.isFinite()) return 0;
-    const ig::Camera cam(unrolled(fieldPose), windowIntrinsics(frame.intrinsics));
+    const ig::Camera cam(unrolled(fieldPose), frame.intrinsics.window());
     std::size_t n = 0;
     for (const ig::ControlPoint& cp : frame.controlPoints) {
         const glm::dvec4& w = cp.world;
@@ -350,7 +342,7 @@ std::size_t rotationCorrespondences(const ig::RenderedFrame& frame, const ig::Po
                                     std::array<Correspondence, 9>& out) {
     if (!fieldPose.isFinite() || !frame.pose.isFinite()) return 0;
     const ig::Camera src(frame.pose, frame.intrinsics);
-    const ig::Camera cam(unrolled(fieldPose), windowIntrinsics(frame.intrinsics));
+    const ig::Camera cam(unrolled(fieldPose), frame.intrinsics.window());
     const auto pixels = ig::controlPointPixels(frame.intrinsics);
     std::size_t n = 0;
     for (const glm::dvec2& px : pixels) {
@@ -509,7 +501,7 @@ std::size_t checkCorrespondences(const ig::RenderedFrame& frame, const ig::Pose&
         return 0;
     }
     const ig::Camera src(frame.pose, in);
-    const ig::Camera cam(fieldPose, windowIntrinsics(in));
+    const ig::Camera cam(fieldPose, in.window());
     const double sx = static_cast<double>(geometry.width) / geometry.windowWidth;
     const double sy = static_cast<double>(geometry.height) / geometry.windowHeight;
     std::size_t n = 0;

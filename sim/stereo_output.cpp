@@ -78,21 +78,13 @@ FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry
 
 namespace {
 
-ig::Intrinsics windowOf(const ig::Intrinsics& in) {
-    ig::Intrinsics w = in;
-    w.width = in.windowWidth();
-    w.height = in.windowHeight();
-    w.margin = 0;
-    return w;
-}
-
 // Output row at which `warp` shows world point `world` in the eye at `eye`: its true output
 // position moved by the fit's residual there (one Newton step). False when not visible.
 bool warpedRow(const ig::RenderedFrame& frame, const prp::Quadratic& q, bool exact,
                const ig::Pose& eye, const prp::OutputGeometry& g, const glm::dvec3& world,
                double& row) {
     const auto p = ig::Camera(frame.pose, frame.intrinsics).project(world, 1.0);
-    const auto w = ig::Camera(eye, windowOf(frame.intrinsics)).project(world, 1.0);
+    const auto w = ig::Camera(eye, frame.intrinsics.window()).project(world, 1.0);
     if (!p || !w) return false;
     const double sx = static_cast<double>(g.width) / g.windowWidth;
     const double sy = static_cast<double>(g.height) / g.windowHeight;

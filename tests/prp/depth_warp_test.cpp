@@ -25,14 +25,6 @@ PrpOptions options(WarpModel m, PixelFormat f = PixelFormat::Rgb8) {
     return o;
 }
 
-ig::Intrinsics windowOf(const ig::Intrinsics& in) {
-    ig::Intrinsics win = in;
-    win.width = in.windowWidth();
-    win.height = in.windowHeight();
-    win.margin = 0;
-    return win;
-}
-
 // PSNR (dB) of an RGB field against the truth's lines.
 double fieldPsnr(const Field& field, const ig::RenderedFrame& truth) {
     double sum = 0;
@@ -167,7 +159,7 @@ TEST(DepthWarp, AsAccurateAsTheReference) {
         at.position += glm::dvec3{1.0, 3.0, -0.35} * static_cast<double>(k);
         at.yaw += 0.004 * k;
         at.roll = 0.02 * k;
-        const ig::RenderedFrame truth = test::renderPlane(at, windowOf(kIn));
+        const ig::RenderedFrame truth = test::renderPlane(at, kIn.window());
         Field fast, ref;
         PostRenderingProcessor(options(WarpModel::Depth)).process(frame, at, 0.0, k, fast);
         PrpOptions o = options(WarpModel::Depth);

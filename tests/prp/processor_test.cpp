@@ -143,11 +143,7 @@ TEST(Processor, MotionCompensationBeatsHoldOnAMovingCamera) {
         at.pitch -= 0.002 * k;
         at.roll = 0.01 * k;
         // The truth, rendered at the field's pose (roll included) without margins.
-        ig::Intrinsics win = kIn;
-        win.width = kIn.windowWidth();
-        win.height = kIn.windowHeight();
-        win.margin = 0;
-        const ig::RenderedFrame truth = test::renderPlane(at, win);
+        const ig::RenderedFrame truth = test::renderPlane(at, kIn.window());
         double hold = 0;
         {
             PostRenderingProcessor prp(options(PixelFormat::Rgb8, WarpModel::Hold));
