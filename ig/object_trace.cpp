@@ -3,6 +3,7 @@
 #include "ig/object_trace.hpp"
 
 #include "ig/shading.hpp"
+#include "ig/surface_hit.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,16 +13,6 @@ namespace ig {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Parameters where a + t * d lies in [lo, hi], intersected with [t0, t1].
-inline bool clipAxis(double a, double d, double lo, double hi, double& t0, double& t1) {
-    if (d == 0.0) return a >= lo && a <= hi;
-    double ta = (lo - a) / d, tb = (hi - a) / d;
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    return t0 <= t1;
-}
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -84,7 +75,7 @@ void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dve
         for (int k = k0; k <= k1; ++k) {
             const double zb = runLo + k * h, zt = zb + h;
             double enter = ta, exit = tb;
-            if (!clipAxis(o.z, d.z, zb, zt, enter, exit) || !(enter < exit)) continue;
+            if (!clipSlab(o.z, d.z, zb, zt, enter, exit) || !(enter < exit)) continue;
             const Rgba8 c = run.voxel(k);
             if (c.a == 0) continue;
             VoxelFace face = side;
@@ -129,9 +120,9 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
     if (!(lo <= hi)) return;
     // The ray inside the objects' box: the map's footprint, their height range.
     double t0 = 0.0, t1 = std::isfinite(tEnd) ? tEnd : kInf;
-    if (!clipAxis(origin.x, dir.x, 0.0, map.extentX(), t0, t1) ||
-        !clipAxis(origin.y, dir.y, 0.0, map.extentY(), t0, t1) ||
-        !clipAxis(origin.z, dir.z, lo, hi, t0, t1) || !(t0 < t1)) {
+    if (!clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) ||
+        !clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) ||
+        !clipSlab(origin.z, dir.z, lo, hi, t0, t1) || !(t0 < t1)) {
         return;
     }
     const int k = first.subdivision();

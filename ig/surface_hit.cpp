@@ -20,16 +20,6 @@ TerrainRay::TerrainRay(const TerrainMap& map, const glm::dvec3& o, const glm::dv
 
 namespace {
 
-// Intersects [t0, t1] with the parameters where lo <= o + t * d <= hi.
-inline bool clipSlab(double o, double d, double lo, double hi, double& t0, double& t1) {
-    if (d == 0.0) return o >= lo && o <= hi;
-    double ta = (lo - o) / d, tb = (hi - o) / d;
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    return t0 <= t1;
-}
-
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 }  // namespace

@@ -5,10 +5,23 @@
 
 #include <glm/vec3.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 namespace ig {
+
+// Intersects [t0, t1] with the parameters where lo <= o + t * d <= hi (one slab of a ray/box
+// test); false when nothing is left.
+inline bool clipSlab(double o, double d, double lo, double hi, double& t0, double& t1) {
+    if (d == 0.0) return o >= lo && o <= hi;
+    double ta = (lo - o) / d, tb = (hi - o) / d;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    return t0 <= t1;
+}
 
 // A ray prepared for terrain traversal: world origin and unit direction, plus the same ray in
 // grid units (x / spacingX, y / spacingY, z in metres), which share the parameter t.
