@@ -2,7 +2,9 @@
 #include "ig/appearance.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
+#include "ig/pyramid.hpp"
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -10,8 +12,8 @@ namespace ig {
 
 namespace {
 
-// One fast caster per ray count (each holds its own pyramid: the memory of supersampleMax
-// fast casters, docs/design/appearance.md); a frame goes to the one its pose asks for. The
+// One fast caster per ray count, all on one pyramid (it does not depend on the ray count); a
+// frame goes to the one its pose asks for. The
 // choice is a function of the camera alone, so every work unit of a frame agrees on it.
 class AutoSupersampleCaster final : public Caster {
   public:
@@ -20,10 +22,15 @@ class AutoSupersampleCaster final : public Caster {
             throw InputError("supersample auto: at most " + std::to_string(options.supersampleMax) +
                              " rays per pixel; expected 1..8");
         }
+        if (options.levels < kLevelsAuto) {  // as the fast caster, before the pyramid is built
+            throw InputError("levels " + std::to_string(options.levels) +
+                             ": expected auto or a count >= 0");
+        }
+        const auto pyramid = std::make_shared<const TerrainPyramid>(map, options.levels);
         for (int n = 1; n <= options.supersampleMax; ++n) {
             RenderOptions o = options;
             o.supersample = n;
-            casters_.push_back(makeFastCaster(map, o));
+            casters_.push_back(makeFastCaster(map, o, pyramid));
         }
     }
     CasterKind kind() const override { return CasterKind::Fast; }
