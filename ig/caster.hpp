@@ -13,6 +13,7 @@
 namespace ig {
 
 class ObjectLayer;
+struct SunLighting;
 
 // Span: cost per terrain sample (docs/design/span_renderer.md); steep frames go to Fast.
 enum class CasterKind { Reference, Naive, Fast, Span };
@@ -76,6 +77,10 @@ struct RenderOptions {
     // the reference and naive casters, which then fill the frame's object-id image; empty: no
     // objects, and the images are the terrain's alone, bit for bit.
     std::vector<const ObjectLayer*> objects;
+    // Sun lighting applied to each finished frame (ig/lighting_pass.hpp): the casters then draw
+    // the map's colours as albedo and light them by the sun at the frame's time. Null: the
+    // colours as they are, bit for bit.
+    std::shared_ptr<const SunLighting> lighting;
 };
 
 // Columns of the vertical image plane per output pixel at the pitched window's most stretched
@@ -109,6 +114,13 @@ class Caster {
     // frame.stats. The reference and naive casters honour any roll; the fast caster
     // requires roll == 0 (CHECKed: callers refuse a rolled pose as bad input first).
     virtual void render(const Camera& camera, RenderedFrame& frame) const = 0;
+    // The work on the whole frame after its pixels (the deferred sun lighting when
+    // RenderOptions::lighting is set): render() does it; whoever renders the units does it once
+    // they are all done (FrameStream).
+    virtual void finishFrame(const Camera& camera, RenderedFrame& frame) const {
+        (void)camera;
+        (void)frame;
+    }
 
     // The same frame as independent work units (image rows for the per-pixel casters, groups
     // of adjacent columns for the fast caster) that write disjoint pixels: rendering every unit

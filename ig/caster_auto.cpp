@@ -39,6 +39,9 @@ class AutoSupersampleCaster final : public Caster {
     void render(const Camera& camera, RenderedFrame& frame) const override {
         pick(camera).render(camera, frame);
     }
+    void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
+        pick(camera).finishFrame(camera, frame);
+    }
     int workUnits(const Camera& camera) const override { return pick(camera).workUnits(camera); }
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
                     UnitCounters& counters) const override {

@@ -110,6 +110,15 @@ class FastCaster final : public Caster {
         frame.stats.rays = static_cast<std::uint64_t>(camera.intrinsics().width) *
                            camera.intrinsics().height *
                            static_cast<std::uint64_t>(options_.supersample);
+        finishFrame(camera, frame);
+    }
+    void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
+        // The levels renderUnit's march draws at each distance.
+        const LevelBands bands{
+            topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
+                          : std::numeric_limits<double>::infinity(),
+            topLevel_};
+        finishLighting(options_, bands, camera, frame);
     }
 
     int workUnits(const Camera& camera) const override {

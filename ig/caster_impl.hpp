@@ -2,6 +2,7 @@
 #pragma once
 
 #include "ig/caster.hpp"
+#include "ig/lighting_pass.hpp"
 
 #include <memory>
 

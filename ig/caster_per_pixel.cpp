@@ -74,6 +74,10 @@ class ReferenceCaster final : public Caster {
     CasterKind kind() const override { return CasterKind::Reference; }
     void render(const Camera& camera, RenderedFrame& frame) const override {
         renderPerPixel(map_, options_, camera, frame, trace());
+        finishFrame(camera, frame);
+    }
+    void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
+        finishLighting(options_, LevelBands{}, camera, frame);
     }
     int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
@@ -101,6 +105,10 @@ class NaiveCaster final : public Caster {
     CasterKind kind() const override { return CasterKind::Naive; }
     void render(const Camera& camera, RenderedFrame& frame) const override {
         renderPerPixel(map_, options_, camera, frame, trace());
+        finishFrame(camera, frame);
+    }
+    void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
+        finishLighting(options_, LevelBands{}, camera, frame);
     }
     int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,

@@ -163,6 +163,11 @@ class SpanCaster final : public Caster {
         frame.stats.restarts = c.restarts;
         frame.stats.rays =
             static_cast<std::uint64_t>(camera.intrinsics().width) * camera.intrinsics().height;
+        finishFrame(camera, frame);
+    }
+    // A steep frame was lit by the fast caster it went to; the spans by level 0's normals.
+    void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
+        if (frame.stats.path == "span") finishLighting(options_, LevelBands{}, camera, frame);
     }
 
     // One unit: the whole frame (the resample reads across columns); columns and rows inside it

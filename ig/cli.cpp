@@ -132,6 +132,9 @@ void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
     app.add_option("--sun-time", o.sunTime,
                    "The sun at DATE,TIME (UTC, YYYY-MM-DD,HH:MM) from LAT,LON (degrees; the "
                    "shipped map's centre when omitted over it): DATE,TIME[,LAT,LON]");
+    app.add_option("--sun-rate", o.sunRate,
+                   "The sun moves with simulated time: degrees of azimuth per second (--sun), or "
+                   "of the Earth's turn per second (--sun-time; default real time, 0.00417)");
     app.add_flag("--shade", o.shade,
                  "The sun shades the colour image too (flat ground keeps its colour)");
 }
@@ -217,6 +220,25 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
                 "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
         }
         a.sun = sunAt(lat, lon, days);
+        a.sunClock.almanac = true;
+        a.sunClock.latitudeDeg = lat;
+        a.sunClock.longitudeDeg = lon;
+        a.sunClock.days = days;
+    }
+    if (!o.sunRate.empty()) {
+        const double rate = parseNumber(o.sunRate, "--sun-rate");
+        if (o.sun.empty() && o.sunTime.empty()) {
+            throw InputError("--sun-rate: moves the sun of --sun or --sun-time; give one");
+        }
+        if (std::abs(rate) > 360.0) {
+            throw InputError("--sun-rate: " + base::quoted(o.sunRate) +
+                             " must be -360..360 degrees per second");
+        }
+        if (a.sunClock.almanac) {
+            a.sunClock.speed = rate / (360.0 / 86400.0);  // sun seconds per simulated second
+        } else {
+            a.sunClock.azimuthRate = degToRad(rate);
+        }
     }
     a.shade = o.shade;
     // auto: a colour image the user names; the ramp over the shipped map (whose image is a
@@ -231,6 +253,7 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
     }
     a.ramp = o.colors == "ramp" || (o.colors == "auto" && !image) || (a.sun && !image);
     if (a.ramp && !a.sun) a.sun = Sun{degToRad(135.0), degToRad(30.0)};
+    if (a.sun) a.sunClock.sun = *a.sun;
     return a;
 }
 
@@ -238,11 +261,15 @@ void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render
     render.sky.hazeDistance = a.hazeDistance;
     render.supersample = a.supersample;
     render.supersampleMax = a.supersampleMax;
-    if (a.ramp) {
-        TerrainLighting(map, TerrainLighting::Albedo::Ramp).relight(map, *a.sun);
-    } else if (a.shade) {
-        TerrainLighting(map, TerrainLighting::Albedo::Photo).relight(map, *a.sun);
-    }
+    render.lighting = nullptr;
+    if (!a.ramp && !a.shade) return;
+    // The map keeps the albedo (the ramp, or the photo); each frame is lit as it is made.
+    if (a.ramp) map.colors() = elevationRampAlbedo(map);
+    auto lighting = std::make_shared<SunLighting>();
+    lighting->normals = std::make_shared<const TerrainNormals>(map);
+    lighting->clock = a.sunClock;
+    lighting->photo = !a.ramp;
+    render.lighting = std::move(lighting);
 }
 
 Pose defaultViewPose(const TerrainMap& map) {

@@ -4,6 +4,7 @@
 #include "ig/appearance.hpp"
 #include "ig/camera.hpp"
 #include "ig/caster.hpp"
+#include "ig/lighting_pass.hpp"
 #include "ig/terrain.hpp"
 
 #include <CLI/CLI.hpp>
@@ -47,6 +48,12 @@ std::string describeTerrain(const TerrainMap& map);
 //   --sun-time DATE,TIME[,LAT,LON]  the sun at a UTC instant seen from LAT,LON (degrees; the
 //                              shipped map's centre when omitted over it)
 //   --shade                    the sun also shades the colour image (flat ground unchanged)
+//   --sun-rate DEG_PER_S       the sun moves with the frames' simulated time: with --sun its
+//                              azimuth turns at this rate; with --sun-time the clock runs at
+//                              this many degrees of the Earth's turn per second (default: real
+//                              time, 15 degrees an hour)
+// The sun lights each frame as it is made (ig/lighting_pass.hpp): a sun that moves costs no
+// rebuild.
 // The defaults are the program's: `defaults` as given before parsing.
 struct AppearanceOptions {
     std::string haze = "0";
@@ -54,6 +61,7 @@ struct AppearanceOptions {
     std::string colors = "image";
     std::string sun;
     std::string sunTime;
+    std::string sunRate;
     bool shade = false;
 };
 void addAppearanceOptions(CLI::App& app, AppearanceOptions& options);
@@ -63,13 +71,14 @@ struct Appearance {
     int supersample = 1;  // kSupersampleAuto: per frame
     int supersampleMax = 4;
     bool ramp = false;       // colour by the elevation ramp
-    std::optional<Sun> sun;  // lighting on when set
+    std::optional<Sun> sun;  // lighting on when set: the sun at time 0
+    SunClock sunClock;       // the sun at any frame time (sunClock.at(0) == *sun)
     bool shade = false;      // the sun shades the colour image too
 };
 Appearance parseAppearance(const AppearanceOptions& options, const TerrainOptions& terrain,
                            const TerrainMap& map);
-// Applies it: lights `map` in place (ramp or shaded image) and sets the haze and supersampling
-// of `render`.
+// Applies it: the ramp's albedo into `map` when it asks for the ramp, the haze, supersampling
+// and sun lighting (the normals of `map`) of `render`.
 void applyAppearance(const Appearance& appearance, TerrainMap& map, RenderOptions& render);
 // Whether the terrain flags give a colour image (the shipped map's included).
 bool terrainHasImage(const TerrainOptions& terrain);

@@ -137,6 +137,7 @@ RenderedFrame FrameStream::take() {
         if (job->error) std::rethrow_exception(job->error);
     }
     RenderedFrame& frame = job->frame;
+    caster_.finishFrame(job->camera, frame);  // the sun lighting, once every unit is done
     frame.stats.renderMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - job->start)
             .count();
