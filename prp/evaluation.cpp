@@ -62,6 +62,8 @@ EvalResult evaluateWarps(const ig::TerrainMap& map, const ig::Caster& frameCaste
             o.model = m;
             o.useSky = config.useSky;
             o.autoThresholdPx = config.autoThresholdPx;
+            o.skyFill = config.skyFill;
+            o.sky = config.sky;
             prps.emplace_back(o);
         }
         for (std::size_t hi = 0; hi < config.horizons.size(); ++hi) {

@@ -21,6 +21,8 @@ struct EvalConfig {
     int timingRepeats = 3;  // each warp is timed this many times; the fastest counts
     bool useSky = true;
     double autoThresholdPx = 0.25;  // the auto model's threshold (PrpOptions::autoThresholdPx)
+    bool skyFill = true;            // PrpOptions::skyFill, with the casters' sky
+    ig::SkyModel sky;
 };
 
 // One model at one horizon, averaged over base frames.

@@ -171,10 +171,21 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     } else {
         if (depthModel) out.warp.model = model == WarpModel::Auto ? WarpModel::Poly : model;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
-        const ApplyResult r =
+        ApplyResult r =
             out.warp.projective
                 ? applyHomography(source, Homography{out.warp.h}, view, gainQ8, options_.agc)
                 : applyQuadratic(source, quadraticOf(out.warp), view, gainQ8, options_.agc);
+        if (options_.skyFill && r.edgeSamples > 0) {
+            // The camera the field shows: the frame's own when it holds it.
+            const bool held = out.warp.model == WarpModel::Hold || !poseOk;
+            const OutsideFill fill = OutsideFill::of(options_.sky, frame.intrinsics, geometry,
+                                                     held ? frame.pose : poseAtField);
+            if (out.warp.projective) {
+                fillOutside(source, Homography{out.warp.h}, view, gainQ8, options_.agc, fill, r);
+            } else {
+                fillOutside(source, quadraticOf(out.warp), view, gainQ8, options_.agc, fill, r);
+            }
+        }
         out.edgeSamples = r.edgeSamples;
         lumaSum = r.lumaSum;
     }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "ig/camera.hpp"
+#include "ig/caster.hpp"
 #include "ig/frame.hpp"
 #include "prp/depth_warp.hpp"
 #include "prp/field.hpp"
@@ -34,6 +35,13 @@ struct PrpOptions {
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).
     DepthKernel depthKernel = DepthKernel::Auto;
     bool depthReference = false;
+    // Output pixels whose source point lies outside the rendered frame (a pose change beyond
+    // the margins) show the sky colour of their ray direction above the horizon and the haze
+    // (horizon) colour below, by the casters' `sky` (prp/warp_apply.hpp, OutsideFill); false:
+    // the frame's edge pixels repeated. Quadratic and projective warps; the depth model
+    // repeats edges. Counted in Field::edgeSamples either way.
+    bool skyFill = true;
+    ig::SkyModel sky;
 };
 
 class PostRenderingProcessor {

@@ -2,6 +2,10 @@
 
 #include "prp/warp_apply_kernel.hpp"
 
+#include "ig/shading.hpp"
+
+#include <cmath>
+
 namespace prp {
 
 using namespace detail;
@@ -30,7 +34,96 @@ ApplyResult dispatch(const SourceView& source, Rows rows, const FieldView& field
     });
 }
 
+// The fill pass over one field: walks each line's source points as the kernels do, and writes
+// the pixels (pairs for UYVY) with any point outside again, through convertRow.
+template <class Rows>
+void fillField(const SourceView& source, Rows rows, const FieldView& field, int gainQ8, bool agc,
+               const OutsideFill& fill, ApplyResult& result) {
+    if (result.edgeSamples == 0) return;
+    Sampler s(source);
+    constexpr int kChunk = 64;  // even: UYVY pairs never straddle chunks
+    const int group = field.format == PixelFormat::Uyvy ? 2 : 1;
+    const std::size_t bpp = bytesPerPixel(field.format);
+    std::int64_t xs[kChunk], ys[kChunk];
+    bool outside[kChunk];
+    std::uint8_t oldRgb[6], newRgb[6], scratch[6];
+    std::uint64_t oldLuma = 0, newLuma = 0;
+    for (int line = 0; line < field.lines; ++line) {
+        const double y = field.firstLine + 2 * line + 0.5;
+        rows.start(y);
+        std::uint8_t* out = field.pixels + static_cast<std::size_t>(line) * field.stride;
+        for (int x0 = 0; x0 < field.width; x0 += kChunk) {
+            const int n = std::min(kChunk, field.width - x0);
+            bool any = false;
+            for (int k = 0; k < n; ++k) {
+                xs[k] = rows.px();
+                ys[k] = rows.py();
+                rows.next();
+                outside[k] = (static_cast<std::uint64_t>(xs[k] + kHalf) > s.spanX) |
+                             (static_cast<std::uint64_t>(ys[k] + kHalf) > s.spanY);
+                any |= outside[k];
+            }
+            if (!any) continue;
+            for (int g = 0; g + group <= n; g += group) {
+                if (!outside[g] && !(group == 2 && outside[g + 1])) continue;
+                for (int k = 0; k < group; ++k) {
+                    int r, gr, b;
+                    s.sample(xs[g + k], ys[g + k], r, gr, b);
+                    std::uint8_t* o = oldRgb + 3 * k;
+                    o[0] = static_cast<std::uint8_t>(r);
+                    o[1] = static_cast<std::uint8_t>(gr);
+                    o[2] = static_cast<std::uint8_t>(b);
+                    const ig::Rgb8 c = outside[g + k] ? fill.colorAt(x0 + g + k + 0.5, y)
+                                                      : ig::Rgb8{o[0], o[1], o[2]};
+                    std::uint8_t* nw = newRgb + 3 * k;
+                    nw[0] = c.r;
+                    nw[1] = c.g;
+                    nw[2] = c.b;
+                }
+                if (agc) convertRow(oldRgb, group, field.format, gainQ8, true, scratch, oldLuma);
+                convertRow(newRgb, group, field.format, gainQ8, agc,
+                           out + static_cast<std::size_t>(x0 + g) * bpp, newLuma);
+            }
+        }
+    }
+    if (agc) result.lumaSum = result.lumaSum - oldLuma + newLuma;
+}
+
 }  // namespace
+
+OutsideFill OutsideFill::of(const ig::SkyModel& sky, const ig::Intrinsics& rendered,
+                            const OutputGeometry& geometry, const ig::Pose& pose) {
+    OutsideFill f;
+    f.sky = sky;
+    f.focal = rendered.focal;
+    f.sx = static_cast<double>(geometry.windowWidth) / geometry.width;
+    f.sy = static_cast<double>(geometry.windowHeight) / geometry.height;
+    f.cx = 0.5 * geometry.windowWidth;
+    f.cy = 0.5 * geometry.windowHeight;
+    const ig::CameraBasis basis = ig::CameraBasis::fromPose(pose);
+    f.forwardZ = basis.forward.z;
+    f.rightZ = basis.right.z;
+    f.upZ = basis.up.z;
+    return f;
+}
+
+ig::Rgb8 OutsideFill::colorAt(double x, double y) const {
+    const double u = sx * x - cx, v = sy * y - cy;
+    const double dz = focal * forwardZ + u * rightZ - v * upZ;
+    return ig::skyColor(sky, dz / std::sqrt(focal * focal + u * u + v * v));
+}
+
+void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,
+                 const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                 ApplyResult& result) {
+    fillField(source, QuadraticRows{sourceFromOutput}, field, gainQ8, agc, fill, result);
+}
+
+void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
+                 const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                 ApplyResult& result) {
+    fillField(source, ProjectiveRows{sourceFromOutput}, field, gainQ8, agc, fill, result);
+}
 
 bool warpKernelSupported(WarpKernel kernel) {
     switch (kernel) {

@@ -1,6 +1,7 @@
 // Applying a warp to one field: fixed-point forward differences, bilinear taps, fused colour.
 #pragma once
 
+#include "ig/caster.hpp"
 #include "ig/terrain.hpp"
 #include "prp/field.hpp"
 #include "prp/warp_fit.hpp"
@@ -62,6 +63,35 @@ ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const 
 // Same with a projective map (one division per pixel); its denominator must be positive.
 ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
                             const FieldView& field, int gainQ8, bool agc);
+// Out-of-frame fill: what an output pixel whose source point lies outside the rendered frame
+// shows instead of the frame's repeated edge pixels — the sky colour for the pixel's ray
+// direction above the horizon, the haze (horizon) colour below, by the casters' SkyModel.
+struct OutsideFill {
+    ig::SkyModel sky;
+    // Output pixel centre (X, Y) looks along focal forward + (sx X - cx) right - (sy Y - cy) up
+    // (the field camera's orthonormal basis; only the vertical components are kept).
+    double focal = 1.0, cx = 0.0, cy = 0.0, sx = 1.0, sy = 1.0;
+    double forwardZ = 0.0, rightZ = 0.0, upZ = 0.0;
+
+    // The fill of a field whose camera is `pose` (roll included), its output pixels scaled onto
+    // the rendered window of `rendered` by `geometry`.
+    static OutsideFill of(const ig::SkyModel& sky, const ig::Intrinsics& rendered,
+                          const OutputGeometry& geometry, const ig::Pose& pose);
+    // Colour at output pixel centre (x, y).
+    ig::Rgb8 colorAt(double x, double y) const;
+};
+
+// Rewrites the pixels of `field` (written by applyQuadratic / applyHomography with any kernel,
+// same source, map, gain and AGC) whose source point lies outside `source` with fill.colorAt,
+// and corrects result.lumaSum for them (edgeSamples still counts them). A UYVY pair with one
+// pixel outside is written again whole. Nothing to do when result.edgeSamples is 0.
+void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,
+                 const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                 ApplyResult& result);
+void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
+                 const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                 ApplyResult& result);
+
 // Converts one row of interleaved RGB8 pixels into `format` (with gain), adding luma to
 // `lumaSum` when `agc`.
 void convertRow(const std::uint8_t* rgb, int width, PixelFormat format, int gainQ8, bool agc,

@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
     std::string jsonPath, csvPath, levelsText = "auto", casterText = "fast";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
-    bool noSky = false;
+    bool noSky = false, repeatEdges = false;
     prp::EvalConfig config;
     app.add_option("--trajectory", trajectories, "Trajectory CSV (repeatable)");
     app.add_option("--size", sizeText, "Output window WxH")->capture_default_str();
@@ -166,6 +166,9 @@ int main(int argc, char** argv) {
                    "Auto model: largest check-point error of the quadratic, rendered pixels")
         ->capture_default_str();
     app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
+    app.add_flag("--repeat-edges", repeatEdges,
+                 "Where a field samples outside the rendered frame, repeat its edge pixels "
+                 "(default: the sky colour above the horizon, the haze colour below)");
     app.add_option("--json", jsonPath, "Results as JSON");
     app.add_option("--csv", csvPath, "Results as CSV");
     CLI11_PARSE(app, argc, argv);
@@ -207,6 +210,7 @@ int main(int argc, char** argv) {
         config.baseFrames = frames;
         config.timingRepeats = repeats;
         config.useSky = !noSky;
+        config.skyFill = !repeatEdges;
         const bool shippedTrajectories = trajectories.empty();
         if (shippedTrajectories) {
             const std::filesystem::path dir = std::filesystem::path(VIG_DATA_DIR) / "trajectories";
@@ -225,6 +229,7 @@ int main(int argc, char** argv) {
 
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
+        config.sky = renderOptions.sky;
         std::fprintf(tableOut, "terrain: %s\n", ig::describeTerrain(map).c_str());
         // The shipped trajectories are flown over Puget Sound; over another map they are laid
         // over it (scaled to fit, heights above its highest ground under the path).

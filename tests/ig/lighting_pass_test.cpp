@@ -3,6 +3,8 @@
 #include "ig/lighting_pass.hpp"
 #include "ig/appearance.hpp"
 #include "ig/caster.hpp"
+#include "ig/cli.hpp"
+#include "ig/error.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/synthetic.hpp"
@@ -276,6 +278,51 @@ TEST(TerrainNormals, CoarseLevelsAreMeansOfTheFinerOnes) {
             }
         }
     }
+}
+
+TEST(SunRate, FlagsMoveTheSunWithTimeAndLightAtRenderTime) {
+    TerrainMap map = ig::makeSyntheticTerrain(64, 1, 100.0);
+    ig::TerrainOptions terrain;
+    terrain.synthetic = "64:1";
+    auto parse = [&](ig::AppearanceOptions o) { return ig::parseAppearance(o, terrain, map); };
+    ig::AppearanceOptions o;
+    o.sun = "90,30";
+    o.sunRate = "2";
+    const ig::Appearance a = parse(o);
+    EXPECT_NEAR(a.sunClock.at(10.0).azimuth, ig::degToRad(110.0), 1e-12);
+    EXPECT_NEAR(a.sunClock.at(10.0).elevation, ig::degToRad(30.0), 1e-12);
+    EXPECT_NEAR(a.sunClock.at(-50.0).azimuth, ig::degToRad(350.0), 1e-12);
+    // The almanac's clock: 15 degrees per second is an hour per second.
+    ig::AppearanceOptions t;
+    t.sunTime = "2024-06-21,16:00,46.88,-122.36";
+    t.sunRate = "15";
+    const ig::Appearance b = parse(t);
+    const ig::Sun later = b.sunClock.at(2.0);
+    const ig::Sun direct = ig::sunAt(46.88, -122.36, b.sunClock.days + 2.0 / 24.0);
+    EXPECT_NEAR(later.azimuth, direct.azimuth, 1e-9);
+    EXPECT_NEAR(later.elevation, direct.elevation, 1e-9);
+    // Without --sun-rate the almanac runs in real time.
+    t.sunRate.clear();
+    EXPECT_DOUBLE_EQ(parse(t).sunClock.speed, 1.0);
+    for (const std::string bad : {"x", "400", "nan"}) {
+        ig::AppearanceOptions r = o;
+        r.sunRate = bad;
+        EXPECT_THROW(parse(r), ig::InputError) << bad;
+    }
+    ig::AppearanceOptions noSun;
+    noSun.sunRate = "1";
+    EXPECT_THROW(parse(noSun), ig::InputError);
+    // Applied: the map holds the ramp's albedo and the options the lighting.
+    ig::RenderOptions render;
+    ig::applyAppearance(a, map, render);
+    ASSERT_TRUE(render.lighting != nullptr);
+    EXPECT_EQ(render.lighting->clock.azimuthRate, a.sunClock.azimuthRate);
+    const auto ramp = ig::elevationRampAlbedo(map);
+    EXPECT_TRUE(std::equal(ramp.begin(), ramp.end(), map.colors().begin()));
+    // No lighting flag: no lighting.
+    ig::RenderOptions plain;
+    ig::applyAppearance(parse(ig::AppearanceOptions{}), map, plain);
+    EXPECT_TRUE(plain.lighting == nullptr);
 }
 
 }  // namespace

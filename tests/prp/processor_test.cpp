@@ -45,6 +45,46 @@ PrpOptions options(PixelFormat f = PixelFormat::Rgb8, WarpModel m = WarpModel::P
     return o;
 }
 
+TEST(Processor, BeyondTheFrameItShowsSkyAndHazeAndCountsAsBefore) {
+    // A turn of twice the margin: the field's right part samples beyond the frame. Pitched up so
+    // the horizon crosses the field: sky above, the horizon (haze) colour below.
+    ig::Pose pose = test::lookingDown(-2.0);
+    const ig::RenderedFrame f = coordinateFrame(pose);
+    ig::Pose turned = pose;
+    turned.yaw += std::atan(24.0 / kIn.focal);
+    for (const PixelFormat fmt : {PixelFormat::Rgb8, PixelFormat::Uyvy}) {
+        PrpOptions o = options(fmt);
+        o.sky.zenith = {0, 0, 250};
+        o.sky.horizon = {250, 250, 250};
+        o.skyFill = false;
+        PostRenderingProcessor repeat(o);
+        o.skyFill = true;
+        PostRenderingProcessor filled(o);
+        Field a, b;
+        repeat.process(f, turned, 0.0, 0, a);
+        filled.process(f, turned, 0.0, 0, b);
+        EXPECT_GT(a.edgeSamples, 0u);
+        EXPECT_EQ(a.edgeSamples, b.edgeSamples);
+        ASSERT_EQ(a.pixels.size(), b.pixels.size());
+        std::size_t changed = 0;
+        for (int line = 0; line < a.lines; ++line) {
+            for (std::size_t i = 0; i < a.stride; ++i)
+                changed += a.line(line)[i] != b.line(line)[i];
+        }
+        // Only the pixels (UYVY: pairs) outside change.
+        EXPECT_GT(changed, 0u);
+        EXPECT_LE(changed, 4 * a.edgeSamples);
+        if (fmt != PixelFormat::Rgb8) continue;
+        // Right of the frame: above the horizon bluer than below, below the horizon colour.
+        const std::uint8_t* top = b.line(0) + 3 * (kIn.windowWidth() - 1);
+        const std::uint8_t* bottom = b.line(b.lines - 1) + 3 * (kIn.windowWidth() - 1);
+        EXPECT_LT(top[0], 250);
+        EXPECT_EQ(top[2], 250);
+        EXPECT_EQ(bottom[0], 250);
+        EXPECT_EQ(bottom[1], 250);
+    }
+}
+
 TEST(Processor, EachFieldHoldsTheLinesOfItsParity) {
     const ig::Pose pose = test::lookingDown(-40.0);
     const ig::RenderedFrame f = coordinateFrame(pose);

@@ -1,6 +1,7 @@
 #include "prp/warp_apply.hpp"
 
 #include <gtest/gtest.h>
+#include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -47,6 +48,25 @@ struct Output {
         view.pixels = px.data();
     }
 };
+
+// A fill that varies across the image: a camera pitched up 10 degrees and rolled, so the
+// horizon crosses the output and sky and haze colours both occur.
+OutsideFill testFill(int outW, int outH) {
+    ig::Pose pose;
+    pose.pitch = 0.17;
+    pose.roll = 0.3;
+    OutputGeometry g;
+    g.width = g.windowWidth = outW;
+    g.height = g.windowHeight = outH;
+    ig::Intrinsics in;
+    in.width = outW;
+    in.height = outH;
+    in.focal = 0.8 * outW;
+    ig::SkyModel sky;
+    sky.zenith = {10, 40, 200};
+    sky.horizon = {230, 220, 210};
+    return OutsideFill::of(sky, in, g, pose);
+}
 
 TEST(WarpApply, IdentityCopiesTheWindowExactly) {
     const int w = 48, h = 40, margin = 5;
@@ -146,6 +166,79 @@ TEST(WarpApply, OutsideSamplesRepeatTheEdgeAndAreCounted) {
     }
 }
 
+TEST(WarpApply, OutsideFillShowsSkyAboveTheHorizonAndHazeBelow) {
+    // Level camera, the frame shifted so the left third of the output samples outside it: those
+    // pixels show skyColor of their ray (a per-pixel double evaluation), the others the warp.
+    const int w = 60, h = 40;
+    const auto img = pattern(w, h, 5);
+    ig::SkyModel sky;
+    sky.zenith = {0, 0, 255};
+    sky.horizon = {255, 255, 255};
+    OutputGeometry g;
+    g.width = g.windowWidth = w;
+    g.height = g.windowHeight = h;
+    ig::Intrinsics in;
+    in.width = w;
+    in.height = h;
+    in.focal = 30.0;
+    ig::Pose pose;
+    pose.pitch = 0.2;
+    const OutsideFill fill = OutsideFill::of(sky, in, g, pose);
+    const Quadratic q = Quadratic::fromAffine({1, 0, 0, 1, -20.0, 0});
+    for (const bool agc : {false, true}) {
+        Output filled(w, h, 0, PixelFormat::Rgb8), plain(w, h, 0, PixelFormat::Rgb8);
+        const ApplyResult r0 = applyQuadratic({img.data(), w, h}, q, plain.view, kUnityGain, agc);
+        ApplyResult r = applyQuadratic({img.data(), w, h}, q, filled.view, kUnityGain, agc);
+        fillOutside({img.data(), w, h}, q, filled.view, kUnityGain, agc, fill, r);
+        EXPECT_EQ(r.edgeSamples, r0.edgeSamples);
+        EXPECT_EQ(r.edgeSamples, static_cast<std::uint64_t>(20 * filled.view.lines));
+        const ig::CameraBasis basis = ig::CameraBasis::fromPose(pose);
+        std::uint64_t luma = 0;
+        int above = 0, below = 0;
+        for (int line = 0; line < filled.view.lines; ++line) {
+            const double y = 2 * line + 0.5;
+            for (int x = 0; x < w; ++x) {
+                const std::uint8_t* p = &filled.px[line * filled.view.stride + 3 * x];
+                luma += greyOf(p[0], p[1], p[2]);
+                if (x >= 20) {
+                    // Inside: the warp as it was.
+                    ASSERT_EQ(p[0], plain.px[line * plain.view.stride + 3 * x]);
+                    continue;
+                }
+                const glm::dvec3 d = glm::normalize(
+                    30.0 * basis.forward + (x + 0.5 - 30.0) * basis.right - (y - 20.0) * basis.up);
+                const double t = std::sqrt(std::max(d.z, 0.0));
+                (d.z > 0.0 ? above : below)++;
+                ASSERT_NEAR(p[0], 255.0 * (1.0 - t), 1.0) << x << ", " << y;
+                ASSERT_EQ(p[2], 255);
+            }
+        }
+        EXPECT_GT(above, 50);
+        EXPECT_GT(below, 50);
+        if (agc) {
+            EXPECT_EQ(r.lumaSum, luma);
+        }
+    }
+}
+
+TEST(WarpApply, OutsideFillOfAProjectiveWarpMatchesTheQuadraticOne) {
+    const int w = 40, h = 30;
+    const auto img = pattern(w, h, 6);
+    const Affine2 m{1.0, 0.0, 0.0, 1.0, 17.0, -9.0};
+    const Homography hm{{m.m00, m.m01, m.tx, m.m10, m.m11, m.ty, 0.0, 0.0, 1.0}};
+    const OutsideFill fill = testFill(w, h);
+    Output a(w, h, 1, PixelFormat::Uyvy), b(w, h, 1, PixelFormat::Uyvy);
+    ApplyResult ra =
+        applyQuadratic({img.data(), w, h}, Quadratic::fromAffine(m), a.view, kUnityGain, true);
+    ApplyResult rb = applyHomography({img.data(), w, h}, hm, b.view, kUnityGain, true);
+    fillOutside({img.data(), w, h}, Quadratic::fromAffine(m), a.view, kUnityGain, true, fill, ra);
+    fillOutside({img.data(), w, h}, hm, b.view, kUnityGain, true, fill, rb);
+    EXPECT_EQ(ra.edgeSamples, rb.edgeSamples);
+    EXPECT_GT(ra.edgeSamples, 0u);
+    EXPECT_EQ(a.px, b.px);
+    EXPECT_EQ(ra.lumaSum, rb.lumaSum);
+}
+
 TEST(Bt601, PrimariesMatchTheStandard) {
     // Rec. ITU-R BT.601 studio-range values of the 100% colour bars.
     struct Case {
@@ -238,6 +331,14 @@ void expectKernelAgrees(WarpKernel kernel, const std::vector<ig::Rgb8>& img, int
     }
     EXPECT_EQ(mismatches, 0u) << what << ": first at byte " << firstBad << " of "
                               << scalar.px.size();
+    // The out-of-frame fill over either kernel's field: the same field again.
+    const OutsideFill fill = testFill(outW, frameH);
+    ApplyResult fs = rs, fv = rv;
+    fillOutside({img.data(), w, h}, q, scalar.view, gainQ8, agc, fill, fs);
+    fillOutside({img.data(), w, h}, q, simd.view, gainQ8, agc, fill, fv);
+    EXPECT_EQ(fs.lumaSum, fv.lumaSum) << what << " (filled)";
+    EXPECT_EQ(fs.edgeSamples, rs.edgeSamples) << what << " (filled)";
+    EXPECT_TRUE(scalar.px == simd.px) << what << " (filled)";
 }
 
 // The SIMD kernels this processor runs.
