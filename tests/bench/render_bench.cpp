@@ -6,18 +6,22 @@
 //                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
 //                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream span span-threads autosample
+//             frame stream span span-threads autosample lighting edge-fill
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
 // frames in turn); the machine's load affects them (state it). --json writes every section's
 // figures, with each frame time taken (not only the best), for scripts/results.py.
+#include "ig/appearance.hpp"
 #include "ig/caster.hpp"
+#include "ig/cli.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/lighting_pass.hpp"
 #include "ig/shading.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
+#include "prp/processor.hpp"
 
 #include <tbb/global_control.h>
 #include <nlohmann/json.hpp>
@@ -934,6 +938,235 @@ void autosample(const Config& c) {
 
 }  // namespace
 
+// The median of some numbers.
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+// A render at w x h (60 degree view) of `map` with `options`, box-averaged from f x f rays.
+std::vector<ig::Rgb8> supersampled(const ig::TerrainMap& map, const ig::RenderOptions& options,
+                                   ig::CasterKind kind, const ig::Pose& pose, int w, int h, int f) {
+    const auto caster = ig::makeCaster(kind, map, options);
+    const ig::Intrinsics fine = ig::Intrinsics::fromFov(w * f, h * f, ig::degToRad(60.0));
+    const ig::RenderedFrame big = ig::renderFrame(*caster, map, pose, fine);
+    return f == 1 ? big.color : ig::boxDownsample(big.color, w, h, f);
+}
+
+// Deferred sun lighting (docs/design/appearance.md): the pass's cost per pixel at 720x486 and
+// 1920x1080 on one thread, and its images against the baked relight (the map's colours lit,
+// the pyramid averaging lit colours) and against a 4x4 supersampled reference caster render
+// of the baked relight, over the synthetic map and the shipped one, with haze.
+void lighting(const Config& c) {
+    struct Scene {
+        std::string name;
+        ig::TerrainMap map;
+        ig::Pose pose;
+    };
+    std::vector<Scene> scenes;
+    {
+        const ig::TerrainMap& synth = syntheticMap(std::min(c.size, 4096));
+        scenes.push_back({"synthetic " + std::to_string(synth.width()), synth, issuePose(synth)});
+        ig::TerrainMap puget = ig::loadPugetSound();
+        const ig::Pose pose = ig::defaultViewPose(puget);
+        scenes.push_back({"Puget Sound", std::move(puget), pose});
+    }
+    const ig::Sun sun{ig::degToRad(135.0), ig::degToRad(30.0)};
+    nlohmann::json j = sectionJson(c, std::min(c.size, 4096)), costs = nlohmann::json::array(),
+                   errors = nlohmann::json::array();
+    j["sun_deg"] = {135.0, 30.0};
+    std::printf(
+        "\n## lighting: deferred sun lighting, one thread, sun 135/30 deg, haze a quarter "
+        "of the map\n");
+    std::printf("| %-12s | %9s | %10s | %10s | %12s |\n", "map", "image", "frame ms", "pass ms",
+                "pass ns/px");
+    for (Scene& sc : scenes) {
+        ig::TerrainMap albedo = sc.map;
+        albedo.colors() = ig::elevationRampAlbedo(sc.map);
+        ig::TerrainMap baked = sc.map;
+        ig::TerrainLighting(sc.map, ig::TerrainLighting::Albedo::Ramp).relight(baked, sun);
+        auto lit = std::make_shared<ig::SunLighting>();
+        lit->normals = std::make_shared<const ig::TerrainNormals>(albedo);
+        lit->clock.sun = sun;
+        auto levelZero = std::make_shared<ig::SunLighting>(*lit);
+        levelZero->levelZeroNormals = true;
+        auto options = [&](int levels, std::shared_ptr<const ig::SunLighting> l) {
+            ig::RenderOptions o;
+            o.levels = levels;
+            o.threads = 1;
+            o.kernel = gKernel;
+            o.sky.hazeDistance = 0.25 * std::max(sc.map.extentX(), sc.map.extentY());
+            o.lighting = std::move(l);
+            return o;
+        };
+        // Cost: the pass alone over a rendered frame, every repeat timed.
+        for (const auto& [w, h] : {std::pair{720, 486}, std::pair{1920, 1080}}) {
+            const ig::Intrinsics in = ig::Intrinsics::fromFov(w, h, ig::degToRad(60.0));
+            const ig::RenderOptions o = options(ig::kLevelsAuto, nullptr);
+            const auto fast = ig::makeCaster(ig::CasterKind::Fast, albedo, o);
+            const Timed frame = timeFrames(*fast, albedo, sc.pose, in, c.repeat);
+            const ig::Camera camera(sc.pose, in);
+            const ig::LevelBands bands{in.focal * std::max(albedo.spacingX(), albedo.spacingY()),
+                                       lit->normals->levelCount() - 1};
+            std::vector<double> runs;
+            for (int r = 0; r < 5 * c.repeat; ++r) {
+                ig::RenderedFrame copy = frame.frame;
+                const auto start = Clock::now();
+                ig::lightFrame(*lit, o.sky, bands, camera, copy, 1);
+                runs.push_back(secondsSince(start) * 1e3);
+            }
+            const double pixels = static_cast<double>(w) * h;
+            std::printf("| %-12s | %4dx%-4d | %10.1f | %10.2f | %12.2f |\n", sc.name.c_str(), w, h,
+                        frame.ms, median(runs), median(runs) * 1e6 / pixels);
+            std::vector<double> ns;
+            for (const double ms : runs)
+                ns.push_back(ms * 1e6 / pixels);
+            costs.push_back({{"map", sc.name},
+                             {"image", std::to_string(w) + "x" + std::to_string(h)},
+                             {"frame_ms_runs", frame.runs},
+                             {"pass_ms_runs", runs},
+                             {"pass_ns_per_pixel_runs", ns}});
+        }
+        // Error at 180x120 against the baked relight and a 4x4 supersampled reference of it.
+        const int qw = 180, qh = 120;
+        for (const double pitch : {-4.0, -10.0, -30.0}) {
+            ig::Pose pose = sc.pose;
+            pose.pitch = ig::degToRad(pitch);
+            const auto ref = supersampled(baked, options(0, nullptr), ig::CasterKind::Reference,
+                                          pose, qw, qh, 4);
+            nlohmann::json row = {{"map", sc.name}, {"pitch_deg", pitch}};
+            std::printf("%s, pitch %.0f: vs baked (same caster) / vs 4x4 baked reference, MAE %%:",
+                        sc.name.c_str(), pitch);
+            for (const int levels : {0, ig::kLevelsAuto}) {
+                const std::string key = levels == 0 ? "levels0" : "multires";
+                const auto bakedImage = supersampled(baked, options(levels, nullptr),
+                                                     ig::CasterKind::Fast, pose, qw, qh, 1);
+                const auto deferred = supersampled(albedo, options(levels, lit),
+                                                   ig::CasterKind::Fast, pose, qw, qh, 1);
+                const auto zero = supersampled(albedo, options(levels, levelZero),
+                                               ig::CasterKind::Fast, pose, qw, qh, 1);
+                row[key] = {
+                    {"deferred_vs_baked_mae_pct", ig::meanAbsErrorPct(deferred, bakedImage)},
+                    {"deferred_vs_baked_psnr_db", ig::psnrDb(deferred, bakedImage)},
+                    {"level0_normals_vs_baked_mae_pct", ig::meanAbsErrorPct(zero, bakedImage)},
+                    {"deferred_vs_reference_mae_pct", ig::meanAbsErrorPct(deferred, ref)},
+                    {"level0_normals_vs_reference_mae_pct", ig::meanAbsErrorPct(zero, ref)},
+                    {"baked_vs_reference_mae_pct", ig::meanAbsErrorPct(bakedImage, ref)}};
+                std::printf(
+                    " %s: deferred %.3f / %.3f, level-0 normals %.3f / %.3f, baked - / %.3f;",
+                    key.c_str(), ig::meanAbsErrorPct(deferred, bakedImage),
+                    ig::meanAbsErrorPct(deferred, ref), ig::meanAbsErrorPct(zero, bakedImage),
+                    ig::meanAbsErrorPct(zero, ref), ig::meanAbsErrorPct(bakedImage, ref));
+            }
+            std::printf("\n");
+            errors.push_back(row);
+        }
+    }
+    j["cost"] = costs;
+    j["error"] = errors;
+    j["error_image"] = "180x120";
+    gJson["lighting"] = j;
+}
+
+// Out-of-frame fill in the PRP: a frame rendered with the pipeline's margin, warped to a yaw
+// that moves the view by 0.5 to 2 margins, against a true render at that pose: the field's
+// error with the frame's edge pixels repeated and with the sky/haze fill.
+void edgeFill(const Config& c) {
+    ig::TerrainMap map = ig::loadPugetSound();
+    ig::RenderOptions o;
+    o.levels = ig::kLevelsAuto;
+    o.kernel = gKernel;
+    o.sky.hazeDistance = 0.25 * std::max(map.extentX(), map.extentY());
+    const auto fast = ig::makeCaster(ig::CasterKind::Fast, map, o);
+    const int w = 720, h = 486, margin = 48;
+    const ig::Intrinsics framed = ig::Intrinsics::fromFov(w, h, ig::degToRad(60.0), margin);
+    const ig::Intrinsics window = framed.window();
+    nlohmann::json j = {{"map", "Puget Sound"},
+                        {"image", "720x486"},
+                        {"margin", margin},
+                        {"haze_m", o.sky.hazeDistance}},
+                   rows = nlohmann::json::array();
+    std::printf(
+        "\n## edge-fill: Puget Sound, %dx%d, margin %d, haze %.0f m; field MAE %% vs a "
+        "true render (outside pixels only / whole field)\n",
+        w, h, margin, o.sky.hazeDistance);
+    std::printf(
+        "| pitch | yaw px | outside %% | repeat (outside) | fill (outside) | repeat (all) "
+        "| fill (all) |\n");
+    for (const double pitch : {-3.0, -10.0}) {
+        ig::Pose base = ig::defaultViewPose(map);
+        base.pitch = ig::degToRad(pitch);
+        const ig::RenderedFrame frame = ig::renderFrame(*fast, map, base, framed);
+        for (const double k : {0.5, 1.0, 1.5, 2.0}) {
+            const double shiftPx = k * margin;
+            ig::Pose pose = base;
+            // The view turns right by shiftPx at the image centre, the margin's limit at k = 1.
+            pose.yaw += std::atan(shiftPx / framed.focal);
+            const ig::RenderedFrame truth = ig::renderFrame(*fast, map, pose, window);
+            // Both processors warp the same fields; the pixels where they differ are the ones
+            // taken from outside the frame (where the fill happens to equal the repeated edge,
+            // both errors are the same anyway).
+            prp::PrpOptions po;
+            po.outWidth = w;
+            po.outHeight = h;
+            po.format = prp::PixelFormat::Rgb8;
+            po.sky = o.sky;
+            po.skyFill = false;
+            prp::PostRenderingProcessor repeat(po);
+            po.skyFill = true;
+            prp::PostRenderingProcessor filled(po);
+            double sumOut[2] = {0, 0}, sumAll[2] = {0, 0};
+            std::uint64_t nOut = 0, nAll = 0, outside = 0;
+            for (int parity = 0; parity < 2; ++parity) {
+                prp::Field fields[2];
+                repeat.process(frame, pose, 0.0, static_cast<std::uint64_t>(parity), fields[0]);
+                filled.process(frame, pose, 0.0, static_cast<std::uint64_t>(parity), fields[1]);
+                outside += fields[1].edgeSamples;
+                for (int line = 0; line < fields[0].lines; ++line) {
+                    const ig::Rgb8* t = truth.color.data() +
+                                        static_cast<std::size_t>(fields[0].frameLine(line)) * w;
+                    const std::uint8_t* p0 = fields[0].line(line);
+                    const std::uint8_t* p1 = fields[1].line(line);
+                    for (int x = 0; x < w; ++x) {
+                        const bool differ = p0[3 * x] != p1[3 * x] ||
+                                            p0[3 * x + 1] != p1[3 * x + 1] ||
+                                            p0[3 * x + 2] != p1[3 * x + 2];
+                        nOut += differ;
+                        ++nAll;
+                        for (int f = 0; f < 2; ++f) {
+                            const std::uint8_t* p = f == 0 ? p0 : p1;
+                            const double e =
+                                (std::abs(p[3 * x] - t[x].r) + std::abs(p[3 * x + 1] - t[x].g) +
+                                 std::abs(p[3 * x + 2] - t[x].b)) /
+                                (3.0 * 255.0);
+                            sumAll[f] += e;
+                            if (differ) sumOut[f] += e;
+                        }
+                    }
+                }
+            }
+            double errOut[2], errAll[2];
+            for (int f = 0; f < 2; ++f) {
+                errOut[f] = nOut ? 100.0 * sumOut[f] / nOut : 0.0;
+                errAll[f] = 100.0 * sumAll[f] / nAll;
+            }
+            const double outsidePct = 100.0 * outside / (static_cast<double>(w) * h);
+            std::printf("| %5.0f | %6.0f | %9.2f | %16.2f | %14.2f | %12.3f | %10.3f |\n", pitch,
+                        shiftPx, outsidePct, errOut[0], errOut[1], errAll[0], errAll[1]);
+            rows.push_back({{"pitch_deg", pitch},
+                            {"yaw_shift_px", shiftPx},
+                            {"outside_pct", outsidePct},
+                            {"repeat_outside_mae_pct", errOut[0]},
+                            {"fill_outside_mae_pct", errOut[1]},
+                            {"repeat_mae_pct", errAll[0]},
+                            {"fill_mae_pct", errAll[1]}});
+        }
+    }
+    j["rows"] = rows;
+    gJson["edge-fill"] = j;
+    (void)c;
+}
+
 int main(int argc, char** argv) {
     Config c;
     std::string jsonPath;
@@ -996,14 +1229,16 @@ int main(int argc, char** argv) {
         } else if (a == "speed" || a == "sensitivity" || a == "threads" || a == "supersample" ||
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
                    a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
-                   a == "span-threads" || a == "autosample") {
+                   a == "span-threads" || a == "autosample" || a == "lighting" ||
+                   a == "edge-fill") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
                 stderr,
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
-                "[stream] [headings] [pitches] [span] [span-threads] [autosample] [--size N] "
+                "[stream] [headings] [pitches] [span] [span-threads] [autosample] [lighting] "
+                "[edge-fill] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
@@ -1036,6 +1271,8 @@ int main(int argc, char** argv) {
             if (s == "span") spanSection(c);
             if (s == "span-threads") spanThreads(c);
             if (s == "autosample") autosample(c);
+            if (s == "lighting") lighting(c);
+            if (s == "edge-fill") edgeFill(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());
