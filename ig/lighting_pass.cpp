@@ -219,6 +219,9 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
     const CameraBasis& basis = camera.basis();
     const glm::dvec3 eye = camera.pose().position;
     const double invHaze = sky.hazeDistance > 0.0 ? 1.0 / sky.hazeDistance : 0.0;
+    // Level 0 at every distance: no horizontal distance needed.
+    const bool banded = !lighting.levelZeroNormals && bands.topLevel > 0 &&
+                        bands.d0 < std::numeric_limits<double>::infinity();
     const int w = in.width;
     auto rows = [&](const tbb::blocked_range<int>& range) {
         for (int y = range.begin(); y < range.end(); ++y) {
@@ -234,11 +237,11 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
                 const double depth = frame.depth[row + x];
                 const double dx = fx + x * rx, dy = fy + x * ry, dz = fz + x * rz;
                 const double scale = depth / std::sqrt(dx * dx + dy * dy + dz * dz);
-                const double horizontal = scale * std::sqrt(dx * dx + dy * dy);
+                const double horizontal = banded ? scale * std::sqrt(dx * dx + dy * dy) : 0.0;
                 float n[3];
                 bandNormal(lighting, bands, eye.x + dx * scale, eye.y + dy * scale, horizontal, n);
                 const float haze =
-                    invHaze > 0.0 ? static_cast<float>(1.0 - std::exp(-depth * invHaze)) : 0.0f;
+                    invHaze > 0.0 ? 1.0f - std::exp(static_cast<float>(-depth * invHaze)) : 0.0f;
                 relightPixel(color[x], sky, haze, model(n));
             }
         }

@@ -62,7 +62,7 @@ EvalResult evaluateWarps(const ig::TerrainMap& map, const ig::Caster& frameCaste
             o.model = m;
             o.useSky = config.useSky;
             o.autoThresholdPx = config.autoThresholdPx;
-            o.skyFill = config.skyFill;
+            o.edgeFill = config.edgeFill;
             o.sky = config.sky;
             prps.emplace_back(o);
         }

@@ -3,6 +3,7 @@
 
 #include "ig/caster.hpp"
 #include "prp/field.hpp"
+#include "prp/warp_apply.hpp"
 
 #include <array>
 #include <functional>
@@ -20,8 +21,8 @@ struct EvalConfig {
     int baseFrames = 4;     // base frames spread along the time range
     int timingRepeats = 3;  // each warp is timed this many times; the fastest counts
     bool useSky = true;
-    double autoThresholdPx = 0.25;  // the auto model's threshold (PrpOptions::autoThresholdPx)
-    bool skyFill = true;            // PrpOptions::skyFill, with the casters' sky
+    double autoThresholdPx = 0.25;      // the auto model's threshold (PrpOptions::autoThresholdPx)
+    EdgeFill edgeFill = EdgeFill::Sky;  // PrpOptions::edgeFill, with the casters' sky
     ig::SkyModel sky;
 };
 

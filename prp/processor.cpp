@@ -175,11 +175,12 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             out.warp.projective
                 ? applyHomography(source, Homography{out.warp.h}, view, gainQ8, options_.agc)
                 : applyQuadratic(source, quadraticOf(out.warp), view, gainQ8, options_.agc);
-        if (options_.skyFill && r.edgeSamples > 0) {
+        if (options_.edgeFill != EdgeFill::Repeat && r.edgeSamples > 0) {
             // The camera the field shows: the frame's own when it holds it.
             const bool held = out.warp.model == WarpModel::Hold || !poseOk;
-            const OutsideFill fill = OutsideFill::of(options_.sky, frame.intrinsics, geometry,
-                                                     held ? frame.pose : poseAtField);
+            OutsideFill fill = OutsideFill::of(options_.sky, frame.intrinsics, geometry,
+                                               held ? frame.pose : poseAtField);
+            fill.hazeBelow = options_.edgeFill == EdgeFill::SkyHaze;
             if (out.warp.projective) {
                 fillOutside(source, Homography{out.warp.h}, view, gainQ8, options_.agc, fill, r);
             } else {

@@ -6,6 +6,7 @@
 #include "ig/frame.hpp"
 #include "prp/depth_warp.hpp"
 #include "prp/field.hpp"
+#include "prp/warp_apply.hpp"
 #include "prp/warp_fit.hpp"
 
 #include <cstdint>
@@ -36,11 +37,9 @@ struct PrpOptions {
     DepthKernel depthKernel = DepthKernel::Auto;
     bool depthReference = false;
     // Output pixels whose source point lies outside the rendered frame (a pose change beyond
-    // the margins) show the sky colour of their ray direction above the horizon and the haze
-    // (horizon) colour below, by the casters' `sky` (prp/warp_apply.hpp, OutsideFill); false:
-    // the frame's edge pixels repeated. Quadratic and projective warps; the depth model
-    // repeats edges. Counted in Field::edgeSamples either way.
-    bool skyFill = true;
+    // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Quadratic and
+    // projective warps; the depth model repeats edges. Counted in Field::edgeSamples either way.
+    EdgeFill edgeFill = EdgeFill::Sky;
     ig::SkyModel sky;
 };
 

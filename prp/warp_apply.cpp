@@ -73,8 +73,8 @@ void fillField(const SourceView& source, Rows rows, const FieldView& field, int 
                     o[0] = static_cast<std::uint8_t>(r);
                     o[1] = static_cast<std::uint8_t>(gr);
                     o[2] = static_cast<std::uint8_t>(b);
-                    const ig::Rgb8 c = outside[g + k] ? fill.colorAt(x0 + g + k + 0.5, y)
-                                                      : ig::Rgb8{o[0], o[1], o[2]};
+                    ig::Rgb8 c{o[0], o[1], o[2]};
+                    if (outside[g + k]) fill.colorAt(x0 + g + k + 0.5, y, c);
                     std::uint8_t* nw = newRgb + 3 * k;
                     nw[0] = c.r;
                     nw[1] = c.g;
@@ -90,6 +90,25 @@ void fillField(const SourceView& source, Rows rows, const FieldView& field, int 
 }
 
 }  // namespace
+
+std::string_view edgeFillName(EdgeFill fill) {
+    switch (fill) {
+        case EdgeFill::Repeat:
+            return "repeat";
+        case EdgeFill::Sky:
+            return "sky";
+        case EdgeFill::SkyHaze:
+            return "sky-haze";
+    }
+    return "?";
+}
+
+std::optional<EdgeFill> parseEdgeFill(std::string_view name) {
+    for (const EdgeFill f : {EdgeFill::Repeat, EdgeFill::Sky, EdgeFill::SkyHaze}) {
+        if (name == edgeFillName(f)) return f;
+    }
+    return std::nullopt;
+}
 
 OutsideFill OutsideFill::of(const ig::SkyModel& sky, const ig::Intrinsics& rendered,
                             const OutputGeometry& geometry, const ig::Pose& pose) {
@@ -107,10 +126,12 @@ OutsideFill OutsideFill::of(const ig::SkyModel& sky, const ig::Intrinsics& rende
     return f;
 }
 
-ig::Rgb8 OutsideFill::colorAt(double x, double y) const {
+bool OutsideFill::colorAt(double x, double y, ig::Rgb8& color) const {
     const double u = sx * x - cx, v = sy * y - cy;
     const double dz = focal * forwardZ + u * rightZ - v * upZ;
-    return ig::skyColor(sky, dz / std::sqrt(focal * focal + u * u + v * v));
+    if (!(dz > 0.0) && !hazeBelow) return false;
+    color = ig::skyColor(sky, dz / std::sqrt(focal * focal + u * u + v * v));
+    return true;
 }
 
 void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,

@@ -8,6 +8,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
+#include <string_view>
 
 namespace prp {
 
@@ -63,11 +65,22 @@ ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const 
 // Same with a projective map (one division per pixel); its denominator must be positive.
 ApplyResult applyHomography(const SourceView& source, const Homography& sourceFromOutput,
                             const FieldView& field, int gainQ8, bool agc);
+// What a field shows where it samples outside the rendered frame: the edge pixel repeated; the
+// sky colour of each pixel's ray above the horizon and the edge pixel below (Sky); or the sky
+// above and the haze (horizon) colour below (SkyHaze).
+enum class EdgeFill { Repeat, Sky, SkyHaze };
+std::string_view edgeFillName(EdgeFill fill);
+// "repeat" | "sky" | "sky-haze"; empty otherwise.
+std::optional<EdgeFill> parseEdgeFill(std::string_view name);
+
 // Out-of-frame fill: what an output pixel whose source point lies outside the rendered frame
-// shows instead of the frame's repeated edge pixels — the sky colour for the pixel's ray
-// direction above the horizon, the haze (horizon) colour below, by the casters' SkyModel.
+// shows instead of the frame's repeated edge pixel — the sky colour for the pixel's ray
+// direction above the horizon, by the casters' SkyModel; below it the haze (horizon) colour
+// when `hazeBelow`, else the repeated edge pixel (terrain continues past the edge at about
+// the same distance; measured in docs/design/appearance.md).
 struct OutsideFill {
     ig::SkyModel sky;
+    bool hazeBelow = false;
     // Output pixel centre (X, Y) looks along focal forward + (sx X - cx) right - (sy Y - cy) up
     // (the field camera's orthonormal basis; only the vertical components are kept).
     double focal = 1.0, cx = 0.0, cy = 0.0, sx = 1.0, sy = 1.0;
@@ -77,8 +90,8 @@ struct OutsideFill {
     // the rendered window of `rendered` by `geometry`.
     static OutsideFill of(const ig::SkyModel& sky, const ig::Intrinsics& rendered,
                           const OutputGeometry& geometry, const ig::Pose& pose);
-    // Colour at output pixel centre (x, y).
-    ig::Rgb8 colorAt(double x, double y) const;
+    // Colour at output pixel centre (x, y); false where the pixel keeps its repeated edge.
+    bool colorAt(double x, double y, ig::Rgb8& color) const;
 };
 
 // Rewrites the pixels of `field` (written by applyQuadratic / applyHomography with any kernel,

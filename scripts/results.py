@@ -403,6 +403,80 @@ def appearance(p):
                   f"median, range, runs), error at {s['error_image'].replace('x', '×')} against "
                   f"a 4×4 supersampled reference, synthetic {s['map'].split()[-1]}². Command: "
                   + cmd + ".", "\n".join(lines))
+    lit = (p.load("render_lighting.json") or {}).get("lighting")
+    if lit:
+        cmd = p.command("render_lighting", "lighting")
+        for image in ("720x486", "1920x1080"):
+            parts = [f"{c['map']} {spread(c['pass_ns_per_pixel_runs'], 1)} ns/px, "
+                     f"{spread(c['pass_over_frame_runs'], 2, '×')} the frame's"
+                     for c in lit["cost"] if c["image"] == image]
+            p.row(f"Sun lighting at render time: CPU time of the pass over a finished "
+                  f"{image.replace('x', '×')} frame (one thread), and against the frame's own "
+                  f"(multiresolution fast caster, unlit)", "—", "; ".join(parts), NO_TARGET, cmd)
+        e = lit["error"]
+
+        def rng(key, sub):
+            v = [r[key][sub] for r in e]
+            return f"{fmt(min(v), 3)}–{fmt(max(v), 3)} %"
+        p.row(f"Sun lighting at render time against the baked relight (map colours lit, pyramid "
+              f"averaging lit colours), same caster, {lit['error_image'].replace('x', '×')}, "
+              f"pitches −4°/−10°/−30°, synthetic and Puget Sound, haze on: mean colour error",
+              "—", f"single level {rng('levels0', 'deferred_vs_baked_mae_pct')}, "
+              f"multiresolution {rng('multires', 'deferred_vs_baked_mae_pct')} (level-0 normals "
+              f"at every distance: {rng('multires', 'level0_normals_vs_baked_mae_pct')})",
+              NO_TARGET, cmd)
+        p.row("… and against a 4×4 supersampled reference render of the baked relight: render-"
+              "time lighting vs baked, multiresolution caster", "—",
+              f"render time {rng('multires', 'deferred_vs_reference_mae_pct')}, baked "
+              f"{rng('multires', 'baked_vs_reference_mae_pct')}; single level: render time "
+              f"{rng('levels0', 'deferred_vs_reference_mae_pct')}, baked "
+              f"{rng('levels0', 'baked_vs_reference_mae_pct')}", NO_TARGET, cmd)
+        lines = ["| map | pitch | caster | vs baked: MAE % (PSNR dB) | level-0 normals vs baked "
+                 "| vs 4×4 ref: render time | level-0 normals | baked |",
+                 "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |"]
+        for r in e:
+            for key, name in (("levels0", "single level"), ("multires", "multiresolution")):
+                x = r[key]
+                lines.append(f"| {r['map']} | {fmt(r['pitch_deg'], 0)}° | {name} | "
+                             f"{fmt(x['deferred_vs_baked_mae_pct'], 3)} "
+                             f"({fmt(x['deferred_vs_baked_psnr_db'], 1)}) | "
+                             f"{fmt(x['level0_normals_vs_baked_mae_pct'], 3)} | "
+                             f"{fmt(x['deferred_vs_reference_mae_pct'], 3)} | "
+                             f"{fmt(x['level0_normals_vs_reference_mae_pct'], 3)} | "
+                             f"{fmt(x['baked_vs_reference_mae_pct'], 3)} |")
+        p.section("Sun lighting at render time against the baked relight",
+                  f"Errors at {lit['error_image'].replace('x', '×')} (mean absolute colour error, "
+                  f"% of full scale), sun at azimuth {fmt(lit['sun_deg'][0], 0)}°, elevation "
+                  f"{fmt(lit['sun_deg'][1], 0)}°, haze a quarter of the map's extent. Command: "
+                  + cmd + ".", "\n".join(lines))
+    fill = (p.load("render_edge_fill.json") or {}).get("edge-fill")
+    if fill:
+        cmd = p.command("render_edge_fill", "edge-fill")
+        rows = fill["rows"]
+
+        def span_of(key):
+            v = [r[key] for r in rows]
+            return f"{fmt(min(v), 2)}–{fmt(max(v), 2)} %"
+        p.row(f"PRP beyond the rendered frame ({fill['map']}, {fill['image'].replace('x', '×')}, "
+              f"margin {fill['margin']}, the view turned by 1 to 2 margins, level and rolled 15°): "
+              f"mean colour error over the pixels taken from beyond the frame against a true "
+              f"render", "—",
+              f"sky (default) {span_of('sky_beyond_mae_pct')}, edge repeated "
+              f"{span_of('repeat_beyond_mae_pct')}, sky-haze {span_of('sky-haze_beyond_mae_pct')}",
+              NO_TARGET, cmd)
+        lines = ["| pitch | roll | turn px | beyond the frame % | repeat | sky | sky-haze |",
+                 "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+        for r in rows:
+            lines.append(f"| {fmt(r['pitch_deg'], 0)}° | {fmt(r['roll_deg'], 0)}° | "
+                         f"{fmt(r['turn_px'], 0)} | {fmt(r['outside_pct'], 2)} | "
+                         f"{fmt(r['repeat_beyond_mae_pct'], 2)} ({fmt(r['repeat_mae_pct'], 3)}) | "
+                         f"{fmt(r['sky_beyond_mae_pct'], 2)} ({fmt(r['sky_mae_pct'], 3)}) | "
+                         f"{fmt(r['sky-haze_beyond_mae_pct'], 2)} "
+                         f"({fmt(r['sky-haze_mae_pct'], 3)}) |")
+        p.section("The PRP's fill beyond the rendered frame (`--edge-fill`)",
+                  "Mean absolute colour error (% of full scale) over the output pixels taken from "
+                  "beyond the frame, the whole field's in brackets, against a true render at the "
+                  "field's pose. Command: " + cmd + ".", "\n".join(lines))
     b = p.load("render_batch.json")
     if b:
         fps_batch = [b["frames"] / t for t in b["batch_s"]]

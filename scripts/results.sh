@@ -124,6 +124,9 @@ if wanted appearance; then
     run render_autosample "$bin/bench-render" autosample --size 4096 --image 720x486 --repeat 3 \
         --cache "$cache" --json "$data/render_autosample.json"
     run render_batch scripts/bench-batch.sh build/release/bin "$data/render_batch.json" 24 3
+    run render_lighting "$bin/bench-render" lighting --size 4096 --repeat 3 --cache "$cache" \
+        --json "$data/render_lighting.json"
+    run render_edge_fill "$bin/bench-render" edge-fill --json "$data/render_edge_fill.json"
 fi
 
 if wanted warp; then

@@ -149,7 +149,8 @@ int main(int argc, char** argv) {
     std::string levelsText = "auto";
     std::string casterText = "fast";
     bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
-    bool terrainPointsOnly = false, overwrite = false, repeatEdges = false;
+    bool terrainPointsOnly = false, overwrite = false;
+    std::string edgeFillText = "sky";
     std::string cigiBind, cigiHost, cigiOrigin;
     double cigiWait = 0.0, cigiTimeout = 0.5, cigiExtrapolate = 2.0;
     int cigiView = 0;
@@ -246,9 +247,11 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_flag("--terrain-points-only", terrainPointsOnly,
                  "Fit the warp to terrain control points only (default: sky directions too)");
-    app.add_flag("--repeat-edges", repeatEdges,
-                 "Where a field samples outside the rendered frame, repeat its edge pixels "
-                 "(default: the sky colour above the horizon, the haze colour below)");
+    app.add_option("--edge-fill", edgeFillText,
+                   "Where a field samples beyond the rendered frame: sky (the sky colour above "
+                   "the horizon, the edge pixel below) | sky-haze (the haze colour below) | "
+                   "repeat (the edge pixel)")
+        ->capture_default_str();
     app.add_flag("--agc", agc, "Automatic gain control");
     app.add_flag("--anti-twitter", antiTwitter, "Vertical filter against interlace twitter");
     app.add_flag("--quiet", quiet, "No progress line");
@@ -526,7 +529,12 @@ int main(int argc, char** argv) {
         options.prp.useSky = !terrainPointsOnly;
         // Beyond the rendered frame's edge: the casters' sky and haze colours.
         options.prp.sky = renderOptions.sky;
-        options.prp.skyFill = !repeatEdges;
+        const std::optional<prp::EdgeFill> edgeFill = prp::parseEdgeFill(edgeFillText);
+        if (!edgeFill) {
+            throw ig::InputError("--edge-fill: expected sky, sky-haze or repeat, got '" +
+                                 edgeFillText + "'");
+        }
+        options.prp.edgeFill = *edgeFill;
 
         // Contact sheet: twelve woven frames spread evenly over the run (only the fields of
         // the chosen frames are woven).

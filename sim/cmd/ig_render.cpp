@@ -412,7 +412,7 @@ int main(int argc, char** argv) {
                    "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene)");
     app.add_option("--time", sceneTime,
                    "Scene time, seconds, for the moving objects (default: the earliest start of "
-                   "their trajectories)");
+                   "their trajectories) and a sun moved by --sun-rate (default 0)");
     StereoFlags stereo;
     addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
@@ -458,7 +458,9 @@ int main(int argc, char** argv) {
         if (!objectsOut.empty() && scenePath.empty()) {
             throw ig::InputError("--objects-out: give a --scene to draw objects from");
         }
-        if (sceneTime && scenePath.empty()) throw ig::InputError("--time: give a --scene");
+        if (sceneTime && scenePath.empty() && look.sunRate.empty()) {
+            throw ig::InputError("--time: give a --scene or a moving sun (--sun-rate)");
+        }
         if (sceneTime && !std::isfinite(*sceneTime))
             throw ig::InputError("--time: not a finite number");
         if (!scenePath.empty() && (kind == ig::CasterKind::Fast || kind == ig::CasterKind::Span ||
@@ -496,7 +498,7 @@ int main(int argc, char** argv) {
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;
         std::optional<ig::ObjectLayer> moving;
-        double time = 0.0;
+        double time = sceneTime.value_or(0.0);  // the sun's too
         if (!scenePath.empty()) {
             scene.emplace(ig::loadScene(scenePath, map));
             motion.emplace(*scene);

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 namespace {
@@ -144,7 +145,8 @@ int main(int argc, char** argv) {
     std::string jsonPath, csvPath, levelsText = "auto", casterText = "fast";
     int margin = 32, frames = 3, repeats = 3;
     double fovDeg = 60.0;
-    bool noSky = false, repeatEdges = false;
+    bool noSky = false;
+    std::string edgeFillText = "sky";
     prp::EvalConfig config;
     app.add_option("--trajectory", trajectories, "Trajectory CSV (repeatable)");
     app.add_option("--size", sizeText, "Output window WxH")->capture_default_str();
@@ -166,9 +168,11 @@ int main(int argc, char** argv) {
                    "Auto model: largest check-point error of the quadratic, rendered pixels")
         ->capture_default_str();
     app.add_flag("--no-sky", noSky, "Fit terrain control points only (drop sky directions)");
-    app.add_flag("--repeat-edges", repeatEdges,
-                 "Where a field samples outside the rendered frame, repeat its edge pixels "
-                 "(default: the sky colour above the horizon, the haze colour below)");
+    app.add_option("--edge-fill", edgeFillText,
+                   "Where a field samples beyond the rendered frame: sky (the sky colour above "
+                   "the horizon, the edge pixel below) | sky-haze (the haze colour below) | "
+                   "repeat (the edge pixel)")
+        ->capture_default_str();
     app.add_option("--json", jsonPath, "Results as JSON");
     app.add_option("--csv", csvPath, "Results as CSV");
     CLI11_PARSE(app, argc, argv);
@@ -210,7 +214,12 @@ int main(int argc, char** argv) {
         config.baseFrames = frames;
         config.timingRepeats = repeats;
         config.useSky = !noSky;
-        config.skyFill = !repeatEdges;
+        const std::optional<prp::EdgeFill> edgeFill = prp::parseEdgeFill(edgeFillText);
+        if (!edgeFill) {
+            throw ig::InputError("--edge-fill: expected sky, sky-haze or repeat, got '" +
+                                 edgeFillText + "'");
+        }
+        config.edgeFill = *edgeFill;
         const bool shippedTrajectories = trajectories.empty();
         if (shippedTrajectories) {
             const std::filesystem::path dir = std::filesystem::path(VIG_DATA_DIR) / "trajectories";

@@ -56,13 +56,17 @@ TEST(Processor, BeyondTheFrameItShowsSkyAndHazeAndCountsAsBefore) {
         PrpOptions o = options(fmt);
         o.sky.zenith = {0, 0, 250};
         o.sky.horizon = {250, 250, 250};
-        o.skyFill = false;
+        o.edgeFill = EdgeFill::Repeat;
         PostRenderingProcessor repeat(o);
-        o.skyFill = true;
+        o.edgeFill = EdgeFill::SkyHaze;
         PostRenderingProcessor filled(o);
-        Field a, b;
+        o.edgeFill = EdgeFill::Sky;
+        PostRenderingProcessor sky(o);
+        Field a, b, c;
         repeat.process(f, turned, 0.0, 0, a);
         filled.process(f, turned, 0.0, 0, b);
+        sky.process(f, turned, 0.0, 0, c);
+        EXPECT_EQ(c.edgeSamples, a.edgeSamples);
         EXPECT_GT(a.edgeSamples, 0u);
         EXPECT_EQ(a.edgeSamples, b.edgeSamples);
         ASSERT_EQ(a.pixels.size(), b.pixels.size());
@@ -82,6 +86,11 @@ TEST(Processor, BeyondTheFrameItShowsSkyAndHazeAndCountsAsBefore) {
         EXPECT_EQ(top[2], 250);
         EXPECT_EQ(bottom[0], 250);
         EXPECT_EQ(bottom[1], 250);
+        // Sky: the same above the horizon, the repeated edge below.
+        EXPECT_EQ(c.line(0)[3 * (kIn.windowWidth() - 1)], top[0]);
+        const int last = 3 * (kIn.windowWidth() - 1);
+        EXPECT_EQ(c.line(c.lines - 1)[last], a.line(a.lines - 1)[last]);
+        EXPECT_EQ(c.line(c.lines - 1)[last + 1], a.line(a.lines - 1)[last + 1]);
     }
 }
 

@@ -65,7 +65,9 @@ OutsideFill testFill(int outW, int outH) {
     ig::SkyModel sky;
     sky.zenith = {10, 40, 200};
     sky.horizon = {230, 220, 210};
-    return OutsideFill::of(sky, in, g, pose);
+    OutsideFill fill = OutsideFill::of(sky, in, g, pose);
+    fill.hazeBelow = true;
+    return fill;
 }
 
 TEST(WarpApply, IdentityCopiesTheWindowExactly) {
@@ -166,9 +168,10 @@ TEST(WarpApply, OutsideSamplesRepeatTheEdgeAndAreCounted) {
     }
 }
 
-TEST(WarpApply, OutsideFillShowsSkyAboveTheHorizonAndHazeBelow) {
-    // Level camera, the frame shifted so the left third of the output samples outside it: those
-    // pixels show skyColor of their ray (a per-pixel double evaluation), the others the warp.
+TEST(WarpApply, OutsideFillShowsSkyAboveTheHorizonAndHazeOrTheEdgeBelow) {
+    // Camera pitched up, the frame shifted so the left third of the output samples outside it:
+    // those pixels show skyColor of their ray (a per-pixel double evaluation) above the horizon
+    // and, below it, the horizon colour or the repeated edge; the others the warp.
     const int w = 60, h = 40;
     const auto img = pattern(w, h, 5);
     ig::SkyModel sky;
@@ -183,9 +186,10 @@ TEST(WarpApply, OutsideFillShowsSkyAboveTheHorizonAndHazeBelow) {
     in.focal = 30.0;
     ig::Pose pose;
     pose.pitch = 0.2;
-    const OutsideFill fill = OutsideFill::of(sky, in, g, pose);
+    OutsideFill fill = OutsideFill::of(sky, in, g, pose);
     const Quadratic q = Quadratic::fromAffine({1, 0, 0, 1, -20.0, 0});
     for (const bool agc : {false, true}) {
+        fill.hazeBelow = !agc;  // with AGC: the edge repeated below the horizon
         Output filled(w, h, 0, PixelFormat::Rgb8), plain(w, h, 0, PixelFormat::Rgb8);
         const ApplyResult r0 = applyQuadratic({img.data(), w, h}, q, plain.view, kUnityGain, agc);
         ApplyResult r = applyQuadratic({img.data(), w, h}, q, filled.view, kUnityGain, agc);
@@ -209,6 +213,12 @@ TEST(WarpApply, OutsideFillShowsSkyAboveTheHorizonAndHazeBelow) {
                     30.0 * basis.forward + (x + 0.5 - 30.0) * basis.right - (y - 20.0) * basis.up);
                 const double t = std::sqrt(std::max(d.z, 0.0));
                 (d.z > 0.0 ? above : below)++;
+                if (d.z <= 0.0 && !fill.hazeBelow) {
+                    // Below the horizon: the repeated edge, as without the fill.
+                    ASSERT_EQ(p[0], plain.px[line * plain.view.stride + 3 * x]);
+                    ASSERT_EQ(p[1], plain.px[line * plain.view.stride + 3 * x + 1]);
+                    continue;
+                }
                 ASSERT_NEAR(p[0], 255.0 * (1.0 - t), 1.0) << x << ", " << y;
                 ASSERT_EQ(p[2], 255);
             }
