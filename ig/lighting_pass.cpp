@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -56,15 +57,26 @@ inline void bandAt(const LevelBands& bands, int levels, double horizontal, int& 
     if (k < top) w = std::clamp(horizontal / dk - 1.0, 0.0, 1.0);
 }
 
-// The mean normal the caster's level (blend) shows at world (x, y).
-inline void bandNormal(const SunLighting& lighting, const LevelBands& bands, double x, double y,
+// 2^-k, k = 0..31, so a level's grid coordinates are a multiplication away.
+constexpr std::array<double, 32> kInvPow2 = [] {
+    std::array<double, 32> t{};
+    double v = 1.0;
+    for (double& x : t) {
+        x = v;
+        v *= 0.5;
+    }
+    return t;
+}();
+
+// The mean normal the caster's level (blend) shows at level-0 grid coordinates (gx, gy) (world
+// x / spacing, y / spacing).
+inline void bandNormal(const SunLighting& lighting, const LevelBands& bands, double gx0, double gy0,
                        double horizontal, float n[3]) {
     const TerrainNormals& normals = *lighting.normals;
     int k = 0;
     double w = 0.0;
     if (!lighting.levelZeroNormals) bandAt(bands, normals.levelCount(), horizontal, k, w);
-    const double inv = 1.0 / (1 << k);
-    const double gx = x / normals.spacingX() * inv, gy = y / normals.spacingY() * inv;
+    const double gx = gx0 * kInvPow2[k], gy = gy0 * kInvPow2[k];
     levelNormal(normals.samples(k), normals.width(k), normals.height(k), gx, gy, n);
     if (w > 0.0) {
         float m[3];
@@ -207,7 +219,8 @@ Sun SunClock::at(double t) const {
 double lightFactor(const SunLighting& lighting, const LevelBands& bands, const Sun& sun, double x,
                    double y, double horizontal) {
     float n[3];
-    bandNormal(lighting, bands, x, y, horizontal, n);
+    const TerrainNormals& normals = *lighting.normals;
+    bandNormal(lighting, bands, x / normals.spacingX(), y / normals.spacingY(), horizontal, n);
     return LightModel::of(lighting, sun)(n);
 }
 
@@ -222,6 +235,8 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
     // Level 0 at every distance: no horizontal distance needed.
     const bool banded = !lighting.levelZeroNormals && bands.topLevel > 0 &&
                         bands.d0 < std::numeric_limits<double>::infinity();
+    const double invSx = 1.0 / lighting.normals->spacingX();
+    const double invSy = 1.0 / lighting.normals->spacingY();
     const int w = in.width;
     auto rows = [&](const tbb::blocked_range<int>& range) {
         for (int y = range.begin(); y < range.end(); ++y) {
@@ -239,7 +254,8 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
                 const double scale = depth / std::sqrt(dx * dx + dy * dy + dz * dz);
                 const double horizontal = banded ? scale * std::sqrt(dx * dx + dy * dy) : 0.0;
                 float n[3];
-                bandNormal(lighting, bands, eye.x + dx * scale, eye.y + dy * scale, horizontal, n);
+                bandNormal(lighting, bands, (eye.x + dx * scale) * invSx,
+                           (eye.y + dy * scale) * invSy, horizontal, n);
                 const float haze =
                     invHaze > 0.0 ? 1.0f - std::exp(static_cast<float>(-depth * invHaze)) : 0.0f;
                 relightPixel(color[x], sky, haze, model(n));

@@ -7,6 +7,7 @@
 #include "ig/error.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/stereo.hpp"
 #include "ig/synthetic.hpp"
 
 #include <gtest/gtest.h>
@@ -210,6 +211,30 @@ TEST(LightingPass, MatchesItsSlowTwinAndLevelZeroNormalsNearby) {
         EXPECT_EQ(ig::lightFactor(*lighting, bands, sun, x, 2000.0, 0.5 * bands.d0),
                   ig::lightFactor(*zero, bands, sun, x, 2000.0, 5e6));
     }
+}
+
+TEST(LightingPass, StereoRightEyeLightsThePixelsItCasts) {
+    // A wide eye separation, so the second pass casts many pixels: those match a fully cast
+    // (and lit) right eye, as the reprojected ones do.
+    const Scene scene;
+    const auto lighting = lightingOf(scene.map, ig::Sun{ig::degToRad(250.0), ig::degToRad(20.0)});
+    const ig::RenderOptions o = scene.options(lighting);
+    ig::StereoOptions so;
+    so.eyeSeparation = 80.0;
+    const ig::StereoFrame pair = ig::renderStereo(scene.map, scene.pose, scene.in, so, o);
+    so.method = ig::RightEyeMethod::Raycast;
+    const ig::StereoFrame full = ig::renderStereo(scene.map, scene.pose, scene.in, so, o);
+    double sum = 0.0;
+    int cast = 0;
+    for (std::size_t i = 0; i < pair.right.color.size(); ++i) {
+        if (pair.source[i] != ig::RightPixelSource::RayCast || !std::isfinite(pair.right.depth[i]))
+            continue;
+        ++cast;
+        const ig::Rgb8 a = pair.right.color[i], b = full.right.color[i];
+        sum += (std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b)) / 3.0;
+    }
+    EXPECT_GT(cast, 100);
+    EXPECT_LT(sum / cast, 4.0) << cast << " cast pixels";
 }
 
 TEST(LightingPass, HazeIsRecomposedExactly) {
