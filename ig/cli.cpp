@@ -67,40 +67,40 @@ void checkRange(const std::optional<double>& v, const char* flag, double lo, dou
 }
 }  // namespace
 
-TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+std::optional<SyntheticSpec> parseSyntheticOption(const TerrainOptions& o, int maxSize) {
+    checkRange(o.spacing, "--spacing", 0.001, 1e5, "metres");
+    if (o.synthetic.empty()) return std::nullopt;
+    if (!o.height.empty() || !o.color.empty()) {
+        throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
+    }
+    const auto parts = split(o.synthetic, ':');
+    if (parts.empty() || parts.size() > 2) {
+        throw InputError("--synthetic: expected SIZE[:SEED], got " + base::quoted(o.synthetic));
+    }
+    const double size = parseNumber(parts[0], "--synthetic size");
+    const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
+    if (size != std::floor(size) || seed != std::floor(seed) || seed < 0 || size < 2 ||
+        size > maxSize || seed > 1e15) {
+        throw InputError("--synthetic: SIZE must be a whole number 2.." + std::to_string(maxSize) +
+                         " and SEED a whole number 0..1e15, got " + base::quoted(o.synthetic));
+    }
+    const double spacing = o.spacing.value_or(10.0);
+    if (!(spacing > 0.0) || !std::isfinite(spacing)) {
+        throw InputError("--spacing: must be a positive finite number of metres");
+    }
+    return SyntheticSpec{static_cast<int>(size), static_cast<std::uint64_t>(seed), spacing};
+}
+
+std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& o) {
     checkRange(o.spacing, "--spacing", 0.001, 1e5, "metres");
     checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
     checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
     checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
-    if (!o.synthetic.empty()) {
-        if (!o.height.empty() || !o.color.empty()) {
-            throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
-        }
-        const auto parts = split(o.synthetic, ':');
-        if (parts.empty() || parts.size() > 2) {
-            throw InputError("--synthetic: expected SIZE[:SEED], got " + base::quoted(o.synthetic));
-        }
-        const double size = parseNumber(parts[0], "--synthetic size");
-        const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
-        if (size != std::floor(size) || seed != std::floor(seed) || seed < 0 || size < 2 ||
-            size > 16384 || seed > 1e15) {
-            throw InputError(
-                "--synthetic: SIZE must be a whole number 2..16384 and SEED a whole "
-                "number 0..1e15, got " +
-                base::quoted(o.synthetic));
-        }
-        const double spacing = o.spacing.value_or(10.0);
-        if (!(spacing > 0.0) || !std::isfinite(spacing)) {
-            throw InputError("--spacing: must be a positive finite number of metres");
-        }
-        return makeSyntheticTerrain(static_cast<int>(size), static_cast<std::uint64_t>(seed),
-                                    spacing);
-    }
     if (o.height.empty()) {
         if (!o.color.empty() || o.spacing || o.heightScale || o.heightOffset || o.voidHeight) {
             throw InputError("--height: terrain flags given without a height map");
         }
-        return loadPugetSound();
+        return std::nullopt;
     }
     TerrainSource src;
     src.heightPath = o.height;
@@ -109,7 +109,18 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     src.heightScale = o.heightScale;
     src.heightOffset = o.heightOffset;
     src.voidHeight = o.voidHeight;
-    return loadTerrain(src);
+    return src;
+}
+
+TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+    checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
+    checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
+    checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
+    if (const auto syn = parseSyntheticOption(o, 16384)) {
+        return makeSyntheticTerrain(syn->size, syn->seed, syn->spacing);
+    }
+    if (const auto src = terrainSourceFromOptions(o)) return loadTerrain(*src);
+    return loadPugetSound();
 }
 
 void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {

@@ -5,9 +5,11 @@
 #include "ig/camera.hpp"
 #include "ig/caster.hpp"
 #include "ig/terrain.hpp"
+#include "ig/terrain_io.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -32,6 +34,16 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& options);
 // that make physical sense (spacing 1 mm..100 km, height scale 1e-6..1e4 m per unit, offset and
 // void height within +-100 km).
 TerrainMap loadTerrainFromOptions(const TerrainOptions& options);
+// --synthetic SIZE[:SEED] parsed and checked (SIZE up to maxSize), with --spacing (default
+// 10 m); empty when the flag is not given. Throws InputError.
+struct SyntheticSpec {
+    int size = 0;
+    std::uint64_t seed = 1;
+    double spacing = 10.0;
+};
+std::optional<SyntheticSpec> parseSyntheticOption(const TerrainOptions& options, int maxSize);
+// The files the flags name, the numbers checked; empty when no --height is given.
+std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& options);
 // One line describing a loaded map, for logs.
 std::string describeTerrain(const TerrainMap& map);
 
