@@ -3,6 +3,7 @@
 #include "base/text.hpp"
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
+#include "ig/terrain_db.hpp"
 #include "ig/terrain_io.hpp"
 
 #include <algorithm>
@@ -27,6 +28,12 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
                    "interpolated from the samples around them)");
     app.add_option("--synthetic", o.synthetic,
                    "Synthetic terrain SIZE[:SEED] (power of two up to 16384) instead of files");
+    app.add_option("--db", o.db,
+                   "Terrain database (ig-build-db) instead of files, loaded whole when it fits "
+                   "--cache-mb");
+    app.add_option("--cache-mb", o.cacheMb,
+                   "Memory for the terrain database's map, MB (default 4096); a larger map is "
+                   "refused (paged rendering is not yet supported)");
 }
 
 namespace {
@@ -112,7 +119,32 @@ std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& o) {
     return src;
 }
 
+bool usesShippedMap(const TerrainOptions& o) {
+    return o.height.empty() && o.synthetic.empty() && o.db.empty();
+}
+
 TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+    if (!o.db.empty()) {
+        if (!o.height.empty() || !o.color.empty() || !o.synthetic.empty() || o.spacing ||
+            o.heightScale || o.heightOffset || o.voidHeight) {
+            throw InputError("--db: the database holds the map; give no other terrain flags");
+        }
+        if (!(o.cacheMb > 0) || !std::isfinite(o.cacheMb)) {
+            throw InputError("--cache-mb: must be a positive number of MB");
+        }
+        const TerrainDb db = TerrainDb::open(o.db);
+        // The map in memory: heights, colours and cell maxima, and the pyramid's third more.
+        const double mb = 7.0 * 4.0 / 3.0 * db.info().width * db.info().height / (1 << 20);
+        if (mb > o.cacheMb) {
+            throw InputError(o.db + ": the map (" + std::to_string(db.info().width) + " x " +
+                             std::to_string(db.info().height) + ") needs about " +
+                             std::to_string(static_cast<long long>(std::ceil(mb))) +
+                             " MB in memory, over --cache-mb " +
+                             std::to_string(static_cast<long long>(o.cacheMb)) +
+                             "; paged rendering beyond the budget is not yet supported");
+        }
+        return db.loadMap();
+    }
     checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
     checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
     checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
@@ -148,7 +180,8 @@ void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
 }
 
 bool terrainHasImage(const TerrainOptions& terrain) {
-    return !terrain.color.empty() || (terrain.height.empty() && terrain.synthetic.empty());
+    return !terrain.color.empty() || !terrain.db.empty() ||
+           (terrain.height.empty() && terrain.synthetic.empty());
 }
 
 Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& terrain,
@@ -223,7 +256,7 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
                     "degrees, got " +
                     base::quoted(o.sunTime));
             }
-        } else if (!(terrain.height.empty() && terrain.synthetic.empty())) {
+        } else if (!usesShippedMap(terrain)) {
             throw InputError(
                 "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
         }

@@ -18,7 +18,9 @@
 namespace ig {
 
 // Terrain flags: --height FILE [--color FILE] [--spacing M] [--height-scale M]
-// [--height-offset M], or --synthetic SIZE[:SEED]. Neither: the shipped Puget Sound map.
+// [--height-offset M], or --synthetic SIZE[:SEED], or --db FILE [--cache-mb N] (a terrain
+// database from ig-build-db, loaded whole when it fits the budget). None: the shipped Puget
+// Sound map.
 struct TerrainOptions {
     std::string height;
     std::string color;
@@ -27,7 +29,11 @@ struct TerrainOptions {
     std::optional<double> heightOffset;
     std::optional<double> voidHeight;
     std::string synthetic;
+    std::string db;
+    double cacheMb = 4096;
 };
+// Whether the flags name no map (the shipped one is used).
+bool usesShippedMap(const TerrainOptions& options);
 
 void addTerrainOptions(CLI::App& app, TerrainOptions& options);
 // Loads what the flags name; throws InputError. The numbers are checked first against ranges

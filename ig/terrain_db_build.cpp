@@ -16,6 +16,7 @@
 #include "ig/synthetic.hpp"
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -47,6 +48,12 @@ std::size_t peakResidentBytes() {
 }
 
 namespace {
+
+double cpuSecondsNow() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 class MapRowSource final : public TerrainRowSource {
   public:
@@ -183,6 +190,7 @@ class Builder {
 
     DbBuildStats run() {
         const auto start = std::chrono::steady_clock::now();
+        const double cpuStart = cpuSecondsNow();
         const int w = info_.width, h = info_.height;
         const int strip = options_.stripRows > 0 ? options_.stripRows : t_;
         std::vector<std::uint16_t> hs(static_cast<std::size_t>(strip) * w);
@@ -220,6 +228,7 @@ class Builder {
         stats.tiles = static_cast<std::uint64_t>(layout_.entryCount());
         stats.seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        stats.cpuSeconds = cpuSecondsNow() - cpuStart;
         stats.peakRssBytes = peakResidentBytes();
         if (options_.progress) options_.progress(1.0);
         return stats;

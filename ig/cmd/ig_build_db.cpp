@@ -105,9 +105,10 @@ int main(int argc, char** argv) {
         const ig::DbBuildStats stats = ig::buildTerrainDb(*source, out, options);
         gPartial[0] = '\0';
         const double rate = stats.samples / std::max(stats.seconds, 1e-9);
-        std::printf("%s: %llu tiles, %.1f MB, %.2f s, %.3g samples/s, peak RSS %.1f MB\n",
-                    out.c_str(), static_cast<unsigned long long>(stats.tiles),
-                    stats.fileBytes / 1e6, stats.seconds, rate, stats.peakRssBytes / 1e6);
+        std::printf(
+            "%s: %llu tiles, %.1f MB, %.2f s (%.2f s of CPU), %.3g samples/s, peak RSS %.1f MB\n",
+            out.c_str(), static_cast<unsigned long long>(stats.tiles), stats.fileBytes / 1e6,
+            stats.seconds, stats.cpuSeconds, rate, stats.peakRssBytes / 1e6);
         if (!json.empty()) {
             nlohmann::json j = {{"width", info.width},
                                 {"height", info.height},
@@ -116,6 +117,7 @@ int main(int argc, char** argv) {
                                 {"tiles", stats.tiles},
                                 {"file_bytes", stats.fileBytes},
                                 {"seconds", stats.seconds},
+                                {"cpu_seconds", stats.cpuSeconds},
                                 {"samples_per_second", rate},
                                 {"peak_rss_bytes", stats.peakRssBytes},
                                 {"source", how}};

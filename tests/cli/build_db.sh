@@ -13,6 +13,24 @@ cmp -s "$tmp/a.db" "$tmp/b.db" || fail "two builds of the same input differ"
 "$bin/ig-db-info" --verify "$tmp/a.db" | grep -q '"verified_tiles"' || fail "verify"
 [ -e "$tmp/a.db.partial" ] && fail "partial file left after a finished build"
 
+# The database as a map for every program (--db): the same frame as the map it was built from;
+# a map over --cache-mb is refused, saying paged rendering is not supported yet.
+if [ -x "$bin/ig-render" ]; then
+    "$bin/ig-render" --synthetic 256:5 --pose 800,600,+300,40,-20,0 --size 64x48 \
+        --out "$tmp/syn.png" >/dev/null || fail "render --synthetic"
+    "$bin/ig-render" --db "$tmp/a.db" --pose 800,600,+300,40,-20,0 --size 64x48 \
+        --out "$tmp/db.png" >/dev/null || fail "render --db"
+    cmp -s "$tmp/syn.png" "$tmp/db.png" || fail "--db renders another frame than the map"
+    msg=$("$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.1 --size 64x48 --out "$tmp/x.png" 2>&1)
+    rc=$?
+    [ "$rc" -eq 2 ] || fail "--cache-mb below the map: exit $rc"
+    grep -q "a.db: .*paged rendering beyond the budget is not yet supported" <<<"$msg" ||
+        fail "--cache-mb below the map: $msg"
+    [ -e "$tmp/x.png" ] && fail "--cache-mb below the map: an image was written"
+    msg=$("$bin/ig-render" --db "$tmp/a.db" --synthetic 64 --size 64x48 --out "$tmp/x.png" 2>&1)
+    grep -q -- "--db: the database holds the map" <<<"$msg" || fail "--db with --synthetic: $msg"
+fi
+
 # Killed outright part-way: nothing at the output path; the partial file does not open.
 for sig in KILL TERM; do
     out="$tmp/killed_$sig.db"
