@@ -36,7 +36,7 @@ std::unique_ptr<TerrainRowSource> syntheticRowSource(int size, std::uint64_t see
 std::unique_ptr<TerrainRowSource> gdalRowSource(const TerrainSource& source, std::string& why);
 
 struct DbBuildOptions {
-    int tileSize = 256;
+    int tileSize = 64;
     TileCodec codec = TileCodec::None;
     // Level-0 rows read from the source at a time (0: one tile row).
     int stripRows = 0;

@@ -39,11 +39,11 @@ int main(int argc, char** argv) {
         ig::TerrainOptions terrain;
         ig::addTerrainOptions(app, terrain);
         std::string out, json, codec = "none";
-        int tile = 256;
+        int tile = 64;
         bool quiet = false;
         app.add_option("--out", out, "Database file to write (replaced only when complete)")
             ->required();
-        app.add_option("--tile", tile, "Tile size in cells, a power of two 16..4096 (default 256)");
+        app.add_option("--tile", tile, "Tile size in cells, a power of two 16..4096 (default 64)");
         app.add_option("--codec", codec, "Tile compression: none, lz4 or zstd (default none)");
         app.add_option("--json", json, "Write build statistics as JSON to this file");
         app.add_flag("--quiet", quiet, "No progress bar");
