@@ -46,7 +46,7 @@ struct DbBuildOptions {
 
 struct DbBuildStats {
     double seconds = 0;
-    double cpuSeconds = 0;  // user + system time of the whole process over the build
+    double cpuSeconds = 0;        // user + system time of the whole process over the build
     std::uint64_t samples = 0;    // level-0 samples
     std::uint64_t fileBytes = 0;  // database size
     std::uint64_t tiles = 0;
