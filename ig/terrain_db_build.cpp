@@ -192,7 +192,12 @@ class Builder {
         const auto start = std::chrono::steady_clock::now();
         const double cpuStart = cpuSecondsNow();
         const int w = info_.width, h = info_.height;
-        const int strip = options_.stripRows > 0 ? options_.stripRows : t_;
+        // Strips of up to 512 rows and 64 MiB: the sources read (and the synthetic generator
+        // runs in parallel over) a strip at a time.
+        const int strip = options_.stripRows > 0
+                              ? options_.stripRows
+                              : std::max(t_, std::min(512, static_cast<int>((std::size_t{1} << 26) /
+                                                                            (5 * std::size_t(w)))));
         std::vector<std::uint16_t> hs(static_cast<std::size_t>(strip) * w);
         std::vector<Rgb8> cs(hs.size());
         std::uint16_t lo = 65535, hi = 0;

@@ -38,7 +38,8 @@ std::unique_ptr<TerrainRowSource> gdalRowSource(const TerrainSource& source, std
 struct DbBuildOptions {
     int tileSize = 64;
     TileCodec codec = TileCodec::None;
-    // Level-0 rows read from the source at a time (0: one tile row).
+    // Level-0 rows read from the source at a time (0: up to 512 rows and 64 MiB, at least a
+    // tile row). The database does not depend on it.
     int stripRows = 0;
     // Called with the fraction done (0..1) now and then, from the building thread.
     std::function<void(double)> progress;
