@@ -52,6 +52,11 @@ int main(int argc, char** argv) {
         } catch (const CLI::ParseError& e) {
             return app.exit(e) == 0 ? 0 : 2;
         }
+        if (tile < ig::kMinDbTileSize || tile > ig::kMaxDbTileSize || (tile & (tile - 1)) != 0) {
+            throw ig::InputError(
+                "--tile: " + std::to_string(tile) + " is not a power of two from " +
+                std::to_string(ig::kMinDbTileSize) + " to " + std::to_string(ig::kMaxDbTileSize));
+        }
         ig::DbBuildOptions options;
         options.tileSize = tile;
         options.codec = ig::parseTileCodec(codec);
