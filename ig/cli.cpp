@@ -3,6 +3,7 @@
 #include "base/text.hpp"
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
+#include "ig/terrain_db.hpp"
 #include "ig/terrain_io.hpp"
 
 #include <algorithm>
@@ -27,6 +28,12 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
                    "interpolated from the samples around them)");
     app.add_option("--synthetic", o.synthetic,
                    "Synthetic terrain SIZE[:SEED] (power of two up to 16384) instead of files");
+    app.add_option("--db", o.db,
+                   "Terrain database (ig-build-db) instead of files, loaded whole when it fits "
+                   "--cache-mb");
+    app.add_option("--cache-mb", o.cacheMb,
+                   "Memory for the terrain database's map, MB (default 4096); a larger map is "
+                   "refused (paged rendering is not yet supported)");
 }
 
 namespace {
@@ -67,40 +74,40 @@ void checkRange(const std::optional<double>& v, const char* flag, double lo, dou
 }
 }  // namespace
 
-TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+std::optional<SyntheticSpec> parseSyntheticOption(const TerrainOptions& o, int maxSize) {
+    checkRange(o.spacing, "--spacing", 0.001, 1e5, "metres");
+    if (o.synthetic.empty()) return std::nullopt;
+    if (!o.height.empty() || !o.color.empty()) {
+        throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
+    }
+    const auto parts = split(o.synthetic, ':');
+    if (parts.empty() || parts.size() > 2) {
+        throw InputError("--synthetic: expected SIZE[:SEED], got " + base::quoted(o.synthetic));
+    }
+    const double size = parseNumber(parts[0], "--synthetic size");
+    const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
+    if (size != std::floor(size) || seed != std::floor(seed) || seed < 0 || size < 2 ||
+        size > maxSize || seed > 1e15) {
+        throw InputError("--synthetic: SIZE must be a whole number 2.." + std::to_string(maxSize) +
+                         " and SEED a whole number 0..1e15, got " + base::quoted(o.synthetic));
+    }
+    const double spacing = o.spacing.value_or(10.0);
+    if (!(spacing > 0.0) || !std::isfinite(spacing)) {
+        throw InputError("--spacing: must be a positive finite number of metres");
+    }
+    return SyntheticSpec{static_cast<int>(size), static_cast<std::uint64_t>(seed), spacing};
+}
+
+std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& o) {
     checkRange(o.spacing, "--spacing", 0.001, 1e5, "metres");
     checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
     checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
     checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
-    if (!o.synthetic.empty()) {
-        if (!o.height.empty() || !o.color.empty()) {
-            throw InputError("--synthetic: give either --synthetic or --height/--color, not both");
-        }
-        const auto parts = split(o.synthetic, ':');
-        if (parts.empty() || parts.size() > 2) {
-            throw InputError("--synthetic: expected SIZE[:SEED], got " + base::quoted(o.synthetic));
-        }
-        const double size = parseNumber(parts[0], "--synthetic size");
-        const double seed = parts.size() == 2 ? parseNumber(parts[1], "--synthetic seed") : 1.0;
-        if (size != std::floor(size) || seed != std::floor(seed) || seed < 0 || size < 2 ||
-            size > 16384 || seed > 1e15) {
-            throw InputError(
-                "--synthetic: SIZE must be a whole number 2..16384 and SEED a whole "
-                "number 0..1e15, got " +
-                base::quoted(o.synthetic));
-        }
-        const double spacing = o.spacing.value_or(10.0);
-        if (!(spacing > 0.0) || !std::isfinite(spacing)) {
-            throw InputError("--spacing: must be a positive finite number of metres");
-        }
-        return makeSyntheticTerrain(static_cast<int>(size), static_cast<std::uint64_t>(seed),
-                                    spacing);
-    }
     if (o.height.empty()) {
         if (!o.color.empty() || o.spacing || o.heightScale || o.heightOffset || o.voidHeight) {
             throw InputError("--height: terrain flags given without a height map");
         }
-        return loadPugetSound();
+        return std::nullopt;
     }
     TerrainSource src;
     src.heightPath = o.height;
@@ -109,7 +116,43 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     src.heightScale = o.heightScale;
     src.heightOffset = o.heightOffset;
     src.voidHeight = o.voidHeight;
-    return loadTerrain(src);
+    return src;
+}
+
+bool usesShippedMap(const TerrainOptions& o) {
+    return o.height.empty() && o.synthetic.empty() && o.db.empty();
+}
+
+TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
+    if (!o.db.empty()) {
+        if (!o.height.empty() || !o.color.empty() || !o.synthetic.empty() || o.spacing ||
+            o.heightScale || o.heightOffset || o.voidHeight) {
+            throw InputError("--db: the database holds the map; give no other terrain flags");
+        }
+        if (!(o.cacheMb > 0) || !std::isfinite(o.cacheMb)) {
+            throw InputError("--cache-mb: must be a positive number of MB");
+        }
+        const TerrainDb db = TerrainDb::open(o.db);
+        // The map in memory: heights, colours and cell maxima, and the pyramid's third more.
+        const double mb = 7.0 * 4.0 / 3.0 * db.info().width * db.info().height / (1 << 20);
+        if (mb > o.cacheMb) {
+            throw InputError(o.db + ": the map (" + std::to_string(db.info().width) + " x " +
+                             std::to_string(db.info().height) + ") needs about " +
+                             std::to_string(static_cast<long long>(std::ceil(mb))) +
+                             " MB in memory, over --cache-mb " +
+                             std::to_string(static_cast<long long>(o.cacheMb)) +
+                             "; paged rendering beyond the budget is not yet supported");
+        }
+        return db.loadMap();
+    }
+    checkRange(o.heightScale, "--height-scale", 1e-6, 1e4, "metres per height unit");
+    checkRange(o.heightOffset, "--height-offset", -1e5, 1e5, "metres");
+    checkRange(o.voidHeight, "--void-height", -1e5, 1e5, "metres");
+    if (const auto syn = parseSyntheticOption(o, 16384)) {
+        return makeSyntheticTerrain(syn->size, syn->seed, syn->spacing);
+    }
+    if (const auto src = terrainSourceFromOptions(o)) return loadTerrain(*src);
+    return loadPugetSound();
 }
 
 void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
@@ -140,7 +183,8 @@ void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
 }
 
 bool terrainHasImage(const TerrainOptions& terrain) {
-    return !terrain.color.empty() || (terrain.height.empty() && terrain.synthetic.empty());
+    return !terrain.color.empty() || !terrain.db.empty() ||
+           (terrain.height.empty() && terrain.synthetic.empty());
 }
 
 Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& terrain,
@@ -215,7 +259,7 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
                     "degrees, got " +
                     base::quoted(o.sunTime));
             }
-        } else if (!(terrain.height.empty() && terrain.synthetic.empty())) {
+        } else if (!usesShippedMap(terrain)) {
             throw InputError(
                 "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
         }

@@ -6,9 +6,11 @@
 #include "ig/caster.hpp"
 #include "ig/lighting_pass.hpp"
 #include "ig/terrain.hpp"
+#include "ig/terrain_io.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -17,7 +19,9 @@
 namespace ig {
 
 // Terrain flags: --height FILE [--color FILE] [--spacing M] [--height-scale M]
-// [--height-offset M], or --synthetic SIZE[:SEED]. Neither: the shipped Puget Sound map.
+// [--height-offset M], or --synthetic SIZE[:SEED], or --db FILE [--cache-mb N] (a terrain
+// database from ig-build-db, loaded whole when it fits the budget). None: the shipped Puget
+// Sound map.
 struct TerrainOptions {
     std::string height;
     std::string color;
@@ -26,13 +30,27 @@ struct TerrainOptions {
     std::optional<double> heightOffset;
     std::optional<double> voidHeight;
     std::string synthetic;
+    std::string db;
+    double cacheMb = 4096;
 };
+// Whether the flags name no map (the shipped one is used).
+bool usesShippedMap(const TerrainOptions& options);
 
 void addTerrainOptions(CLI::App& app, TerrainOptions& options);
 // Loads what the flags name; throws InputError. The numbers are checked first against ranges
 // that make physical sense (spacing 1 mm..100 km, height scale 1e-6..1e4 m per unit, offset and
 // void height within +-100 km).
 TerrainMap loadTerrainFromOptions(const TerrainOptions& options);
+// --synthetic SIZE[:SEED] parsed and checked (SIZE up to maxSize), with --spacing (default
+// 10 m); empty when the flag is not given. Throws InputError.
+struct SyntheticSpec {
+    int size = 0;
+    std::uint64_t seed = 1;
+    double spacing = 10.0;
+};
+std::optional<SyntheticSpec> parseSyntheticOption(const TerrainOptions& options, int maxSize);
+// The files the flags name, the numbers checked; empty when no --height is given.
+std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& options);
 // One line describing a loaded map, for logs.
 std::string describeTerrain(const TerrainMap& map);
 

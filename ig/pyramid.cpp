@@ -23,10 +23,7 @@ void fillCellMax(PyramidLevel& level, LargeVector<std::uint16_t>& cellMax) {
         for (int cy = rows.begin(); cy < rows.end(); ++cy) {
             const std::uint16_t* a = level.heights + level.index(0, cy);
             const std::uint16_t* b = level.heights + level.index(0, cy + 1);
-            std::uint16_t* out = cellMax.data() + static_cast<std::size_t>(cy) * cw;
-            for (int cx = 0; cx < cw; ++cx) {
-                out[cx] = std::max(std::max(a[cx], a[cx + 1]), std::max(b[cx], b[cx + 1]));
-            }
+            cellMaxRow(a, b, cw, cellMax.data() + static_cast<std::size_t>(cy) * cw);
         }
     });
     adviseHugePages(cellMax.data(), cellMax.size() * sizeof(std::uint16_t));
@@ -62,30 +59,17 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
         tbb::parallel_for(
             tbb::blocked_range<int>(0, coarse.height), [&](const tbb::blocked_range<int>& rows) {
                 for (int j = rows.begin(); j < rows.end(); ++j) {
-                    int ys[3];
-                    for (int b = 0; b < 3; ++b)
-                        ys[b] = std::clamp(2 * j + b - 1, 0, fine.height - 1);
-                    for (int i = 0; i < coarse.width; ++i) {
-                        unsigned acc = 0, r = 0, g = 0, bl = 0;
-                        for (int b = 0; b < 3; ++b) {
-                            const unsigned wb = b == 1 ? 2 : 1;
-                            for (int a = 0; a < 3; ++a) {
-                                const unsigned wgt = wb * (a == 1 ? 2 : 1);
-                                const std::size_t idx =
-                                    fine.index(std::clamp(2 * i + a - 1, 0, fine.width - 1), ys[b]);
-                                acc += wgt * fine.heights[idx];
-                                const Rgb8 c = fine.colors[idx];
-                                r += wgt * c.r;
-                                g += wgt * c.g;
-                                bl += wgt * c.b;
-                            }
-                        }
-                        const std::size_t o = coarse.index(i, j);
-                        s.heights[o] = static_cast<std::uint16_t>((acc + 8) / 16);
-                        s.colors[o] = Rgb8{static_cast<std::uint8_t>((r + 8) / 16),
-                                           static_cast<std::uint8_t>((g + 8) / 16),
-                                           static_cast<std::uint8_t>((bl + 8) / 16)};
+                    const std::uint16_t* hr[3];
+                    const Rgb8* cr[3];
+                    for (int b = 0; b < 3; ++b) {
+                        const std::size_t row =
+                            fine.index(0, std::clamp(2 * j + b - 1, 0, fine.height - 1));
+                        hr[b] = fine.heights + row;
+                        cr[b] = fine.colors + row;
                     }
+                    const std::size_t o = coarse.index(0, j);
+                    reduceDisplayRow(hr, cr, fine.width, coarse.width, s.heights.data() + o,
+                                     s.colors.data() + o);
                 }
             });
         adviseHugePages(s.heights.data(), s.heights.size() * sizeof(std::uint16_t));

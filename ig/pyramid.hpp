@@ -5,10 +5,48 @@
 
 #include "ig/terrain.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
 namespace ig {
+
+// One row of a coarser display level: sample i of the row is the [1 2 1] x [1 2 1] / 16 mean of
+// the finer level around sample 2i of its rows `rows[0..2]` (the rows 2j - 1, 2j, 2j + 1,
+// clamped at the edges), columns clamped likewise. Shared by the pyramid and the database
+// builder, which streams the same levels row by row.
+inline void reduceDisplayRow(const std::uint16_t* const heightRows[3],
+                             const Rgb8* const colorRows[3], int fineWidth, int coarseWidth,
+                             std::uint16_t* heights, Rgb8* colors) {
+    for (int i = 0; i < coarseWidth; ++i) {
+        unsigned acc = 0, r = 0, g = 0, bl = 0;
+        for (int b = 0; b < 3; ++b) {
+            const unsigned wb = b == 1 ? 2 : 1;
+            for (int a = 0; a < 3; ++a) {
+                const unsigned wgt = wb * (a == 1 ? 2 : 1);
+                const int x = std::clamp(2 * i + a - 1, 0, fineWidth - 1);
+                acc += wgt * heightRows[b][x];
+                const Rgb8 c = colorRows[b][x];
+                r += wgt * c.r;
+                g += wgt * c.g;
+                bl += wgt * c.b;
+            }
+        }
+        heights[i] = static_cast<std::uint16_t>((acc + 8) / 16);
+        colors[i] =
+            Rgb8{static_cast<std::uint8_t>((r + 8) / 16), static_cast<std::uint8_t>((g + 8) / 16),
+                 static_cast<std::uint8_t>((bl + 8) / 16)};
+    }
+}
+
+// One row of cell maxima: cell cx of the row between sample rows `a` and `b` is the largest of
+// its four samples.
+inline void cellMaxRow(const std::uint16_t* a, const std::uint16_t* b, int cells,
+                       std::uint16_t* out) {
+    for (int cx = 0; cx < cells; ++cx) {
+        out[cx] = std::max(std::max(a[cx], a[cx + 1]), std::max(b[cx], b[cx + 1]));
+    }
+}
 
 // One display level, viewed flat. Level k sample (i, j) sits on level-0 sample (i << k, j << k);
 // heights are raw units of the map (same scale and offset at every level).

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "base/check.hpp"
 #include "ig/error.hpp"
 
 // The relief is a sum of gradient-noise fields, each a fixed function of world position (metres)
@@ -278,9 +279,10 @@ CubicWeights catmullRom(double t) {
                          0.5 * (-3 * t3 + 4 * t2 + t), 0.5 * (t3 - t2)}};
 }
 
-// Evaluates and shades rows [j0, j1) of the map.
+// Evaluates and shades rows [j0, j1) of the map; row j is written at row j - outRow0 of
+// `heights` and `colors` (size samples a row).
 void generateRows(const Generator& gen, int size, double spacing, std::uint64_t seed, int j0,
-                  int j1, std::uint16_t* heights, Rgb8* colors) {
+                  int j1, int outRow0, std::uint16_t* heights, Rgb8* colors) {
     // Coarse lattice step in samples: at most 160 m, at most 8 samples.
     const int k = static_cast<int>(std::clamp(160.0 / spacing, 1.0, 8.0));
     std::vector<CubicWeights> weights(k);
@@ -372,7 +374,7 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
             const double jitter =
                 static_cast<double>(hashLattice(i, j, seed ^ 0x5EEDULL) >> 11) * 0x1.0p-53;
             const double light = (0.3 + 0.7 * lambert / lz) * (0.95 + 0.1 * jitter);
-            const std::size_t out = static_cast<std::size_t>(j) * size + i;
+            const std::size_t out = static_cast<std::size_t>(j - outRow0) * size + i;
             colors[out] = Rgb8{toByte(c.r * light), toByte(c.g * light), toByte(c.b * light)};
             const double raw =
                 std::round((surface - kSyntheticHeightOffset) / kSyntheticHeightScale);
@@ -381,18 +383,35 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
     }
 }
 
-}  // namespace
-
-TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing) {
-    if (size < 2 || size > kMaxSize || (size & (size - 1)) != 0) {
+void checkSynthetic(int size, int maxSize, double spacing) {
+    if (size < 2 || size > maxSize || (size & (size - 1)) != 0) {
         throw InputError("synthetic terrain size: must be a power of two from 2 to " +
-                         std::to_string(kMaxSize) + " (got " + std::to_string(size) + ")");
+                         std::to_string(maxSize) + " (got " + std::to_string(size) + ")");
     }
     if (!(spacing >= kMinSpacing && spacing <= kMaxSpacing)) {
         throw InputError("synthetic terrain spacing: must be " + std::to_string(kMinSpacing) +
                          " to " + std::to_string(kMaxSpacing) + " metres (got " +
                          std::to_string(spacing) + ")");
     }
+}
+
+}  // namespace
+
+void generateSyntheticRows(int size, std::uint64_t seed, double spacing, int j0, int j1,
+                           std::uint16_t* heights, Rgb8* colors) {
+    checkSynthetic(size, kMaxSyntheticStreamSize, spacing);
+    CHECK(0 <= j0 && j0 <= j1 && j1 <= size);
+    const Generator gen(seed, spacing);
+    tbb::parallel_for(
+        tbb::blocked_range<int>(j0, j1, 32),
+        [&](const tbb::blocked_range<int>& rows) {
+            generateRows(gen, size, spacing, seed, rows.begin(), rows.end(), j0, heights, colors);
+        },
+        tbb::simple_partitioner());
+}
+
+TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing) {
+    checkSynthetic(size, kMaxSize, spacing);
     const Generator gen(seed, spacing);
     TerrainMap map(size, size, spacing, spacing, kSyntheticHeightScale, kSyntheticHeightOffset);
     std::uint16_t* heights = map.rawHeights().data();
@@ -402,7 +421,7 @@ TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing) {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, size, 32),
         [&](const tbb::blocked_range<int>& rows) {
-            generateRows(gen, size, spacing, seed, rows.begin(), rows.end(), heights, colors);
+            generateRows(gen, size, spacing, seed, rows.begin(), rows.end(), 0, heights, colors);
         },
         tbb::simple_partitioner());
     map.updateRange();

@@ -21,4 +21,13 @@ inline constexpr double kSyntheticSeaLevel = 0.0;
 // size or spacing.
 TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing = 10.0);
 
+// Largest map generateSyntheticRows streams (a power of two).
+inline constexpr int kMaxSyntheticStreamSize = 1 << 20;
+// Rows [j0, j1) (south first) of the size x size synthetic map, exactly the samples
+// makeSyntheticTerrain gives, into `heights` and `colors` (row j at (j - j0) * size), for
+// builders that stream maps larger than memory (size up to kMaxSyntheticStreamSize). Throws
+// InputError for a bad size or spacing.
+void generateSyntheticRows(int size, std::uint64_t seed, double spacing, int j0, int j1,
+                           std::uint16_t* heights, Rgb8* colors);
+
 }  // namespace ig

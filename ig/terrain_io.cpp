@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <numbers>
@@ -32,6 +33,7 @@
 
 #include "base/text.hpp"
 #include "ig/error.hpp"
+#include "ig/terrain_db_build.hpp"
 
 // The magic bytes pick the reader (libpng, libjpeg, or GDAL for everything else); each reader
 // returns its raster in file order, which is then turned north-up, converted to the map's integer
@@ -1431,6 +1433,287 @@ TerrainMap loadGoleta() {
     src.heightPath = VIG_DATA_DIR "/goleta-512/sba_elev32_wgs84_512x512.tif";
     src.colorPath = VIG_DATA_DIR "/goleta-512/sba_rgb_wgs84_512x512.tif";
     return loadTerrain(src);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Streaming reader for the database builder: the same heights and colours loadTerrain gives,
+// window by window, for the files that need nothing of the whole map but its height range.
+
+namespace {
+
+// Largest raster the streaming reader opens, samples.
+constexpr std::size_t kMaxStreamSamples = std::size_t{1} << 36;
+
+class GdalRowSource final : public TerrainRowSource {
+  public:
+    // Opens the files; sets `why` and leaves ok() false when they need the whole-map loader.
+    GdalRowSource(const TerrainSource& src, std::string& why) : src_(src) {
+        const std::string& path = src.heightPath;
+        if (path.empty()) throw InputError("height map: no file given");
+        if (!src.heightBytes.empty() || !src.colorBytes.empty()) {
+            why = "data held in memory";
+            return;
+        }
+        if (src.spacing) checkPositive(path, "spacing", *src.spacing);
+        if (src.heightScale) checkPositive(path, "height scale", *src.heightScale);
+        if (src.colorPath.empty()) {
+            why = "no colour image (the heights are shaded over the whole map)";
+            return;
+        }
+        ImageInput hin;
+        openInput(path, {}, kMaxStreamSamples, hin);
+        if (ownDecoder(hin)) {
+            why = "PNG and JPEG heights are decoded whole";
+            return;
+        }
+        ImageInput cin;
+        openInput(src.colorPath, {}, kMaxStreamSamples, cin);
+        if (ownDecoder(cin)) {
+            why = "PNG and JPEG colours are decoded whole";
+            return;
+        }
+        gdalOpen(hin, heights_);
+        gdalOpen(cin, colors_);
+        width_ = GDALGetRasterXSize(heights_.handle);
+        height_ = GDALGetRasterYSize(heights_.handle);
+        if (width_ < 2 || height_ < 2) {
+            fail(path, "height map needs at least 2 x 2 samples (has " + std::to_string(width_) +
+                           " x " + std::to_string(height_) + ")");
+        }
+        band_ = GDALGetRasterBand(heights_.handle, 1);
+        const GDALColorInterp interp = GDALGetRasterColorInterpretation(band_);
+        if (interp == GCI_PaletteIndex ||
+            (GDALGetRasterCount(heights_.handle) >= 3 && interp == GCI_RedBand)) {
+            fail(path, "height map must hold heights in one band; this file is a colour image");
+        }
+        const double bandScale = GDALGetRasterScale(band_, nullptr);
+        const double bandOffset = GDALGetRasterOffset(band_, nullptr);
+        if (!std::isfinite(bandScale) || bandScale == 0.0 || !std::isfinite(bandOffset)) {
+            fail(path, "band scale " + formatNumber(bandScale) + " / offset " +
+                           formatNumber(bandOffset) + " cannot give heights");
+        }
+        double unit = 1.0;
+        if (!src.heightScale) {
+            const char* unitName = GDALGetRasterUnitType(band_);
+            unit = verticalUnitMetres(unitName ? unitName : "");
+            if (unit == 0.0) {
+                fail(path, std::string("vertical unit '") + unitName +
+                               "' is not one this reader knows (m, ft, US survey foot, cm, "
+                               "km...); give --height-scale, metres per unit");
+            }
+        }
+        toMetres_ = bandScale * unit;
+        toMetresOffset_ = bandOffset * unit;
+        userScale_ = src.heightScale.value_or(1.0);
+        userOffset_ = src.heightOffset.value_or(0.0);
+        masked_ = !(GDALGetMaskFlags(band_) & GMF_ALL_VALID);
+
+        // Colours: 8-bit, one colour per height sample.
+        const int cbands = GDALGetRasterCount(colors_.handle);
+        GDALRasterBandH c1 = GDALGetRasterBand(colors_.handle, 1);
+        if (GDALGetRasterDataType(c1) != GDT_Byte) {
+            why = "colours wider than 8 bits are stretched over the whole image";
+            return;
+        }
+        if (GDALGetRasterXSize(colors_.handle) != width_ ||
+            GDALGetRasterYSize(colors_.handle) != height_) {
+            why = "the colour image is resampled to the height grid";
+            return;
+        }
+        geo_ = readGeoref(path, heights_.handle);
+        Georef cgeo = readGeoref(src.colorPath, colors_.handle);
+        if (geo_.valid != cgeo.valid ||
+            (geo_.valid && !std::equal(geo_.gt, geo_.gt + 6, cgeo.gt)) ||
+            (geo_.srs && cgeo.srs &&
+             !OSRIsSame(static_cast<OGRSpatialReferenceH>(geo_.srs.get()),
+                        static_cast<OGRSpatialReferenceH>(cgeo.srs.get())))) {
+            why = "the colour image lies on another grid (it is resampled)";
+            return;
+        }
+        if (geo_.valid && (geo_.rotated || geo_.gt[1] < 0 || geo_.gt[5] > 0)) {
+            why = "the raster is not north-up (it is flipped or rotated whole)";
+            return;
+        }
+        resolveUnits(geo_, width_, height_, &cgeo, width_, height_);
+        sx_ = sy_ = kDefaultSpacing;
+        if (src.spacing) {
+            sx_ = sy_ = *src.spacing;
+        } else if (geo_.valid) {
+            georefSpacing(path, geo_, height_, sx_, sy_);
+        }
+        if (cbands >= 3) {
+            greyLut_.clear();
+        } else {
+            GDALColorTableH palette = GDALGetRasterColorTable(c1);
+            greyLut_.resize(256);
+            for (int v = 0; v < 256; ++v) {
+                const auto g = static_cast<std::uint8_t>(v);
+                greyLut_[v] = Rgb8{g, g, g};
+                if (palette && v < GDALGetColorEntryCount(palette)) {
+                    const GDALColorEntry* e = GDALGetColorEntry(palette, v);
+                    auto q = [](short sv) {
+                        return static_cast<std::uint8_t>(std::clamp<int>(sv, 0, 255));
+                    };
+                    greyLut_[v] = Rgb8{q(e->c1), q(e->c2), q(e->c3)};
+                }
+            }
+        }
+        // The height range, window by window (float heights are quantised over it).
+        bool any = false;
+        std::vector<double> v;
+        for (int r0 = 0; r0 < height_; r0 += kRows) {
+            const int rows = std::min(kRows, height_ - r0);
+            if (!readValues(r0, rows, v)) {
+                if (!src.voidHeight) {
+                    why =
+                        "samples without data are interpolated over the whole map (give "
+                        "--void-height to stream it)";
+                    return;
+                }
+            }
+            for (double x : v) {
+                if (!any) {
+                    minV_ = maxV_ = x;
+                    any = true;
+                }
+                minV_ = std::min(minV_, x);
+                maxV_ = std::max(maxV_, x);
+            }
+            voids_ += lastVoids_;
+        }
+        if (voids_ == static_cast<std::uint64_t>(width_) * height_) {
+            fail(path, "every sample is marked as having no data");
+        }
+        scale_ = maxV_ > minV_ ? (maxV_ - minV_) / 65535.0 : 1.0;
+        ok_ = true;
+    }
+
+    bool ok() const { return ok_; }
+
+    TerrainDbInfo info() const override {
+        TerrainDbInfo i;
+        i.width = width_;
+        i.height = height_;
+        i.spacingX = sx_;
+        i.spacingY = sy_;
+        i.heightScale = scale_;
+        i.heightOffset = minV_;
+        i.originX = i.originY = std::numeric_limits<double>::quiet_NaN();
+        if (geo_.valid) {
+            i.originX = geo_.gt[0] + 0.5 * geo_.gt[1];
+            i.originY = geo_.gt[3] + (height_ - 0.5) * geo_.gt[5];
+        }
+        if (geo_.srs) {
+            char* wkt = nullptr;
+            if (OSRExportToWkt(static_cast<OGRSpatialReferenceH>(geo_.srs.get()), &wkt) ==
+                    OGRERR_NONE &&
+                wkt) {
+                i.crs = wkt;
+            }
+            CPLFree(wkt);
+        }
+        return i;
+    }
+
+    void readRows(int y0, int rows, std::uint16_t* heights, Rgb8* colors) override {
+        // Map rows [y0, y0 + rows) are file rows [height - y0 - rows, height - y0), reversed.
+        const int f0 = height_ - y0 - rows;
+        std::vector<double> v;
+        readValues(f0, rows, v);
+        const std::size_t w = static_cast<std::size_t>(width_);
+        for (int r = 0; r < rows; ++r) {
+            const double* src = v.data() + static_cast<std::size_t>(rows - 1 - r) * w;
+            std::uint16_t* out = heights + static_cast<std::size_t>(r) * w;
+            for (std::size_t c = 0; c < w; ++c) {
+                const double q = std::round((src[c] - minV_) / scale_);
+                out[c] = static_cast<std::uint16_t>(std::clamp(q, 0.0, 65535.0));
+            }
+        }
+        const std::size_t n = w * static_cast<std::size_t>(rows);
+        std::vector<Rgb8> px(n);
+        QuietGdal quiet;
+        CPLErr err;
+        if (greyLut_.empty()) {
+            int bandMap[3] = {1, 2, 3};
+            err = GDALDatasetRasterIO(colors_.handle, GF_Read, 0, f0, width_, rows, px.data(),
+                                      width_, rows, GDT_Byte, 3, bandMap, 3,
+                                      static_cast<GSpacing>(width_) * 3, 1);
+        } else {
+            std::vector<std::uint8_t> grey(n);
+            err = GDALRasterIO(GDALGetRasterBand(colors_.handle, 1), GF_Read, 0, f0, width_, rows,
+                               grey.data(), width_, rows, GDT_Byte, 0, 0);
+            for (std::size_t k = 0; k < n; ++k)
+                px[k] = greyLut_[grey[k]];
+        }
+        if (err != CE_None) fail(src_.colorPath, "cannot read colours" + QuietGdal::lastError());
+        for (int r = 0; r < rows; ++r) {
+            std::copy_n(px.begin() + static_cast<std::ptrdiff_t>(rows - 1 - r) * width_, width_,
+                        colors + static_cast<std::size_t>(r) * w);
+        }
+    }
+
+  private:
+    static constexpr int kRows = 256;
+
+    // File rows [r0, r0 + rows) in metres (voids: the void height); false when there were
+    // voids and no void height to give them.
+    bool readValues(int r0, int rows, std::vector<double>& v) {
+        const std::string& path = src_.heightPath;
+        QuietGdal quiet;
+        const std::size_t w = static_cast<std::size_t>(width_), n = w * rows;
+        v.resize(n);
+        if (GDALRasterIO(band_, GF_Read, 0, r0, width_, rows, v.data(), width_, rows, GDT_Float64,
+                         0, 0) != CE_None) {
+            fail(path, "cannot read heights" + QuietGdal::lastError());
+        }
+        std::vector<std::uint8_t> valid;
+        if (masked_) {
+            valid.resize(n);
+            if (GDALRasterIO(GDALGetMaskBand(band_), GF_Read, 0, r0, width_, rows, valid.data(),
+                             width_, rows, GDT_Byte, 0, 0) != CE_None) {
+                fail(path, "cannot read the no-data mask" + QuietGdal::lastError());
+            }
+        }
+        lastVoids_ = 0;
+        for (std::size_t k = 0; k < n; ++k) {
+            double& x = v[k];
+            if (std::isnan(x) || (masked_ && valid[k] == 0)) {
+                ++lastVoids_;
+                x = src_.voidHeight.value_or(0.0);
+                continue;
+            }
+            auto where = [&] {
+                return " at row " + std::to_string(r0 + k / w) + ", column " +
+                       std::to_string(k % w);
+            };
+            if (!std::isfinite(x))
+                fail(path, "non-finite height (" + formatNumber(x) + ")" + where());
+            x = (x * toMetres_ + toMetresOffset_) * userScale_ + userOffset_;
+            if (!std::isfinite(x)) fail(path, "height out of range after scaling" + where());
+        }
+        return lastVoids_ == 0 || src_.voidHeight.has_value();
+    }
+
+    TerrainSource src_;
+    GdalDataset heights_, colors_;
+    GDALRasterBandH band_ = nullptr;
+    Georef geo_;
+    int width_ = 0, height_ = 0;
+    double sx_ = 0, sy_ = 0;
+    double toMetres_ = 1, toMetresOffset_ = 0, userScale_ = 1, userOffset_ = 0;
+    bool masked_ = false, ok_ = false;
+    double minV_ = 0, maxV_ = 0, scale_ = 1;
+    std::uint64_t voids_ = 0, lastVoids_ = 0;
+    std::vector<Rgb8> greyLut_;
+};
+
+}  // namespace
+
+std::unique_ptr<TerrainRowSource> gdalRowSource(const TerrainSource& source, std::string& why) {
+    gdalInit();
+    auto s = std::make_unique<GdalRowSource>(source, why);
+    if (!s->ok()) return nullptr;
+    return s;
 }
 
 }  // namespace ig

@@ -5,6 +5,7 @@ set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config libeigen3-dev libglm-dev libgpiod-dev
           libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev libpng-dev libjpeg-dev libgdal-dev
           nlohmann-json3-dev libcli11-dev
+          zlib1g-dev liblz4-dev libzstd-dev  # terrain database: CRC-32, tile codecs
           python3 gnuplot-nox
           tshark  # tshark: tests/cli/cigi_tshark.sh reads our CIGI packets independently
           ffmpeg  # ffprobe: tests/cli/hostile.sh reads the Y4M written through renderer faults

@@ -443,7 +443,7 @@ int main(int argc, char** argv) {
 
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
-        const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
+        const bool shippedMap = ig::usesShippedMap(terrain);
 
         // Where the aircraft is: a trajectory, a stick, or the default scenario's script.
         std::unique_ptr<sim::PoseSource> poses;

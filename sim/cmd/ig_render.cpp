@@ -471,7 +471,7 @@ int main(int argc, char** argv) {
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
-        const bool shippedMap = terrain.height.empty() && terrain.synthetic.empty();
+        const bool shippedMap = ig::usesShippedMap(terrain);
         const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
                               : shippedMap      ? ig::parsePose(shippedPose, map)
                                                 : ig::defaultViewPose(map);

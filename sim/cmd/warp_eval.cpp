@@ -242,7 +242,7 @@ int main(int argc, char** argv) {
         std::fprintf(tableOut, "terrain: %s\n", ig::describeTerrain(map).c_str());
         // The shipped trajectories are flown over Puget Sound; over another map they are laid
         // over it (scaled to fit, heights above its highest ground under the path).
-        if (shippedTrajectories && !(terrain.height.empty() && terrain.synthetic.empty())) {
+        if (shippedTrajectories && !ig::usesShippedMap(terrain)) {
             for (std::size_t i = 0; i < loaded.size(); ++i) {
                 const sim::FittedTrajectory f = sim::fitTrajectoryToMap(loaded[i], map);
                 std::fprintf(tableOut, "%s: laid over the map, scale %.3g, heights above %.1f m\n",

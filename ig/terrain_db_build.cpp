@@ -1,0 +1,506 @@
+// The streaming builder. Pass 1 takes level-0 rows strip by strip and cascades: each display
+// level keeps only the rows its next tile row and the next coarser row need (a coarser row j
+// is reduceDisplayRow of rows 2j - 1..2j + 1, as TerrainPyramid computes it), emits a tile row
+// as soon as its T + 1 sample rows are there, and hands that tile row's cell maxima (a "band")
+// to the max-height nodes. The nodes are built bottom-up band by band (node j = max of its
+// four children and display level j's cell); their top-down part (the max with every coarser
+// display level's cell above them) needs the coarse levels, which are complete only at the
+// end, so pass 1 spills the bottom-up node bands and the cell-maxima bands of levels >= 1 to an
+// unlinked temporary file, and pass 2 finishes the node tiles from it: node j at n is the max
+// of its bottom-up value and C_m(n >> (m - j)) over the display levels m > j.
+#include "ig/terrain_db_build.hpp"
+
+#include "base/check.hpp"
+#include "ig/error.hpp"
+#include "ig/pyramid.hpp"
+#include "ig/synthetic.hpp"
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+namespace ig {
+
+std::size_t peakResidentBytes() {
+    std::ifstream f("/proc/self/status");
+    std::string line;
+    while (std::getline(f, line)) {
+        if (line.rfind("VmHWM:", 0) == 0) {
+            std::istringstream s(line.substr(6));
+            std::size_t kb = 0;
+            s >> kb;
+            return kb * 1024;
+        }
+    }
+    return 0;
+}
+
+namespace {
+
+double cpuSecondsNow() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+class MapRowSource final : public TerrainRowSource {
+  public:
+    explicit MapRowSource(const TerrainMap& map) : map_(map) {}
+    TerrainDbInfo info() const override {
+        TerrainDbInfo i;
+        i.width = map_.width();
+        i.height = map_.height();
+        i.spacingX = map_.spacingX();
+        i.spacingY = map_.spacingY();
+        i.heightScale = map_.heightScale();
+        i.heightOffset = map_.heightOffset();
+        i.originX = i.originY = std::numeric_limits<double>::quiet_NaN();
+        return i;
+    }
+    void readRows(int y0, int rows, std::uint16_t* heights, Rgb8* colors) override {
+        const std::size_t begin = map_.index(0, y0),
+                          n = static_cast<std::size_t>(rows) * map_.width();
+        std::copy_n(map_.rawHeights().data() + begin, n, heights);
+        std::copy_n(map_.colors().data() + begin, n, colors);
+    }
+
+  private:
+    const TerrainMap& map_;
+};
+
+class SyntheticRowSource final : public TerrainRowSource {
+  public:
+    SyntheticRowSource(int size, std::uint64_t seed, double spacing)
+        : size_(size), seed_(seed), spacing_(spacing) {
+        generateSyntheticRows(size, seed, spacing, 0, 0, nullptr, nullptr);  // checks the size
+    }
+    TerrainDbInfo info() const override {
+        TerrainDbInfo i;
+        i.width = i.height = size_;
+        i.spacingX = i.spacingY = spacing_;
+        i.heightScale = kSyntheticHeightScale;
+        i.heightOffset = kSyntheticHeightOffset;
+        i.originX = i.originY = std::numeric_limits<double>::quiet_NaN();
+        return i;
+    }
+    void readRows(int y0, int rows, std::uint16_t* heights, Rgb8* colors) override {
+        generateSyntheticRows(size_, seed_, spacing_, y0, y0 + rows, heights, colors);
+    }
+
+  private:
+    int size_;
+    std::uint64_t seed_;
+    double spacing_;
+};
+
+struct Band {
+    int rows = 0, width = 0;
+    std::vector<std::uint16_t> data;  // rows x width
+    std::uint16_t at(int x, int y) const {
+        return data[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + x];
+    }
+};
+
+// An unlinked scratch file for the bands pass 2 reads back.
+class ScratchFile {
+  public:
+    explicit ScratchFile(const std::string& near) {
+        const std::string path = near + ".scratch";
+        fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+        if (fd_ < 0) throw InputError(path + ": cannot create: " + std::strerror(errno));
+        ::unlink(path.c_str());
+    }
+    ~ScratchFile() { ::close(fd_); }
+    std::uint64_t write(const Band& b) {
+        const std::uint64_t at = end_;
+        const auto* p = reinterpret_cast<const std::uint8_t*>(b.data.data());
+        std::size_t n = b.data.size() * 2;
+        std::uint64_t off = end_;
+        while (n > 0) {
+            const ssize_t w = ::pwrite(fd_, p, n, static_cast<off_t>(off));
+            if (w < 0) {
+                if (errno == EINTR) continue;
+                throw InputError(std::string("scratch file: cannot write: ") +
+                                 std::strerror(errno));
+            }
+            p += w;
+            n -= static_cast<std::size_t>(w);
+            off += static_cast<std::uint64_t>(w);
+        }
+        end_ = off;
+        return at;
+    }
+    void read(std::uint64_t at, Band& b) {
+        auto* p = reinterpret_cast<std::uint8_t*>(b.data.data());
+        std::size_t n = b.data.size() * 2;
+        while (n > 0) {
+            const ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(at));
+            if (r <= 0) {
+                if (r < 0 && errno == EINTR) continue;
+                throw InputError(std::string("scratch file: cannot read back"));
+            }
+            p += r;
+            n -= static_cast<std::size_t>(r);
+            at += static_cast<std::uint64_t>(r);
+        }
+    }
+
+  private:
+    int fd_ = -1;
+    std::uint64_t end_ = 0;
+};
+
+class Builder {
+  public:
+    Builder(TerrainRowSource& source, const std::string& path, const DbBuildOptions& options)
+        : source_(source),
+          info_(source.info()),
+          options_(options),
+          t_(options.tileSize),
+          layout_(info_.width, info_.height, options.tileSize),
+          writer_(path, layout_, options.codec),
+          scratch_(writer_.temporaryPath()) {
+        const int levels = layout_.displayLevels(), nodes = layout_.nodeLevels();
+        disp_.resize(static_cast<std::size_t>(levels));
+        for (int k = 0; k < levels; ++k) {
+            disp_[k].w = layout_.levelWidth(k);
+            disp_[k].h = layout_.levelHeight(k);
+            disp_[k].tileRows = layout_.tilesY(TileKind::Display, k);
+        }
+        bq_.resize(static_cast<std::size_t>(nodes));
+        bDone_.assign(static_cast<std::size_t>(nodes), 0);
+        bFirst_.assign(static_cast<std::size_t>(nodes), 0);
+        cq_.resize(static_cast<std::size_t>(levels));
+        cDone_.assign(static_cast<std::size_t>(levels), 0);
+        cOffsets_.resize(static_cast<std::size_t>(levels));
+        bOffsets_.resize(static_cast<std::size_t>(nodes));
+    }
+
+    DbBuildStats run() {
+        const auto start = std::chrono::steady_clock::now();
+        const double cpuStart = cpuSecondsNow();
+        const int w = info_.width, h = info_.height;
+        // Strips of up to 512 rows and 64 MiB: the sources read (and the synthetic generator
+        // runs in parallel over) a strip at a time.
+        const int strip = options_.stripRows > 0
+                              ? options_.stripRows
+                              : std::max(t_, std::min(512, static_cast<int>((std::size_t{1} << 26) /
+                                                                            (5 * std::size_t(w)))));
+        std::vector<std::uint16_t> hs(static_cast<std::size_t>(strip) * w);
+        std::vector<Rgb8> cs(hs.size());
+        std::uint16_t lo = 65535, hi = 0;
+        for (int y0 = 0; y0 < h; y0 += strip) {
+            const int rows = std::min(strip, h - y0);
+            source_.readRows(y0, rows, hs.data(), cs.data());
+            for (int r = 0; r < rows; ++r) {
+                const std::size_t o = static_cast<std::size_t>(r) * w;
+                const auto [mn, mx] = std::minmax_element(hs.begin() + o, hs.begin() + o + w);
+                lo = std::min(lo, *mn);
+                hi = std::max(hi, *mx);
+                disp_[0].heights.emplace_back(hs.begin() + o, hs.begin() + o + w);
+                disp_[0].colors.emplace_back(cs.begin() + o, cs.begin() + o + w);
+                ++disp_[0].produced;
+                // After every row, so the order of the tiles in the file (and so its bytes)
+                // does not depend on the strip size.
+                pump();
+            }
+            if (options_.progress) options_.progress(0.9 * (y0 + rows) / h);
+        }
+        pump();
+        for (const Display& d : disp_)
+            CHECK(d.produced == d.h && d.nextTileRow == d.tileRows);
+        for (int j = 1; j < layout_.nodeLevels(); ++j)
+            CHECK(bDone_[j] == layout_.tilesY(TileKind::Nodes, j));
+        disp_.clear();
+        finishNodes();
+        info_.minRaw = lo;
+        info_.maxRaw = hi;
+        DbBuildStats stats;
+        stats.fileBytes = writer_.finish(info_);
+        stats.samples = static_cast<std::uint64_t>(w) * h;
+        stats.tiles = static_cast<std::uint64_t>(layout_.entryCount());
+        stats.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        stats.cpuSeconds = cpuSecondsNow() - cpuStart;
+        stats.peakRssBytes = peakResidentBytes();
+        if (options_.progress) options_.progress(1.0);
+        return stats;
+    }
+
+  private:
+    struct Display {
+        int w = 0, h = 0, tileRows = 0;
+        std::deque<std::vector<std::uint16_t>> heights;
+        std::deque<std::vector<Rgb8>> colors;
+        int first = 0;     // row index of heights.front()
+        int produced = 0;  // rows pushed so far
+        int nextTileRow = 0;
+        const std::uint16_t* h16(int y) const { return heights[y - first].data(); }
+        const Rgb8* rgb(int y) const { return colors[y - first].data(); }
+    };
+
+    // Does whatever the rows and bands at hand allow, until nothing more can be done.
+    void pump() {
+        for (bool progress = true; progress;) {
+            progress = false;
+            const int levels = static_cast<int>(disp_.size());
+            for (int k = 0; k < levels; ++k) {
+                Display& d = disp_[k];
+                while (d.nextTileRow < d.tileRows &&
+                       d.produced > std::min(d.nextTileRow * t_ + t_, d.h - 1)) {
+                    emitTileRow(k);
+                    progress = true;
+                }
+                int keep = d.nextTileRow * t_;
+                if (k + 1 < levels) {
+                    progress |= produceCoarse(k);
+                    const Display& c = disp_[k + 1];
+                    if (c.produced < c.h) keep = std::min(keep, std::max(2 * c.produced - 1, 0));
+                }
+                while (d.first < keep && !d.heights.empty()) {
+                    d.heights.pop_front();
+                    d.colors.pop_front();
+                    ++d.first;
+                }
+            }
+            for (int j = 1; j < layout_.nodeLevels(); ++j) {
+                while (produceNodes(j))
+                    progress = true;
+            }
+        }
+    }
+
+    bool produceCoarse(int k) {
+        const Display& f = disp_[k];
+        Display& c = disp_[k + 1];
+        int n = 0;
+        while (c.produced + n < c.h && f.produced > std::min(2 * (c.produced + n) + 1, f.h - 1))
+            ++n;
+        if (n == 0) return false;
+        std::vector<std::vector<std::uint16_t>> hs(static_cast<std::size_t>(n));
+        std::vector<std::vector<Rgb8>> cs(static_cast<std::size_t>(n));
+        tbb::parallel_for(0, n, [&](int r) {
+            const int j = c.produced + r;
+            const std::uint16_t* hr[3];
+            const Rgb8* cr[3];
+            for (int b = 0; b < 3; ++b) {
+                const int y = std::clamp(2 * j + b - 1, 0, f.h - 1);
+                hr[b] = f.h16(y);
+                cr[b] = f.rgb(y);
+            }
+            hs[r].resize(static_cast<std::size_t>(c.w));
+            cs[r].resize(static_cast<std::size_t>(c.w));
+            reduceDisplayRow(hr, cr, f.w, c.w, hs[r].data(), cs[r].data());
+        });
+        for (int r = 0; r < n; ++r) {
+            c.heights.push_back(std::move(hs[r]));
+            c.colors.push_back(std::move(cs[r]));
+        }
+        c.produced += n;
+        return true;
+    }
+
+    // Encodes the tiles of a row in parallel, writes them in order.
+    void writeTiles(std::vector<TerrainTile>& tiles) {
+        std::vector<std::vector<std::uint8_t>> stored(tiles.size());
+        std::vector<std::uint32_t> raw(tiles.size());
+        tbb::parallel_for(std::size_t{0}, tiles.size(), [&](std::size_t i) {
+            stored[i] = encodeTile(tiles[i], options_.codec, raw[i]);
+        });
+        for (std::size_t i = 0; i < tiles.size(); ++i)
+            writer_.append(tiles[i].key, stored[i], raw[i]);
+    }
+
+    void emitTileRow(int k) {
+        Display& d = disp_[k];
+        const int ty = d.nextTileRow;
+        const int y0 = ty * t_, y1 = std::min(y0 + t_, d.h - 1);
+        Band cells;
+        cells.rows = y1 - y0;
+        cells.width = d.w - 1;
+        cells.data.resize(static_cast<std::size_t>(cells.rows) * cells.width);
+        tbb::parallel_for(0, cells.rows, [&](int r) {
+            cellMaxRow(d.h16(y0 + r), d.h16(y0 + r + 1), cells.width,
+                       cells.data.data() + static_cast<std::size_t>(r) * cells.width);
+        });
+        const int nx = layout_.tilesX(TileKind::Display, k);
+        std::vector<TerrainTile> tiles(static_cast<std::size_t>(nx));
+        tbb::parallel_for(0, nx, [&](int tx) {
+            TerrainTile& t = tiles[tx];
+            t.key = TileKey{TileKind::Display, k, tx, ty};
+            layout_.tileExtent(t.key, t.x0, t.y0, t.width, t.height);
+            const std::size_t n = static_cast<std::size_t>(t.width) * t.height;
+            t.heights.resize(n);
+            t.colors.resize(n);
+            t.maxima.resize(static_cast<std::size_t>(t.width - 1) * (t.height - 1));
+            for (int y = 0; y < t.height; ++y) {
+                std::copy_n(d.h16(t.y0 + y) + t.x0, t.width,
+                            t.heights.begin() + static_cast<std::ptrdiff_t>(y) * t.width);
+                std::copy_n(d.rgb(t.y0 + y) + t.x0, t.width,
+                            t.colors.begin() + static_cast<std::ptrdiff_t>(y) * t.width);
+            }
+            for (int y = 0; y + 1 < t.height; ++y) {
+                std::copy_n(
+                    cells.data.begin() + static_cast<std::ptrdiff_t>(y) * cells.width + t.x0,
+                    t.width - 1, t.maxima.begin() + static_cast<std::ptrdiff_t>(y) * (t.width - 1));
+            }
+        });
+        writeTiles(tiles);
+        ++d.nextTileRow;
+        if (k == 0) {
+            bq_[0].push_back(std::move(cells));
+            ++bDone_[0];
+        } else {
+            cOffsets_[k].push_back(scratch_.write(cells));
+            if (k < layout_.nodeLevels()) {
+                cq_[k].push_back(std::move(cells));
+                ++cDone_[k];
+            }
+        }
+    }
+
+    // Bottom-up node band bDone_[j] of node level j, when its inputs are there.
+    bool produceNodes(int j) {
+        const int ty = bDone_[j];
+        if (ty >= layout_.tilesY(TileKind::Nodes, j)) return false;
+        const int childBands =
+            j == 1 ? layout_.tilesY(TileKind::Display, 0) : layout_.tilesY(TileKind::Nodes, j - 1);
+        const int lastChild = std::min(2 * ty + 1, childBands - 1);
+        if (bDone_[j - 1] <= lastChild) return false;
+        const bool haveLevel = j < layout_.displayLevels();
+        if (haveLevel && cDone_[j] <= ty) return false;
+        const int fw = layout_.nodesX(j - 1), fh = layout_.nodesY(j - 1);
+        Band out;
+        out.width = layout_.nodesX(j);
+        out.rows = std::min(t_, layout_.nodesY(j) - ty * t_);
+        out.data.resize(static_cast<std::size_t>(out.rows) * out.width);
+        const std::deque<Band>& in = bq_[j - 1];
+        const int inFirst = bFirst_[j - 1];
+        const Band* cBand = haveLevel ? &cq_[j].front() : nullptr;
+        tbb::parallel_for(0, out.rows, [&](int r) {
+            const int ny = ty * t_ + r;
+            for (int nx = 0; nx < out.width; ++nx) {
+                std::uint16_t m = 0;
+                for (int fy = 2 * ny; fy < std::min(2 * ny + 2, fh); ++fy) {
+                    const Band& b = in[static_cast<std::size_t>(fy / t_ - inFirst)];
+                    for (int fx = 2 * nx; fx < std::min(2 * nx + 2, fw); ++fx)
+                        m = std::max(m, b.at(fx, fy % t_));
+                }
+                if (cBand) m = std::max(m, cBand->at(nx, r));
+                out.data[static_cast<std::size_t>(r) * out.width + nx] = m;
+            }
+        });
+        bOffsets_[j].push_back(scratch_.write(out));
+        while (bFirst_[j - 1] <= lastChild) {
+            bq_[j - 1].pop_front();
+            ++bFirst_[j - 1];
+        }
+        if (haveLevel) cq_[j].pop_front();
+        if (j + 1 < layout_.nodeLevels()) bq_[j].push_back(std::move(out));
+        ++bDone_[j];
+        return true;
+    }
+
+    // Pass 2: the node tiles, bottom-up bands raised by the coarser display levels' cells.
+    void finishNodes() {
+        const int levels = layout_.displayLevels();
+        std::vector<int> cached(static_cast<std::size_t>(levels), -1);
+        std::vector<Band> cBands(static_cast<std::size_t>(levels));
+        const int nodeLevels = layout_.nodeLevels();
+        for (int j = 1; j < nodeLevels; ++j) {
+            const int bands = layout_.tilesY(TileKind::Nodes, j);
+            for (int ty = 0; ty < bands; ++ty) {
+                Band b;
+                b.width = layout_.nodesX(j);
+                b.rows = std::min(t_, layout_.nodesY(j) - ty * t_);
+                b.data.resize(static_cast<std::size_t>(b.rows) * b.width);
+                scratch_.read(bOffsets_[j][ty], b);
+                for (int m = j + 1; m < levels; ++m) {
+                    const int d = m - j, bi = ty >> d;
+                    Band& c = cBands[m];
+                    if (cached[m] != bi) {
+                        c.width = layout_.nodesX(m);
+                        c.rows = std::min(t_, layout_.nodesY(m) - bi * t_);
+                        c.data.resize(static_cast<std::size_t>(c.rows) * c.width);
+                        scratch_.read(cOffsets_[m][bi], c);
+                        cached[m] = bi;
+                    }
+                    tbb::parallel_for(0, b.rows, [&](int r) {
+                        const int cy = ((ty * t_ + r) >> d) - bi * t_;
+                        std::uint16_t* row = b.data.data() + static_cast<std::size_t>(r) * b.width;
+                        for (int nx = 0; nx < b.width; ++nx)
+                            row[nx] = std::max(row[nx], c.at(nx >> d, cy));
+                    });
+                }
+                const int nx = layout_.tilesX(TileKind::Nodes, j);
+                std::vector<TerrainTile> tiles(static_cast<std::size_t>(nx));
+                for (int tx = 0; tx < nx; ++tx) {
+                    TerrainTile& t = tiles[tx];
+                    t.key = TileKey{TileKind::Nodes, j, tx, ty};
+                    layout_.tileExtent(t.key, t.x0, t.y0, t.width, t.height);
+                    t.maxima.resize(static_cast<std::size_t>(t.width) * t.height);
+                    for (int y = 0; y < t.height; ++y) {
+                        std::copy_n(
+                            b.data.begin() + static_cast<std::ptrdiff_t>(y) * b.width + t.x0,
+                            t.width, t.maxima.begin() + static_cast<std::ptrdiff_t>(y) * t.width);
+                    }
+                }
+                writeTiles(tiles);
+            }
+            if (options_.progress) options_.progress(0.9 + 0.1 * j / nodeLevels);
+        }
+    }
+
+    TerrainRowSource& source_;
+    TerrainDbInfo info_;
+    DbBuildOptions options_;
+    int t_;
+    TerrainDbLayout layout_;
+    TerrainDbWriter writer_;
+    ScratchFile scratch_;
+    std::vector<Display> disp_;
+    std::vector<std::deque<Band>> bq_;  // bottom-up node bands (level 0: level-0 cell maxima)
+    std::vector<int> bDone_, bFirst_;
+    std::vector<std::deque<Band>> cq_;  // cell-maxima bands of display levels >= 1
+    std::vector<int> cDone_;
+    std::vector<std::vector<std::uint64_t>> cOffsets_, bOffsets_;
+};
+
+}  // namespace
+
+std::unique_ptr<TerrainRowSource> mapRowSource(const TerrainMap& map) {
+    return std::make_unique<MapRowSource>(map);
+}
+
+std::unique_ptr<TerrainRowSource> syntheticRowSource(int size, std::uint64_t seed, double spacing) {
+    return std::make_unique<SyntheticRowSource>(size, seed, spacing);
+}
+
+DbBuildStats buildTerrainDb(TerrainRowSource& source, const std::string& path,
+                            const DbBuildOptions& options) {
+    const int t = options.tileSize;
+    if (t < kMinDbTileSize || t > kMaxDbTileSize || (t & (t - 1)) != 0) {
+        throw InputError("--tile: " + std::to_string(t) + " is not a power of two from " +
+                         std::to_string(kMinDbTileSize) + " to " + std::to_string(kMaxDbTileSize));
+    }
+    const TerrainDbInfo info = source.info();
+    if (info.width < 2 || info.height < 2) {
+        throw InputError("terrain: needs at least 2 x 2 samples to build a database");
+    }
+    Builder builder(source, path, options);
+    return builder.run();
+}
+
+}  // namespace ig
