@@ -147,6 +147,7 @@ int main(int argc, char** argv) {
         const double last = span - horizons * prp::kFieldPeriod;
         if (!(last > 0.0)) throw ig::InputError("--trajectory: shorter than the horizons");
         std::vector<std::uint16_t> trueIds;
+        Stat truthMs;  // one field's truth (TruthComputer::compute), milliseconds
         prp::Field field;
         sim::FieldTruth warped, truth, atFrame;
         const auto start = std::chrono::steady_clock::now();
@@ -194,8 +195,12 @@ int main(int argc, char** argv) {
                     po.model = models[m];
                     prp::PostRenderingProcessor prp(po);
                     prp.process(frame, pose, t, index, field);
+                    const auto before = std::chrono::steady_clock::now();
                     warpedTruth.compute(truthScene, truthCamera, field.objectId.data(), width,
                                         field.lines, first, pose, t, index, warped);
+                    truthMs.v.push_back(std::chrono::duration<double, std::milli>(
+                                            std::chrono::steady_clock::now() - before)
+                                            .count());
                     for (const sim::ObjectTruth& w : warped.objects) {
                         const sim::ObjectTruth* r = find(truth, w.id);
                         if (!r || w.visiblePx < static_cast<std::uint64_t>(minPixels) ||
@@ -225,6 +230,11 @@ int main(int argc, char** argv) {
         j["target"] = target;
         j["min_px"] = minPixels;
         j["seconds"] = seconds;
+        j["truth_ms"] = truthMs.json();
+        j["objects_in_scene"] = scene.staticLayer->objects().size() + scene.moving.size();
+        std::printf("truth of one field: mean %.2f ms, p95 %.2f ms (%zu fields)\n",
+                    truthMs.json()["mean"].get<double>(), truthMs.json()["p95"].get<double>(),
+                    truthMs.v.size());
         std::printf("centroid error, output pixels (mean / p95 / max over base frames)\n");
         std::printf("%3s  %-22s", "k", "target moved since t");
         for (const prp::WarpModel m : models) {
@@ -239,11 +249,11 @@ int main(int argc, char** argv) {
             row["k"] = k;
             row["target_motion_px"] = p.targetMotion.json();
             const auto cell = [](const Stat& s) {
-                const nlohmann::json j = s.json();
+                const nlohmann::json js = s.json();
                 char buf[64];
                 if (s.v.empty()) return std::string("-");
-                std::snprintf(buf, sizeof buf, "%.2f / %.2f / %.2f (%zu)", j["mean"].get<double>(),
-                              j["p95"].get<double>(), j["max"].get<double>(), s.v.size());
+                std::snprintf(buf, sizeof buf, "%.2f / %.2f / %.2f (%zu)", js["mean"].get<double>(),
+                              js["p95"].get<double>(), js["max"].get<double>(), s.v.size());
                 return std::string(buf);
             };
             std::printf("%3d  %-22s", k, cell(p.targetMotion).c_str());

@@ -13,6 +13,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/counting_new.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -273,6 +275,58 @@ TEST(Truth, MovingObjectBoxFollowsItsTrueBox) {
                     std::string(prp::warpModelName(m)).c_str(), worst[0], worst[1], worst[2],
                     worst[3], compared);
     }
+}
+
+// Wall clock, renderer thread drawing the objects, truth written: the field thread allocates
+// nothing after warming up (the ids are warped into the field's own buffer and copied into a
+// truth slot allocated before the run).
+TEST(Truth, FieldThreadAllocatesNothingWithObjectsAndTruth) {
+    World world;
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 128;
+    geometry.windowHeight = 96;
+    geometry.margin = 16;
+    struct Sink final : io::FrameSink {
+        int open(const io::VideoFormat& f, std::string*) override {
+            format_ = f;
+            return 0;
+        }
+        int writeField(const io::FieldBuffer& field) override {
+            if (field.index == 60) atWarm = tThreadAllocations;
+            atLast = tThreadAllocations;
+            return 0;
+        }
+        int close(std::string*) override { return 0; }
+        const io::VideoFormat& format() const override { return format_; }
+        io::VideoFormat format_;
+        std::size_t atWarm = 0, atLast = 0;
+    } sink;
+    std::string error;
+    sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
+    sim::PipelineOptions options;
+    options.duration = 1.5;
+    options.renderThreads = 1;
+    options.prp.model = prp::WarpModel::Auto;
+    sim::TrajectoryPoses poses(cameraPath());
+    auto clock = io::makeWallClock();
+    const sim::TruthScene truthScene(world.scene, *world.motion, world.map);
+    const sim::TruthCamera camera{sim::renderIntrinsics(geometry, ig::Pose{}).window(), 128, 96};
+    std::FILE* file = std::fopen((tmpDir() + "/wall.jsonl").c_str(), "w");
+    ASSERT_NE(file, nullptr);
+    {
+        sim::TruthWriter writer(truthScene, camera, file, 128, 48, false);
+        options.truth = &writer;
+        sim::Pipeline pipeline(poses,
+                               sim::makeSceneRenderer(world.map, geometry, ig::CasterKind::Naive,
+                                                      {}, world.scene, *world.motion),
+                               sink, *clock, options);
+        const sim::PipelineResult result = pipeline.run();
+        ASSERT_TRUE(result.ok()) << result.error;
+        EXPECT_EQ(writer.finish(), "");
+        EXPECT_EQ(writer.written(), pipeline.fieldCount());
+    }
+    std::fclose(file);
+    EXPECT_EQ(sink.atLast, sink.atWarm) << "field thread allocations after field 60";
 }
 
 // The ray test against a model placed with a heading: a ray straight down through the base
