@@ -618,7 +618,7 @@ def moving_targets(p):
         p.row(f"Per-field ground truth (`flythrough --truth`, off the field thread) of a {size} "
               f"field over a scene of {doc['objects_in_scene']} objects: visible pixels, boxes, "
               "centroids from the warped ids; exact boxes, ranges and unoccluded pixels (rays "
-              "against each model in view), mean / p95",
+              "against each model in view), processor time of one thread, mean / p95",
               "≤ 16.7 ms (one field)", f"{fmt(tm['mean'], 2)} / {fmt(tm['p95'], 2)} ms over "
               f"{tm['n']} fields", status(tm["p95"] <= 1001 / 60), cmd)
     head = "| k | " + " | ".join(f"{x} target: mean / p95 / max px | {x} static: mean / p95"

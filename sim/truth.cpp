@@ -29,10 +29,14 @@ double round2(double v) {
     return std::round(v * 100.0) / 100.0;
 }
 
+TruthObject filledBox(const ig::ObjectModel& model);
+
 }  // namespace
 
 TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map)
     : scene_(&scene), motion_(&motion), map_(&map) {
+    for (const auto& model : scene.models)
+        models_.push_back(filledBox(*model));
     for (const ig::PlacedObject& p : scene.staticLayer->objects()) {
         const int m = scene.modelIndex(p.model);
         CHECK_GE(m, 0) << "placed model " << p.model;
@@ -41,17 +45,12 @@ TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const 
     }
 }
 
-TruthObject TruthScene::placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y,
-                               double z, double heading, double scale, bool moving) const {
+namespace {
+
+// The model's filled voxels (non-zero opacity): their box, [lo, hi) per axis.
+TruthObject filledBox(const ig::ObjectModel& model) {
     TruthObject o;
-    o.id = id;
     o.model = &model;
-    o.x = x;
-    o.y = y;
-    o.z = z;
-    o.heading = heading;
-    o.scale = scale;
-    o.moving = moving;
     const ig::VoxModel& g = model.grid;
     int lo[3] = {g.sizeX, g.sizeY, g.sizeZ}, hi[3] = {0, 0, 0};
     for (int k = 0; k < g.sizeZ; ++k) {
@@ -70,6 +69,25 @@ TruthObject TruthScene::placed(const ig::ObjectModel& model, std::uint16_t id, d
         o.lo[a] = std::min(lo[a], hi[a]);
         o.hi[a] = hi[a];
     }
+    return o;
+}
+
+}  // namespace
+
+TruthObject TruthScene::placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y,
+                               double z, double heading, double scale, bool moving) const {
+    TruthObject o;
+    for (std::size_t m = 0; m < scene_->models.size(); ++m) {
+        if (scene_->models[m].get() == &model) o = models_[m];
+    }
+    CHECK(o.model == &model);
+    o.id = id;
+    o.x = x;
+    o.y = y;
+    o.z = z;
+    o.heading = heading;
+    o.scale = scale;
+    o.moving = moving;
     return o;
 }
 

@@ -44,6 +44,7 @@ class TruthScene {
     const SceneMotion* motion_;
     const ig::TerrainMap* map_;
     std::vector<TruthObject> static_;
+    std::vector<TruthObject> models_;  // per model of the scene: its filled voxels' box
 };
 
 // The field's camera: the output window at the field's pose (roll included), `outWidth` x
