@@ -738,6 +738,13 @@ int main(int argc, char** argv) {
                                {"eye_width", width},
                                {"eye_height", height}};
             }
+            if (scene) {
+                j["scene"] = {{"file", scenePath},
+                              {"static_objects", scene->staticLayer->objects().size()},
+                              {"moving_objects", scene->moving.size()},
+                              {"caster", casterText}};
+            }
+            if (truth) j["truth"] = {{"file", truthPath}, {"fields", truth->written()}};
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
             j["memory_locked"] = memoryLock.locked;
