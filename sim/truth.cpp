@@ -282,6 +282,9 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
             t.centroid[0] = a.sx / static_cast<double>(a.n);
             t.centroid[1] = a.sy / static_cast<double>(a.n);
         }
+        // Listed when the field shows it, or when its exact shape covers a pixel centre of the
+        // field (it would show unless hidden); sub-pixel objects that show nothing are not.
+        if (a.n == 0 && t.unoccludedPx == 0) continue;
         if (t.unoccludedPx > 0) {
             t.occluded = std::clamp(
                 1.0 - static_cast<double>(t.visiblePx) / static_cast<double>(t.unoccludedPx), 0.0,
