@@ -77,6 +77,10 @@ class DepthWarp {
                           const Quadratic& holeWarp, const FieldView& field, int gainQ8, bool agc,
                           DepthKernel kernel = DepthKernel::Auto);
 
+    // The points the last apply() sampled (field line L's pixel x at [L * field width + x]).
+    const std::int64_t* pointsX() const { return pointX_.data(); }
+    const std::int64_t* pointsY() const { return pointY_.data(); }
+
   private:
     std::vector<float> depth_;                   // one field: the z-buffer
     std::vector<std::int64_t> pointX_, pointY_;  // one field: the points sampled (32.32)

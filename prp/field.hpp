@@ -71,6 +71,10 @@ struct Field {
     std::uint64_t holeSamples = 0;  // depth model: pixels no rendered pixel landed on
     double warpMs = 0.0;            // time spent in process(), milliseconds
     double gain = 1.0;              // AGC gain applied to this field
+    // Object id per pixel of this field's lines (width * lines, line by line), warped with the
+    // colour (the nearest rendered pixel at each colour sample point); empty when the frame
+    // carries no object ids.
+    std::vector<std::uint16_t> objectId;
 
     const std::uint8_t* line(int fieldLine) const { return pixels.data() + fieldLine * stride; }
     // Frame line number of field line `fieldLine`.

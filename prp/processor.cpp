@@ -3,6 +3,7 @@
 #include "base/text.hpp"
 
 #include "ig/error.hpp"
+#include "prp/id_warp.hpp"
 #include "prp/warp_apply.hpp"
 
 #include <glm/geometric.hpp>
@@ -31,6 +32,10 @@ void checkFrame(const ig::RenderedFrame& frame, bool needDepth) {
     const std::size_t n = static_cast<std::size_t>(in.width) * static_cast<std::size_t>(in.height);
     if (frame.color.size() != n) {
         throw ig::InputError(what() + ": colour has " + std::to_string(frame.color.size()) +
+                             " pixels, intrinsics say " + std::to_string(n));
+    }
+    if (!frame.objectId.empty() && frame.objectId.size() != n) {
+        throw ig::InputError(what() + ": object ids have " + std::to_string(frame.objectId.size()) +
                              " pixels, intrinsics say " + std::to_string(n));
     }
     if (needDepth && frame.depth.size() != n) {
@@ -154,10 +159,21 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     }
     const FieldView view{out.pixels.data(),          out.stride, out.width,
                          fieldFirstLine(out.parity), out.lines,  out.format};
+    // Object ids: warped through the colour's own sample points.
+    const bool ids = !frame.objectId.empty();
+    if (ids) {
+        out.objectId.resize(static_cast<std::size_t>(out.width) *
+                            static_cast<std::size_t>(out.lines));
+    } else {
+        out.objectId.clear();
+    }
+    const IdSource idSource{frame.objectId.data(), frame.width(), frame.height()};
+    const IdFieldView idView{out.objectId.data(), static_cast<std::size_t>(out.width), out.width,
+                             view.firstLine, out.lines};
     if (useDepth) {
         if (options_.depthReference) {
             const WarpInfo fitted = out.warp;
-            warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);
+            warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
             out.warp = fitted;
         } else {
             const DepthWarpResult r = depthWarp_.apply(frame, sourcePixels(frame), poseAtField,
@@ -166,6 +182,10 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             out.edgeSamples = r.edgeSamples;
             out.holeSamples = r.holes;
             lumaSum = r.lumaSum;
+            if (ids) {
+                warpIdsPoints(idSource, depthWarp_.pointsX(), depthWarp_.pointsY(),
+                              static_cast<std::size_t>(out.width), idView);
+            }
         }
         out.warp.model = WarpModel::Depth;
     } else {
@@ -189,6 +209,11 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         }
         out.edgeSamples = r.edgeSamples;
         lumaSum = r.lumaSum;
+        if (ids && out.warp.projective) {
+            warpIdsHomography(idSource, Homography{out.warp.h}, idView);
+        } else if (ids) {
+            warpIdsQuadratic(idSource, quadraticOf(out.warp), idView);
+        }
     }
 
     out.gain = options_.agc ? gainQ8 / static_cast<double>(kUnityGain) : 1.0;
@@ -317,6 +342,12 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
                 const double bot = c1[0].*ch + ax * (c1[1].*ch - c1[0].*ch);
                 return static_cast<std::uint8_t>(top + ay * (bot - top) + 0.5);
             };
+            if (!frame.objectId.empty()) {
+                // The nearer tap along each axis (ties right and down), as the fast path.
+                out.objectId[static_cast<std::size_t>(line) * ow + x] =
+                    frame.objectId[static_cast<std::size_t>(y0 + (ay >= 0.5)) * w + x0 +
+                                   (ax >= 0.5)];
+            }
             row[3 * x] = lerp(&ig::Rgb8::r);
             row[3 * x + 1] = lerp(&ig::Rgb8::g);
             row[3 * x + 2] = lerp(&ig::Rgb8::b);

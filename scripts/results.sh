@@ -146,6 +146,8 @@ if wanted warp-eval; then
         "Warp error against horizon, 320x240, 5 trajectories"
     # Frames and truths by the exact single level instead of the multiresolution caster.
     run warp_eval_levels0 "$bin/warp-eval" --levels 0 --json "$data/warp_eval_levels0.json"
+    # Moving targets: a vehicle's centroid in warped fields against true renders.
+    run target_eval "$bin/target-eval" --frames 24 --json "$data/target_eval.json"
 fi
 
 if wanted stereo; then

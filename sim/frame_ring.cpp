@@ -78,6 +78,7 @@ struct FrameRing::SlotMeta {
     ig::ControlPoint controlPoints[ig::kControlPointCount];
     ig::RenderStats stats;
     std::uint64_t pixels;
+    std::uint64_t idPixels;  // 0 (no object ids) or `pixels`
     std::int64_t publishNs;
 };
 
@@ -99,10 +100,12 @@ void FrameRing::waitForPublish(std::uint64_t seen, double seconds) const {
             nullptr, 0);
 }
 
-FrameRing::FrameRing(std::size_t maxPixels) : maxPixels_(maxPixels) {
+FrameRing::FrameRing(std::size_t maxPixels, bool objectIds)
+    : maxPixels_(maxPixels), objectIds_(objectIds) {
     CHECK_GT(maxPixels, 0u);
     slotBytes_ = roundUp(sizeof(SlotMeta)) + roundUp(maxPixels * sizeof(ig::Rgb8)) +
-                 roundUp(maxPixels * sizeof(float));
+                 roundUp(maxPixels * sizeof(float)) +
+                 (objectIds ? roundUp(maxPixels * sizeof(std::uint16_t)) : 0);
     mapBytes_ = roundUp(sizeof(Header)) + 3 * slotBytes_;
     const int fd = memfd_create("vig-frames", MFD_CLOEXEC);
     if (fd < 0) throw std::runtime_error(std::string("memfd_create: ") + std::strerror(errno));
@@ -149,6 +152,13 @@ float* FrameRing::depth(std::uint32_t slot) const {
                                     roundUp(maxPixels_ * sizeof(ig::Rgb8)));
 }
 
+std::uint16_t* FrameRing::ids(std::uint32_t slot) const {
+    DCHECK(objectIds_);
+    return reinterpret_cast<std::uint16_t*>(
+        base_ + roundUp(sizeof(Header)) + slot * slotBytes_ + roundUp(sizeof(SlotMeta)) +
+        roundUp(maxPixels_ * sizeof(ig::Rgb8)) + roundUp(maxPixels_ * sizeof(float)));
+}
+
 void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels,
                             std::int64_t clockNs, bool copyPixels) {
     Header& h = header();
@@ -161,10 +171,14 @@ void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels
     std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
     m.stats = frame.stats;
     m.pixels = pixels;
+    m.idPixels = frame.objectId.empty() ? 0 : frame.objectId.size();
     m.publishNs = clockNs;
     if (copyPixels) {
         std::memcpy(color(back), frame.color.data(), pixels * sizeof(ig::Rgb8));
         std::memcpy(depth(back), frame.depth.data(), pixels * sizeof(float));
+        if (m.idPixels != 0) {
+            std::memcpy(ids(back), frame.objectId.data(), pixels * sizeof(std::uint16_t));
+        }
     }
     const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
     h.back.store(old & kIndexMask, std::memory_order_relaxed);
@@ -176,6 +190,7 @@ void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels
 bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
     const std::size_t n = frame.color.size();
     if (n > maxPixels_ || frame.depth.size() != n) return false;
+    if (!frame.objectId.empty() && (!objectIds_ || frame.objectId.size() != n)) return false;
     publishBack(frame, n, clockNs, true);
     return true;
 }
@@ -205,6 +220,10 @@ FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
                    std::to_string(in.height) + " (a slot holds " + std::to_string(maxPixels_) +
                    ")");
     }
+    if (m.idPixels != 0 && (m.idPixels != n || !objectIds_)) {
+        return bad(std::to_string(m.idPixels) + " object ids for " + std::to_string(n) + " pixels" +
+                   (objectIds_ ? "" : " (the ring carries no object ids)"));
+    }
     if (!m.pose.isFinite() || !std::isfinite(m.time)) return bad("pose or time not finite");
     for (const ig::ControlPoint& c : m.controlPoints) {
         if (!finite(c.pixel) || !finite(c.world)) return bad("a control point is not finite");
@@ -224,6 +243,12 @@ FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
     into.depth.resize(n);
     std::memcpy(into.color.data(), color(front_), n * sizeof(ig::Rgb8));
     std::memcpy(into.depth.data(), depth(front_), n * sizeof(float));
+    if (m.idPixels != 0) {
+        into.objectId.resize(n);
+        std::memcpy(into.objectId.data(), ids(front_), n * sizeof(std::uint16_t));
+    } else {
+        into.objectId.clear();
+    }
     return Fetch::New;
 }
 

@@ -30,17 +30,20 @@ struct RenderRequest {
 
 class FrameRing {
   public:
-    // A new shared mapping with three slots of up to `maxPixels` pixels. Throws
-    // std::runtime_error naming the system call when the system refuses.
-    explicit FrameRing(std::size_t maxPixels);
+    // A new shared mapping with three slots of up to `maxPixels` pixels (with `objectIds`, each
+    // slot also holds an object-id plane). Throws std::runtime_error naming the system call
+    // when the system refuses.
+    explicit FrameRing(std::size_t maxPixels, bool objectIds = false);
     ~FrameRing();
     FrameRing(const FrameRing&) = delete;
     FrameRing& operator=(const FrameRing&) = delete;
 
     std::size_t maxPixels() const { return maxPixels_; }
+    bool objectIds() const { return objectIds_; }
 
     // Renderer side: copies `frame` into the back slot and publishes it. False (nothing
-    // published) when it holds more pixels than a slot or its colour and depth sizes disagree.
+    // published) when it holds more pixels than a slot or its colour and depth sizes disagree,
+    // or it has object ids of another size, or object ids the ring has no plane for.
     bool publish(const ig::RenderedFrame& frame, std::int64_t clockNs);
     // Renderer side, for fault injection and tests: publishes the back slot with `meta` as
     // it is (sizes and values unchecked) and no pixels copied.
@@ -49,7 +52,8 @@ class FrameRing {
     enum class Fetch { None, New, Bad };
     // Field side: when a frame newer than the last fetched was published, copies it into
     // `into` (reusing its buffers: no allocation once they have grown to the slot size) and
-    // returns New; Bad (and `why`) when the slot does not hold a usable frame; None otherwise
+    // returns New (`into.objectId` empty when the frame has none); Bad (and `why`) when the
+    // slot does not hold a usable frame; None otherwise
     // (also for a frame whose sequence is not above the last one fetched).
     Fetch fetch(ig::RenderedFrame& into, std::string* why);
 
@@ -90,8 +94,10 @@ class FrameRing {
     SlotMeta& meta(std::uint32_t slot) const;
     ig::Rgb8* color(std::uint32_t slot) const;
     float* depth(std::uint32_t slot) const;
+    std::uint16_t* ids(std::uint32_t slot) const;
 
     std::size_t maxPixels_ = 0;
+    bool objectIds_ = false;
     std::size_t slotBytes_ = 0;
     std::size_t mapBytes_ = 0;
     unsigned char* base_ = nullptr;

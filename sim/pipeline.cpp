@@ -94,6 +94,24 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
     };
 }
 
+FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                ig::CasterKind kind, const ig::RenderOptions& options,
+                                const ig::Scene& scene, const SceneMotion& motion) {
+    // The moving layer is replaced before each render; the caster holds its address.
+    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime()));
+    ig::RenderOptions withObjects = options;
+    withObjects.objects = {scene.staticLayer.get(), moving.get()};
+    std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, withObjects);
+    return [caster, moving, &map, &motion, geometry](const ig::Pose& pose, double time,
+                                                     std::uint64_t sequence) {
+        *moving = motion.stamp(time);
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        return ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time,
+                               sequence);
+    };
+}
+
 namespace {
 
 // Lowers the priority of every thread that works in the renderer's arena, so the field loop
@@ -308,7 +326,7 @@ double Pipeline::renderTimeout() const {
 }
 
 void Pipeline::startProcess() {
-    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels);
+    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels, options_.objectIds);
     RendererProcessOptions po;
     po.threads = options_.renderThreads;
     po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;
@@ -558,6 +576,7 @@ PipelineResult Pipeline::run() {
             rightModel = rightField.warp.model;
         } else {
             processor.process(frame, pose, t, n, field);
+            if (options_.truth) options_.truth->record(field, pose);
         }
         noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);

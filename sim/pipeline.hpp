@@ -9,8 +9,10 @@
 #include "sim/mailbox.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/render_process.hpp"
+#include "sim/scene_motion.hpp"
 #include "sim/stats.hpp"
 #include "sim/stereo_output.hpp"
+#include "sim/truth.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -52,6 +54,14 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
                                  ig::CasterKind kind = ig::CasterKind::Fast,
                                  const ig::RenderOptions& options = {});
 
+// A caster over `map` drawing `scene`'s objects: the static layer as loaded, and the moving
+// objects stamped at each frame's instant into a layer of their own, which is all that changes
+// from frame to frame (the caster is built once). Renders one frame at a time. The map, scene
+// and motion must outlive the renderer; the caster must draw objects (reference or naive).
+FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                ig::CasterKind kind, const ig::RenderOptions& options,
+                                const ig::Scene& scene, const SceneMotion& motion);
+
 struct PipelineOptions {
     double duration = 10.0;  // simulated seconds; fields = round(duration / field period)
     ClockMode clock = ClockMode::Wall;
@@ -85,6 +95,10 @@ struct PipelineOptions {
     RendererMode rendererMode = RendererMode::Thread;
     // Process: the largest frame the renderer makes, in pixels (maxFramePixels of its geometry).
     std::size_t maxFramePixels = 0;
+    // Process: frames carry object ids (the frame ring gets an id plane per slot).
+    bool objectIds = false;
+    // Per-field ground truth: each field and the pose it was warped to (field thread).
+    TruthWriter* truth = nullptr;
     // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
     // restarted; 0: 0.5 s or eight times the running render time, whichever is longer.
     double renderTimeout = 0.0;

@@ -3,6 +3,8 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/scene.hpp"
+#include "ig/sticks.hpp"
 #include "io/contact_sheet.hpp"
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
@@ -17,8 +19,10 @@
 #include "sim/pipeline.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/scenario.hpp"
+#include "sim/scene_motion.hpp"
 #include "sim/trajectory.hpp"
 #include "sim/trajectory_poses.hpp"
+#include "sim/truth.hpp"
 
 #include <unistd.h>
 #include <CLI/CLI.hpp>
@@ -65,6 +69,13 @@ Control places the eye on the ownship every field; a symmetric View Definition r
 the first field sets the field of view, overriding --fov). A host silent for --cigi-timeout S is
 reported lost; the ownship dead-reckons for --cigi-extrapolate S after its last message, then
 holds. Several image generators (one per channel, each on its own port) can share one host.
+
+Objects: --scene FILE draws a scene's voxel objects (the reference and naive casters draw them
+for now), the moving ones stamped at each frame's instant; every field carries the object ids
+warped with its colour. --truth FILE writes one JSON line per field: each object in view or in
+the frustum with its visible pixels, box and centroid in the field (output pixels, y the frame
+line), its range, the box of its exact 3-D placement projected at the field's pose, and the
+fraction hidden (docs/design/objects.md, "Ground truth").
 
 Outputs: a file is written beside its path and renamed into place when complete; a device or
 FIFO is written in place; an output on an input or another output is refused before the run;
@@ -154,6 +165,7 @@ int main(int argc, char** argv) {
     std::string cigiBind, cigiHost, cigiOrigin;
     double cigiWait = 0.0, cigiTimeout = 0.5, cigiExtrapolate = 2.0;
     int cigiView = 0;
+    std::string scenePath, truthPath;
 
     auto* trajectoryOpt =
         app.add_option("--trajectory", trajectoryPath, "Fly a CSV trajectory instead of a stick");
@@ -239,12 +251,18 @@ int main(int argc, char** argv) {
                    "stall@T:MS | garbage@T (T seconds into the run; renderer process only)");
     app.add_option("--caster", casterText,
                    "Renderer: fast (per-ray column caster) | span (per terrain sample; steep "
-                   "frames by the fast caster)")
+                   "frames by the fast caster) | naive | reference (exact per-pixel casters, "
+                   "slow: small sizes)")
         ->capture_default_str();
     app.add_option("--levels", levelsText,
                    "Renderer: coarser levels where a voxel shrinks below a pixel, auto (the "
                    "multiresolution caster) | 0 (single level, exact)")
         ->capture_default_str();
+    app.add_option("--scene", scenePath,
+                   "Scene file (JSON): voxel objects over the terrain, moving ones stamped at "
+                   "each frame's instant (casters naive and reference)");
+    app.add_option("--truth", truthPath,
+                   "Per-field ground truth of the scene's objects, JSON lines (needs --scene)");
     app.add_flag("--terrain-points-only", terrainPointsOnly,
                  "Fit the warp to terrain control points only (default: sky directions too)");
     app.add_option("--edge-fill", edgeFillText,
@@ -373,8 +391,19 @@ int main(int argc, char** argv) {
         ig::RenderOptions renderOptions;
         renderOptions.levels = ig::parseLevels(levelsText);
         const ig::CasterKind casterKind = ig::parseCasterKind(casterText);
-        if (!ig::casterNeedsLevelRoll(casterKind)) {
-            throw ig::InputError("--caster " + casterText + ": expected fast or span");
+        if (!truthPath.empty() && scenePath.empty()) {
+            throw ig::InputError("--truth: give a --scene whose objects it describes");
+        }
+        if (!scenePath.empty() &&
+            (casterKind == ig::CasterKind::Fast || casterKind == ig::CasterKind::Span)) {
+            throw ig::InputError(
+                "--scene: objects are drawn by the reference and naive casters; "
+                "add --caster naive (or reference) at a small --size");
+        }
+        if (!scenePath.empty() && stereoSeparation) {
+            throw ig::InputError(
+                "--scene: not with --stereo (the stereo renderer draws no "
+                "objects)");
         }
         if (stereoSeparation && casterKind != ig::CasterKind::Fast) {
             throw ig::InputError(
@@ -436,13 +465,24 @@ int main(int argc, char** argv) {
             {"--out", io::sinkPath(outSpec),
              io::sinkWritesFolder(outSpec) ? io::PathRole::OutputFolder : io::PathRole::Output},
             {"--contact", wantContact ? contactPath : std::string(), io::PathRole::Output},
-            {"--json", jsonPath, io::PathRole::Output}};
+            {"--json", jsonPath, io::PathRole::Output},
+            {"--scene", scenePath, io::PathRole::Input},
+            {"--truth", truthPath, io::PathRole::Output}};
         io::checkRunPaths(paths);
         // Where things went: standard output, unless an output is written there.
         std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
 
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
+        // The scene: the static layer once, the moving objects per frame (the renderer).
+        std::optional<ig::Scene> scene;
+        std::optional<sim::SceneMotion> motion;
+        if (!scenePath.empty()) {
+            scene.emplace(ig::loadScene(scenePath, map));
+            motion.emplace(*scene);
+            // The max-height bounds cover the static objects (before any caster is built).
+            ig::includeStickTops(map, *scene->staticLayer);
+        }
         const bool shippedMap = ig::usesShippedMap(terrain);
 
         // Where the aircraft is: a trajectory, a stick, or the default scenario's script.
@@ -583,7 +623,27 @@ int main(int argc, char** argv) {
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
             stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-                   : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            : scene
+                ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene, *motion)
+                : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+        options.objectIds = scene.has_value();
+        // Ground truth: written from a thread of its own into a file renamed into place when
+        // the run is complete.
+        std::optional<sim::TruthScene> truthScene;
+        io::OutputFile truthFile;
+        std::unique_ptr<sim::TruthWriter> truth;
+        if (!truthPath.empty()) {
+            if (truthFile.open(truthPath, &error) != 0) throw ig::InputError("--truth " + error);
+            truthScene.emplace(*scene, *motion, map);
+            sim::TruthCamera camera;
+            camera.window = level.window();
+            camera.outWidth = opened.width;
+            camera.outHeight = opened.height;
+            truth = std::make_unique<sim::TruthWriter>(*truthScene, camera, truthFile.get(),
+                                                       opened.width, (opened.height + 1) / 2,
+                                                       simulated);
+            options.truth = truth.get();
+        }
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
 
@@ -613,6 +673,10 @@ int main(int argc, char** argv) {
         sim::Pipeline pipeline(*poses, std::move(renderer), *sink, *clock, options);
         const sim::PipelineResult result = pipeline.run();
         if (live) std::fprintf(stderr, "\n");
+        if (truth) {
+            const std::string bad = truth->finish();
+            if (!bad.empty()) throw std::runtime_error("--truth " + truthPath + ": " + bad);
+        }
 
         // A failed run drops its output (the sink discards it); a good one is closed, and a
         // file appears only when it is complete.
@@ -661,6 +725,11 @@ int main(int argc, char** argv) {
         const std::string videoPath = io::sinkPath(outSpec);
         std::fprintf(report, "video: %s\n",
                      videoPath.empty() ? outSpec.c_str() : videoPath.c_str());
+        if (truth) {
+            if (truthFile.commit(&error) != 0) throw std::runtime_error("--truth " + error);
+            std::fprintf(report, "truth: %s (%llu fields)\n", truthPath.c_str(),
+                         static_cast<unsigned long long>(truth->written()));
+        }
         if (sheet) {
             if (sheet->write(contactPath, &error) != 0) throw std::runtime_error(error);
             std::fprintf(report, "contact sheet: %s (%d frames)\n", contactPath.c_str(),
@@ -683,6 +752,13 @@ int main(int argc, char** argv) {
                                {"eye_width", width},
                                {"eye_height", height}};
             }
+            if (scene) {
+                j["scene"] = {{"file", scenePath},
+                              {"static_objects", scene->staticLayer->objects().size()},
+                              {"moving_objects", scene->moving.size()},
+                              {"caster", casterText}};
+            }
+            if (truth) j["truth"] = {{"file", truthPath}, {"fields", truth->written()}};
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
             j["memory_locked"] = memoryLock.locked;

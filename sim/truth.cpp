@@ -1,0 +1,417 @@
+#include "sim/truth.hpp"
+
+#include "base/check.hpp"
+
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace sim {
+
+// Why it is built this way (docs/design/objects.md, "Ground truth"):
+// - visible pixels, boxes and centroids come from the field's own warped ids: what the field
+//   shows, exactly;
+// - range, true_bbox and the unoccluded count come from the object's model placed exactly
+//   (position, heading, scale; a moving one at its trajectory's position at the field's
+//   instant) seen from the field's pose: the truth the field approximates;
+// - the unoccluded count casts one ray per field pixel inside the projected box against that
+//   one model: exact, and it costs only the pixels an object may cover.
+
+namespace {
+
+constexpr int kIds = 65536;
+
+double round2(double v) {
+    return std::round(v * 100.0) / 100.0;
+}
+
+TruthObject filledBox(const ig::ObjectModel& model);
+
+}  // namespace
+
+TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map)
+    : scene_(&scene), motion_(&motion), map_(&map) {
+    for (const auto& model : scene.models)
+        models_.push_back(filledBox(*model));
+    for (const ig::PlacedObject& p : scene.staticLayer->objects()) {
+        const int m = scene.modelIndex(p.model);
+        CHECK_GE(m, 0) << "placed model " << p.model;
+        static_.push_back(placed(*scene.models[static_cast<std::size_t>(m)], p.id, p.x, p.y, p.z,
+                                 p.heading, p.scale, false));
+    }
+}
+
+namespace {
+
+// The model's filled voxels (non-zero opacity): their box, [lo, hi) per axis.
+TruthObject filledBox(const ig::ObjectModel& model) {
+    TruthObject o;
+    o.model = &model;
+    const ig::VoxModel& g = model.grid;
+    int lo[3] = {g.sizeX, g.sizeY, g.sizeZ}, hi[3] = {0, 0, 0};
+    for (int k = 0; k < g.sizeZ; ++k) {
+        for (int j = 0; j < g.sizeY; ++j) {
+            for (int i = 0; i < g.sizeX; ++i) {
+                if (!model.present(i, j, k) || model.color(i, j, k).a == 0) continue;
+                const int v[3] = {i, j, k};
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = std::min(lo[a], v[a]);
+                    hi[a] = std::max(hi[a], v[a] + 1);
+                }
+            }
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        o.lo[a] = std::min(lo[a], hi[a]);
+        o.hi[a] = hi[a];
+    }
+    return o;
+}
+
+}  // namespace
+
+TruthObject TruthScene::placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y,
+                               double z, double heading, double scale, bool moving) const {
+    TruthObject o;
+    for (std::size_t m = 0; m < scene_->models.size(); ++m) {
+        if (scene_->models[m].get() == &model) o = models_[m];
+    }
+    CHECK(o.model == &model);
+    o.id = id;
+    o.x = x;
+    o.y = y;
+    o.z = z;
+    o.heading = heading;
+    o.scale = scale;
+    o.moving = moving;
+    return o;
+}
+
+void TruthScene::objectsAt(double t, std::vector<TruthObject>& out) const {
+    out.assign(static_.begin(), static_.end());
+    const std::vector<ig::Placement> where = motion_->placementsAt(t);
+    for (std::size_t i = 0; i < where.size(); ++i) {
+        const ig::MovingObject& m = scene_->moving[i];
+        const ig::Placement& p = where[i];
+        // Off the map: not drawn (SceneMotion::stamp leaves it out), so not in the truth.
+        if (!(p.x >= 0.0 && p.y >= 0.0 && p.x <= map_->extentX() && p.y <= map_->extentY())) {
+            continue;
+        }
+        const double z = m.z ? *m.z : map_->surfaceHeight(p.x, p.y);
+        out.push_back(placed(*scene_->models[static_cast<std::size_t>(m.model)], m.id, p.x, p.y, z,
+                             p.heading, m.scale, true));
+    }
+}
+
+std::array<glm::dvec3, 8> objectCorners(const TruthObject& o) {
+    // Model (mx, my) -> world: the inverse of ObjectLayer::place's rotation.
+    const double s = std::sin(o.heading), c = std::cos(o.heading);
+    const ig::VoxModel& g = o.model->grid;
+    std::array<glm::dvec3, 8> out;
+    for (int k = 0; k < 8; ++k) {
+        const double u = ((k & 1) ? o.hi[0] : o.lo[0]) - 0.5 * g.sizeX;
+        const double v = ((k & 2) ? o.hi[1] : o.lo[1]) - 0.5 * g.sizeY;
+        const double h = (k & 4) ? o.hi[2] : o.lo[2];
+        out[static_cast<std::size_t>(k)] = {o.x + o.scale * (u * c + v * s),
+                                            o.y + o.scale * (-u * s + v * c), o.z + o.scale * h};
+    }
+    return out;
+}
+
+bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir) {
+    // Into model voxels: (x, y) as ObjectLayer::place maps them, z from the base.
+    const ig::VoxModel& g = o.model->grid;
+    const double s = std::sin(o.heading), c = std::cos(o.heading);
+    const double inv = 1.0 / o.scale;
+    const double dx = origin.x - o.x, dy = origin.y - o.y;
+    const double p[3] = {(dx * c - dy * s) * inv + 0.5 * g.sizeX,
+                         (dx * s + dy * c) * inv + 0.5 * g.sizeY, (origin.z - o.z) * inv};
+    const double d[3] = {(dir.x * c - dir.y * s) * inv, (dir.x * s + dir.y * c) * inv, dir.z * inv};
+    // The filled box's slab interval.
+    double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (p[a] < o.lo[a] || p[a] >= o.hi[a]) return false;
+            continue;
+        }
+        double ta = (o.lo[a] - p[a]) / d[a], tb = (o.hi[a] - p[a]) / d[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    if (!(t0 < t1)) return false;
+    // Amanatides-Woo through the voxels from the entry point.
+    const double tm = t0 + 1e-9 * std::max(1.0, t0);
+    int v[3], step[3];
+    double next[3], delta[3];
+    for (int a = 0; a < 3; ++a) {
+        const double q = p[a] + tm * d[a];
+        v[a] = std::clamp(static_cast<int>(std::floor(q)), o.lo[a], o.hi[a] - 1);
+        if (d[a] > 0.0) {
+            step[a] = 1;
+            next[a] = (v[a] + 1 - p[a]) / d[a];
+            delta[a] = 1.0 / d[a];
+        } else if (d[a] < 0.0) {
+            step[a] = -1;
+            next[a] = (v[a] - p[a]) / d[a];
+            delta[a] = -1.0 / d[a];
+        } else {
+            step[a] = 0;
+            next[a] = std::numeric_limits<double>::infinity();
+            delta[a] = next[a];
+        }
+    }
+    for (;;) {
+        if (o.model->present(v[0], v[1], v[2]) && o.model->color(v[0], v[1], v[2]).a != 0) {
+            return true;
+        }
+        const int a = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
+        if (next[a] > t1) return false;
+        v[a] += step[a];
+        if (v[a] < o.lo[a] || v[a] >= o.hi[a]) return false;
+        next[a] += delta[a];
+    }
+}
+
+TruthComputer::TruthComputer() : acc_(kIds), objectOf_(kIds, -1) {}
+
+void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
+                            const std::uint16_t* ids, int width, int lines, int firstLine,
+                            const ig::Pose& pose, double time, std::uint64_t index,
+                            FieldTruth& out) {
+    out.field = index;
+    out.time = time;
+    out.objects.clear();
+    // What the field shows: its warped ids.
+    seen_.clear();
+    for (int line = 0; line < lines; ++line) {
+        const int y = firstLine + 2 * line;
+        const std::uint16_t* row = ids + static_cast<std::size_t>(line) * width;
+        for (int x = 0; x < width; ++x) {
+            const std::uint16_t id = row[x];
+            if (id == 0) continue;
+            Acc& a = acc_[id];
+            if (a.n == 0) {
+                seen_.push_back(id);
+                a.x0 = a.x1 = x;
+                a.y0 = a.y1 = y;
+                a.sx = a.sy = 0.0;
+            }
+            ++a.n;
+            a.x0 = std::min(a.x0, x);
+            a.x1 = std::max(a.x1, x);
+            a.y0 = std::min(a.y0, y);
+            a.y1 = std::max(a.y1, y);
+            a.sx += x + 0.5;
+            a.sy += y + 0.5;
+        }
+    }
+
+    // Where each object truly is at this instant, seen from this pose.
+    scene.objectsAt(time, objects_);
+    const ig::Camera cam(pose, camera.window);
+    const double kx = static_cast<double>(camera.outWidth) / camera.window.width;
+    const double ky = static_cast<double>(camera.outHeight) / camera.window.height;
+    for (std::size_t i = 0; i < objects_.size(); ++i) {
+        const TruthObject& o = objects_[i];
+        const std::array<glm::dvec3, 8> corners = objectCorners(o);
+        ObjectTruth t;
+        t.id = o.id;
+        t.moving = o.moving;
+        glm::dvec3 centre{0.0};
+        for (const glm::dvec3& q : corners)
+            centre += q * 0.125;
+        t.rangeM = glm::length(centre - pose.position);
+        double bx0 = std::numeric_limits<double>::infinity(), by0 = bx0, bx1 = -bx0, by1 = -bx0;
+        bool behind = false, front = false;
+        for (const glm::dvec3& q : corners) {
+            const std::optional<glm::dvec2> px = cam.project(q);
+            if (!px) {
+                behind = true;
+                continue;
+            }
+            front = true;
+            bx0 = std::min(bx0, px->x * kx);
+            bx1 = std::max(bx1, px->x * kx);
+            by0 = std::min(by0, px->y * ky);
+            by1 = std::max(by1, px->y * ky);
+        }
+        const bool shown = acc_[o.id].n > 0;
+        if (!front && !shown) continue;
+        if (behind) {
+            // Part of the box behind the eye: any pixel may see it.
+            bx0 = by0 = 0.0;
+            bx1 = camera.outWidth;
+            by1 = camera.outHeight;
+        } else {
+            t.hasTrueBox = true;
+            t.trueBox[0] = bx0;
+            t.trueBox[1] = by0;
+            t.trueBox[2] = bx1;
+            t.trueBox[3] = by1;
+        }
+        const bool inFrustum =
+            front && bx1 > 0.0 && by1 > 0.0 && bx0 < camera.outWidth && by0 < camera.outHeight;
+        if (!inFrustum && !shown) continue;
+        // Unoccluded: the field's pixels inside the box whose centre ray meets the model.
+        if (inFrustum) {
+            const int x0 = std::max(0, static_cast<int>(std::floor(bx0)));
+            const int x1 = std::min(camera.outWidth - 1, static_cast<int>(std::floor(bx1)));
+            const int y0 = std::max(0, static_cast<int>(std::floor(by0)));
+            const int y1 = std::min(camera.outHeight - 1, static_cast<int>(std::floor(by1)));
+            int line = std::max(0, (y0 - firstLine + 1) / 2);
+            for (int y = firstLine + 2 * line; y <= y1 && line < lines; y += 2, ++line) {
+                for (int x = x0; x <= x1; ++x) {
+                    const glm::dvec3 dir =
+                        glm::normalize(cam.rayDirection((x + 0.5) / kx, (y + 0.5) / ky));
+                    t.unoccludedPx += rayMeetsObject(o, pose.position, dir) ? 1 : 0;
+                }
+            }
+        }
+        const Acc& a = acc_[o.id];
+        t.visiblePx = a.n;
+        if (a.n > 0) {
+            t.bbox[0] = a.x0;
+            t.bbox[1] = a.y0;
+            t.bbox[2] = a.x1 + 1;
+            t.bbox[3] = a.y1 + 1;
+            t.centroid[0] = a.sx / static_cast<double>(a.n);
+            t.centroid[1] = a.sy / static_cast<double>(a.n);
+        }
+        // Listed when the field shows it, or when its exact shape covers a pixel centre of the
+        // field (it would show unless hidden); sub-pixel objects that show nothing are not.
+        if (a.n == 0 && t.unoccludedPx == 0) continue;
+        if (t.unoccludedPx > 0) {
+            t.occluded = std::clamp(
+                1.0 - static_cast<double>(t.visiblePx) / static_cast<double>(t.unoccludedPx), 0.0,
+                1.0);
+        }
+        out.objects.push_back(t);
+    }
+    for (const std::uint16_t id : seen_)
+        acc_[id].n = 0;
+    std::sort(out.objects.begin(), out.objects.end(),
+              [](const ObjectTruth& a, const ObjectTruth& b) { return a.id < b.id; });
+}
+
+std::string truthLine(const FieldTruth& truth) {
+    using Json = nlohmann::ordered_json;
+    Json j;
+    j["field"] = truth.field;
+    j["time"] = std::round(truth.time * 1e6) / 1e6;
+    Json objects = Json::array();
+    for (const ObjectTruth& o : truth.objects) {
+        Json e;
+        e["id"] = o.id;
+        e["visible_px"] = o.visiblePx;
+        if (o.visiblePx > 0) {
+            e["bbox"] = {o.bbox[0], o.bbox[1], o.bbox[2], o.bbox[3]};
+            e["centroid"] = {round2(o.centroid[0]), round2(o.centroid[1])};
+        } else {
+            e["bbox"] = nullptr;
+            e["centroid"] = nullptr;
+        }
+        e["range_m"] = round2(o.rangeM);
+        e["occluded"] = o.occluded >= 0.0 ? Json(round2(o.occluded)) : Json(nullptr);
+        if (o.hasTrueBox) {
+            e["true_bbox"] = {round2(o.trueBox[0]), round2(o.trueBox[1]), round2(o.trueBox[2]),
+                              round2(o.trueBox[3])};
+        } else {
+            e["true_bbox"] = nullptr;
+        }
+        e["unoccluded_px"] = o.unoccludedPx;
+        e["moving"] = o.moving;
+        objects.push_back(std::move(e));
+    }
+    j["objects"] = std::move(objects);
+    return j.dump();
+}
+
+TruthWriter::TruthWriter(const TruthScene& scene, const TruthCamera& camera, std::FILE* out,
+                         int width, int maxLines, bool waitWhenFull, int slots)
+    : scene_(scene), camera_(camera), out_(out), waitWhenFull_(waitWhenFull) {
+    CHECK_GT(slots, 0);
+    slots_.resize(static_cast<std::size_t>(slots));
+    for (Slot& s : slots_)
+        s.ids.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(maxLines));
+    thread_ = std::thread([this] { loop(); });
+}
+
+TruthWriter::~TruthWriter() {
+    stop_.store(true, std::memory_order_release);
+    if (thread_.joinable()) thread_.join();
+}
+
+void TruthWriter::record(const prp::Field& field, const ig::Pose& pose) {
+    const std::uint64_t head = head_.load(std::memory_order_relaxed);
+    while (head - tail_.load(std::memory_order_acquire) >= slots_.size()) {
+        if (!waitWhenFull_) {
+            lost_.fetch_add(1, std::memory_order_relaxed);
+            return;
+        }
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    Slot& s = slots_[head % slots_.size()];
+    const std::size_t n = static_cast<std::size_t>(field.width) * field.lines;
+    s.hasIds = field.objectId.size() == n && n <= s.ids.size();
+    if (s.hasIds) std::copy(field.objectId.begin(), field.objectId.end(), s.ids.begin());
+    s.width = field.width;
+    s.lines = field.lines;
+    s.firstLine = prp::fieldFirstLine(field.parity);
+    s.pose = pose;
+    s.time = field.time;
+    s.index = field.index;
+    head_.store(head + 1, std::memory_order_release);
+}
+
+void TruthWriter::loop() {
+    TruthComputer computer;
+    FieldTruth truth;
+    for (;;) {
+        const std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+        if (tail == head_.load(std::memory_order_acquire)) {
+            if (stop_.load(std::memory_order_acquire) &&
+                tail == head_.load(std::memory_order_acquire)) {
+                return;
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            continue;
+        }
+        const Slot& s = slots_[tail % slots_.size()];
+        if (!s.hasIds) {
+            missingIds_.fetch_add(1, std::memory_order_relaxed);
+        } else if (error_.empty()) {
+            computer.compute(scene_, camera_, s.ids.data(), s.width, s.lines, s.firstLine, s.pose,
+                             s.time, s.index, truth);
+            const std::string line = truthLine(truth) + "\n";
+            if (std::fwrite(line.data(), 1, line.size(), out_) != line.size()) {
+                error_ = "a write failed after " + std::to_string(written()) + " fields";
+            } else {
+                written_.fetch_add(1, std::memory_order_release);
+            }
+        }
+        tail_.store(tail + 1, std::memory_order_release);
+    }
+}
+
+std::string TruthWriter::finish() {
+    stop_.store(true, std::memory_order_release);
+    if (thread_.joinable()) thread_.join();
+    if (!error_.empty()) return error_;
+    if (const std::uint64_t lost = lost_.load(); lost > 0) {
+        return std::to_string(lost) +
+               " fields' truth lost (the writer fell behind the field clock by more than " +
+               std::to_string(slots_.size()) + " fields)";
+    }
+    if (const std::uint64_t missing = missingIds_.load(); missing > 0) {
+        return std::to_string(missing) +
+               " fields carried no object ids (the renderer drew no objects)";
+    }
+    return {};
+}
+
+}  // namespace sim

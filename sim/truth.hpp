@@ -1,0 +1,152 @@
+// Exact per-field ground truth of a populated world: which objects each output field shows,
+// where, how far, and how much of each is hidden (docs/design/objects.md, "Ground truth").
+#pragma once
+
+#include "ig/camera.hpp"
+#include "ig/scene.hpp"
+#include "prp/field.hpp"
+#include "sim/scene_motion.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace sim {
+
+// One object as placed in the world: its model at its exact base centre, heading and scale
+// (moving ones at their trajectory's position at the instant asked for).
+struct TruthObject {
+    std::uint16_t id = 0;
+    const ig::ObjectModel* model = nullptr;
+    double x = 0.0, y = 0.0, z = 0.0;  // base centre, metres
+    double heading = 0.0, scale = 1.0;
+    bool moving = false;
+    // Voxels the model fills, [lo, hi) along its x, y, z (the box projected for true_bbox).
+    int lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+};
+
+// The world's objects for the truth: the scene's static placements, and its moving objects
+// placed at any instant (the scene, the motion and the map must outlive this).
+class TruthScene {
+  public:
+    TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map);
+    // Every object at time t (static first, in placement order), into `out` (reused).
+    void objectsAt(double t, std::vector<TruthObject>& out) const;
+
+  private:
+    TruthObject placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y, double z,
+                       double heading, double scale, bool moving) const;
+    const ig::Scene* scene_;
+    const SceneMotion* motion_;
+    const ig::TerrainMap* map_;
+    std::vector<TruthObject> static_;
+    std::vector<TruthObject> models_;  // per model of the scene: its filled voxels' box
+};
+
+// The field's camera: the output window at the field's pose (roll included), `outWidth` x
+// `outHeight` output pixels over the window's `window.width` x `window.height`.
+struct TruthCamera {
+    ig::Intrinsics window;
+    int outWidth = 0, outHeight = 0;
+};
+
+// 3-D box corners of `o` (its filled voxels), world coordinates.
+std::array<glm::dvec3, 8> objectCorners(const TruthObject& o);
+// Whether the ray origin + t dir (t > 0) meets a voxel of `o`'s model of non-zero opacity.
+bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir);
+
+// One object's truth in one field. Pixel coordinates are output-frame pixels: x right, y the
+// frame line (a field holds every other line); boxes are pixel edges [x0, y0, x1, y1].
+struct ObjectTruth {
+    std::uint16_t id = 0;
+    bool moving = false;
+    std::uint64_t visiblePx = 0;       // field pixels whose warped id is this object
+    double bbox[4] = {0, 0, 0, 0};     // of those pixels (each pixel [x, x + 1] x [y, y + 1])
+    double centroid[2] = {0, 0};       // mean of their centres
+    double rangeM = 0.0;               // eye to the centre of the object's box, at the field's pose
+    bool hasTrueBox = false;           // false when part of the box is behind the eye
+    double trueBox[4] = {0, 0, 0, 0};  // the 3-D box projected, unclipped
+    // Field pixels whose centre ray meets the object's model alone (no terrain, no other object).
+    std::uint64_t unoccludedPx = 0;
+    // 1 - visible / unoccluded, clamped to [0, 1]; negative: undefined (unoccluded 0).
+    double occluded = -1.0;
+};
+
+struct FieldTruth {
+    std::uint64_t field = 0;
+    double time = 0.0;
+    std::vector<ObjectTruth> objects;  // by increasing id
+};
+
+// Computes one field's truth from its warped ids and its pose (scratch reused: allocates only
+// while its tables grow).
+class TruthComputer {
+  public:
+    TruthComputer();
+    // `ids`: the field's lines (width * lines), line L being frame line firstLine + 2 L.
+    void compute(const TruthScene& scene, const TruthCamera& camera, const std::uint16_t* ids,
+                 int width, int lines, int firstLine, const ig::Pose& pose, double time,
+                 std::uint64_t index, FieldTruth& out);
+
+  private:
+    struct Acc {
+        std::uint64_t n = 0;
+        int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+        double sx = 0.0, sy = 0.0;
+    };
+    std::vector<Acc> acc_;                // by id
+    std::vector<std::int32_t> objectOf_;  // id -> index into objects_, -1
+    std::vector<std::uint16_t> seen_;
+    std::vector<TruthObject> objects_;
+};
+
+// One JSON line (no newline): {"field", "time", "objects": [{"id", "visible_px", "bbox",
+// "centroid", "range_m", "occluded", "true_bbox", "unoccluded_px", "moving"}]}.
+std::string truthLine(const FieldTruth& truth);
+
+// Writes a truth line per field from a thread of its own. record() copies the field's ids and
+// pose into a slot allocated up front (the field thread never allocates or writes a file);
+// when every slot is taken, `waitWhenFull` (simulated clock) waits for one, else the field's
+// truth is lost and counted (finish() reports it).
+class TruthWriter {
+  public:
+    TruthWriter(const TruthScene& scene, const TruthCamera& camera, std::FILE* out, int width,
+                int maxLines, bool waitWhenFull, int slots = 32);
+    ~TruthWriter();
+    TruthWriter(const TruthWriter&) = delete;
+    TruthWriter& operator=(const TruthWriter&) = delete;
+
+    void record(const prp::Field& field, const ig::Pose& pose);
+    // Writes what was recorded and stops the thread; empty, or what went wrong (fields lost, a
+    // write error, a field without object ids).
+    std::string finish();
+    std::uint64_t written() const { return written_.load(std::memory_order_acquire); }
+
+  private:
+    struct Slot {
+        std::vector<std::uint16_t> ids;
+        int width = 0, lines = 0, firstLine = 0;
+        bool hasIds = false;
+        ig::Pose pose;
+        double time = 0.0;
+        std::uint64_t index = 0;
+    };
+    void loop();
+
+    const TruthScene& scene_;
+    TruthCamera camera_;
+    std::FILE* out_;
+    bool waitWhenFull_;
+    std::vector<Slot> slots_;
+    std::atomic<std::uint64_t> head_{0}, tail_{0};
+    std::atomic<bool> stop_{false};
+    std::atomic<std::uint64_t> written_{0}, lost_{0}, missingIds_{0};
+    std::string error_;  // writer thread, read after join
+    std::thread thread_;
+};
+
+}  // namespace sim
