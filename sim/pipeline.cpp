@@ -165,9 +165,6 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
     options_.prp.format = sink.format().format;
     if (options_.stereo) {
         // Each eye's processor makes the eye's part of the sink's frame.
-        if (options_.rendererMode != RendererMode::Thread) {
-            throw ig::InputError("stereo: the renderer must run as a thread (--renderer thread)");
-        }
         const StereoLayout layout = options_.stereo->layout;
         stereoEyeSize(layout, sink.format().width, sink.format().height, options_.prp.outWidth,
                       options_.prp.outHeight);
@@ -308,7 +305,8 @@ double Pipeline::renderTimeout() const {
 }
 
 void Pipeline::startProcess() {
-    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels);
+    // A stereo ring carries both eyes of every pair.
+    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels, options_.stereo ? 2 : 1);
     RendererProcessOptions po;
     po.threads = options_.renderThreads;
     po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;

@@ -275,8 +275,8 @@ int main(int argc, char** argv) {
                    "--auto-threshold)")
         ->capture_default_str();
     app.add_option("--stereo", stereoSeparation,
-                   "Stereo: eye separation in metres (centred on the aircraft); --size is per eye, "
-                   "the renderer a thread");
+                   "Stereo: eye separation in metres (centred on the aircraft); --size is per "
+                   "eye");
     app.add_option("--stereo-layout", stereoLayoutText,
                    "Stereo output: sbs (side by side, 2W x H) | tb (top-bottom, W x 2H) | "
                    "anaglyph (red-cyan preview, W x H)")
@@ -367,13 +367,6 @@ int main(int argc, char** argv) {
                 throw ig::InputError("--stereo-layout " + base::quoted(stereoLayoutText) +
                                      ": expected sbs, tb or anaglyph");
             }
-            // Stereo frames cross a renderer thread only (the frame ring carries one eye).
-            if (app.count("--renderer") > 0 && rendererText == "process") {
-                throw ig::InputError(
-                    "--stereo needs --renderer thread (the renderer process "
-                    "carries one eye)");
-            }
-            rendererText = "thread";
             stereo = sim::StereoOutput{*stereoSeparation, *layout};
         } else if (app.count("--stereo-layout") > 0) {
             throw ig::InputError("--stereo-layout needs --stereo SEPARATION_M");
@@ -686,10 +679,9 @@ int main(int argc, char** argv) {
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
         if (stereo) {
-            std::fprintf(stderr,
-                         "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer thread)\n",
+            std::fprintf(stderr, "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer %s)\n",
                          std::string(sim::stereoLayoutName(stereo->layout)).c_str(), width, height,
-                         stereo->separation);
+                         stereo->separation, rendererText.c_str());
         }
         options.stop = &io::stopFlag();
         // On the wall clock the field process keeps its memory resident: no field waits on a
