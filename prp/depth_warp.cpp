@@ -113,6 +113,21 @@ void projectRowScalar(const DepthProjection& p, const float* depth, int begin, i
 
 }  // namespace detail
 
+void DepthWarp::reserve(int frameWidth, int frameHeight, std::size_t fieldPixels) {
+    const std::size_t row = static_cast<std::size_t>(
+        std::ceil(std::hypot(static_cast<double>(frameWidth), static_cast<double>(frameHeight))));
+    const std::size_t rowLength = std::max(rowIndex_.size(), row + 2);
+    rowIndex_.resize(rowLength);
+    rowZInv_.resize(rowLength);
+    rowSx_.resize(rowLength);
+    rowSy_.resize(rowLength);
+    if (depth_.size() < fieldPixels) {
+        depth_.resize(fieldPixels);
+        pointX_.resize(fieldPixels);
+        pointY_.resize(fieldPixels);
+    }
+}
+
 DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,
                                  const ig::Pose& fieldPose, const OutputGeometry& geometry,
                                  const Quadratic& holeWarp, const FieldView& field, int gainQ8,
@@ -123,10 +138,13 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     depth_.assign(fieldPixels, kNoPoint);
     pointX_.resize(fieldPixels);
     pointY_.resize(fieldPixels);
-    rowIndex_.resize(static_cast<std::size_t>(w));
-    rowZInv_.resize(rowIndex_.size());
-    rowSx_.resize(rowIndex_.size());
-    rowSy_.resize(rowIndex_.size());
+    // Row buffers only grow (reserve() makes them as long as a frame's diagonal).
+    if (rowIndex_.size() < static_cast<std::size_t>(w)) {
+        rowIndex_.resize(static_cast<std::size_t>(w));
+        rowZInv_.resize(rowIndex_.size());
+        rowSx_.resize(rowIndex_.size());
+        rowSy_.resize(rowIndex_.size());
+    }
 
     const DepthProjection proj = DepthProjection::of(frame, fieldPose, geometry);
     const ProjectedRow row{rowIndex_.data(), rowZInv_.data(), rowSx_.data(), rowSy_.data()};

@@ -79,6 +79,10 @@ class DepthWarp {
                           const ig::Pose& fieldPose, const OutputGeometry& geometry,
                           const Quadratic& holeWarp, const FieldView& field, int gainQ8, bool agc,
                           DepthKernel kernel = DepthKernel::Auto);
+    // Sizes the scratch buffers for frames like `frameWidth` x `frameHeight` (rows as long as
+    // its diagonal: any roll the renderer widens the frame for) and fields of `fieldPixels`,
+    // so a field that takes the depth warp first later allocates nothing.
+    void reserve(int frameWidth, int frameHeight, std::size_t fieldPixels);
 
   private:
     std::vector<float> depth_;                   // one field: the z-buffer (inverse depths)
