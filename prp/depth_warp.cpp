@@ -4,6 +4,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -13,7 +14,8 @@ using namespace detail;
 
 namespace {
 
-constexpr float kEmpty = std::numeric_limits<float>::max();
+// An empty z-buffer entry of the fast path (inverse depths): behind sky and every point.
+constexpr float kNoPoint = -1.0f;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 }  // namespace
@@ -86,27 +88,45 @@ void projectRowScalar(const DepthProjection& p, const float* depth, int begin, i
         const float len = std::sqrt(a * a + bbff);
         const bool terrain = d < kInf && d > -kInf;
         const bool sky = d == kInf;
-        const float s = (terrain ? d : 1.0f) / len;
-        const float r = s * (p.m[0] * a + rowR) + (terrain ? p.t[0] : 0.0f);
-        const float u = s * (p.m[3] * a + rowU) + (terrain ? p.t[1] : 0.0f);
-        const float w = s * (p.m[6] * a + rowW) + (terrain ? p.t[2] : 0.0f);
-        const float inv = 1.0f / w;
+        // The point is (d / len) (a, b, f) in the source camera (a direction for sky); scaled
+        // by len / d it needs one division for both coordinates and, times len, the depth.
+        const float dd = terrain ? d : 1.0f;
+        const float r = dd * (p.m[0] * a + rowR) + (terrain ? p.t[0] * len : 0.0f);
+        const float u = dd * (p.m[3] * a + rowU) + (terrain ? p.t[1] * len : 0.0f);
+        const float wl = dd * (p.m[6] * a + rowW) + (terrain ? p.t[2] * len : 0.0f);
+        const float inv = 1.0f / wl;
+        const float zInv = len * inv;  // 1 / depth along the field camera's axis
         const float qx = p.ox + p.kx * (r * inv);
         const float qy = p.oy - p.ky * (u * inv);
         // The field line whose centre is nearest: each line stands for two output rows.
         const float line = (qy - lineOff) * 0.5f;
-        const bool inside =
-            (terrain || sky) && w > 1e-6f && qx >= 0.0f && qx < ow && line >= 0.0f && line < lines;
+        const bool inside = (terrain || sky) && zInv > 0.0f && zInv < 1e6f && qx >= 0.0f &&
+                            qx < ow && line >= 0.0f && line < lines;
         const std::int32_t ix = inside ? static_cast<std::int32_t>(qx) : 0;
         const std::int32_t iy = inside ? static_cast<std::int32_t>(line) : 0;
         out.index[x] = inside ? iy * p.outWidth + ix : -1;
-        out.z[x] = terrain ? w : kSkySplat;
+        out.zInv[x] = terrain ? zInv : kSkyInverseDepth;
         out.sx[x] = (static_cast<float>(x) + 0.5f) + (static_cast<float>(ix) + 0.5f - qx) * p.invSx;
         out.sy[x] = yc + (static_cast<float>(2 * iy + firstLine) + 0.5f - qy) * p.invSy;
     }
 }
 
 }  // namespace detail
+
+void DepthWarp::reserve(int frameWidth, int frameHeight, std::size_t fieldPixels) {
+    const std::size_t row = static_cast<std::size_t>(
+        std::ceil(std::hypot(static_cast<double>(frameWidth), static_cast<double>(frameHeight))));
+    const std::size_t rowLength = std::max(rowIndex_.size(), row + 2);
+    rowIndex_.resize(rowLength);
+    rowZInv_.resize(rowLength);
+    rowSx_.resize(rowLength);
+    rowSy_.resize(rowLength);
+    if (depth_.size() < fieldPixels) {
+        depth_.resize(fieldPixels);
+        pointX_.resize(fieldPixels);
+        pointY_.resize(fieldPixels);
+    }
+}
 
 DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,
                                  const ig::Pose& fieldPose, const OutputGeometry& geometry,
@@ -115,16 +135,19 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     const int w = frame.width(), h = frame.height();
     const std::size_t fieldPixels =
         static_cast<std::size_t>(field.width) * static_cast<std::size_t>(field.lines);
-    depth_.assign(fieldPixels, kEmpty);
+    depth_.assign(fieldPixels, kNoPoint);
     pointX_.resize(fieldPixels);
     pointY_.resize(fieldPixels);
-    rowIndex_.resize(static_cast<std::size_t>(w));
-    rowZ_.resize(rowIndex_.size());
-    rowSx_.resize(rowIndex_.size());
-    rowSy_.resize(rowIndex_.size());
+    // Row buffers only grow (reserve() makes them as long as a frame's diagonal).
+    if (rowIndex_.size() < static_cast<std::size_t>(w)) {
+        rowIndex_.resize(static_cast<std::size_t>(w));
+        rowZInv_.resize(rowIndex_.size());
+        rowSx_.resize(rowIndex_.size());
+        rowSy_.resize(rowIndex_.size());
+    }
 
     const DepthProjection proj = DepthProjection::of(frame, fieldPose, geometry);
-    const ProjectedRow row{rowIndex_.data(), rowZ_.data(), rowSx_.data(), rowSy_.data()};
+    const ProjectedRow row{rowIndex_.data(), rowZInv_.data(), rowSx_.data(), rowSy_.data()};
     bool avx2 = false;
 #if VIG_PRP_HAVE_AVX2
     avx2 = kernel != DepthKernel::Scalar && cpuHasAvx2();
@@ -132,8 +155,8 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     (void)kernel;
 #endif
     float* __restrict zBuf = depth_.data();
-    std::int64_t* __restrict px = pointX_.data();
-    std::int64_t* __restrict py = pointY_.data();
+    std::int32_t* __restrict px = pointX_.data();
+    std::int32_t* __restrict py = pointY_.data();
     for (int y = 0; y < h; ++y) {
         const float* d = frame.depth.data() + static_cast<std::size_t>(y) * w;
 #if VIG_PRP_HAVE_AVX2
@@ -145,14 +168,15 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
 #else
         projectRowScalar(proj, d, 0, w, y, field.firstLine, row);
 #endif
-        // The z-test, in scan order (a tie keeps the first). Points become the sampler's
-        // 32.32 fixed point minus half a pixel (scaling a float by 2^32 is exact).
+        // The z-test on inverse depths, in scan order (a tie keeps the first). Points become
+        // the given points' 16.16 fixed point minus half a pixel (scaling a float by 2^16 is exact;
+        // a landing point is within a pixel or two of its rendered pixel).
         for (int x = 0; x < w; ++x) {
             const std::int32_t o = row.index[x];
-            if (o >= 0 && row.z[x] < zBuf[o]) {
-                zBuf[o] = row.z[x];
-                px[o] = static_cast<std::int64_t>(row.sx[x] * 0x1p32f) - kHalf;
-                py[o] = static_cast<std::int64_t>(row.sy[x] * 0x1p32f) - kHalf;
+            if (o >= 0 && row.zInv[x] > zBuf[o]) {
+                zBuf[o] = row.zInv[x];
+                px[o] = static_cast<std::int32_t>(row.sx[x] * 0x1p16f) - kPointHalf;
+                py[o] = static_cast<std::int32_t>(row.sy[x] * 0x1p16f) - kPointHalf;
             }
         }
     }
@@ -161,29 +185,36 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     // first) shifted by one output pixel, else the quadratic's point. Filled in place: a hole's
     // neighbours are read only where the z-buffer says they have their own point.
     DepthWarpResult result;
-    const std::int64_t shift = static_cast<std::int64_t>(static_cast<double>(proj.invSx) * kOne);
+    const std::int32_t shift = static_cast<std::int32_t>(static_cast<double>(proj.invSx) * 0x1p16);
+    // The quadratic's 32.32 points (bounded by kMaxSourceCoordinate = 2^20) to 16.16: the
+    // same 8-bit weights; beyond 16.16's range they are outside the frame either way.
+    constexpr std::int64_t kPointLimit = std::int64_t{1} << 46;
+    const auto toPoint = [](std::int64_t v) {
+        return static_cast<std::int32_t>(std::clamp(v, -kPointLimit, kPointLimit - 1) >>
+                                         (kFracBits - kPointFracBits));
+    };
     for (int line = 0; line < field.lines; ++line) {
         const std::size_t at = static_cast<std::size_t>(line) * field.width;
         const float* z = zBuf + at;
-        std::int64_t* lx = px + at;
-        std::int64_t* ly = py + at;
+        std::int32_t* lx = px + at;
+        std::int32_t* ly = py + at;
         // The quadratic by forward differences along the line, as its own kernel steps it.
         QuadraticRows q{holeWarp};
         q.start(field.firstLine + 2 * line + 0.5);
         for (int k = 0; k < field.width; ++k, q.next()) {
-            if (z[k] != kEmpty) continue;
+            if (z[k] != kNoPoint) continue;
             ++result.holes;
-            const float left = k > 0 ? z[k - 1] : kEmpty;
-            const float right = k + 1 < field.width ? z[k + 1] : kEmpty;
-            if (left != kEmpty && (right == kEmpty || left >= right)) {
+            const float left = k > 0 ? z[k - 1] : kNoPoint;
+            const float right = k + 1 < field.width ? z[k + 1] : kNoPoint;
+            if (left != kNoPoint && (right == kNoPoint || left <= right)) {
                 lx[k] = lx[k - 1] + shift;
                 ly[k] = ly[k - 1];
-            } else if (right != kEmpty) {
+            } else if (right != kNoPoint) {
                 lx[k] = lx[k + 1] - shift;
                 ly[k] = ly[k + 1];
             } else {
-                lx[k] = q.x;
-                ly[k] = q.y;
+                lx[k] = toPoint(q.x);
+                ly[k] = toPoint(q.y);
             }
         }
     }

@@ -17,10 +17,11 @@ enum class DepthKernel { Auto, Scalar, Avx2 };
 bool depthKernelSupported(DepthKernel kernel);
 
 // Per-field constants taking a rendered pixel and its depth to an output-frame point, in float.
-// A pixel (x, y) is the source-camera point s (a, b, f) with a = x + 0.5 - cx, b = cy - (y + 0.5)
-// and s = depth / |(a, b, f)| (sky: s = 1 / |(a, b, f)| and no translation: a direction). In
-// the field's camera (roll included) it is (r, u, w) = M s (a, b, f) + t, and it lands at
-// qx = ox + kx r / w, qy = oy - ky u / w (output pixels, full-frame lines).
+// A pixel (x, y) is the source-camera point (d / l) (a, b, f) with a = x + 0.5 - cx,
+// b = cy - (y + 0.5), l = |(a, b, f)| and d its depth (sky: d = 1 and no translation: a
+// direction). In the field's camera (roll included), scaled by l / d, it is
+// (r, u, w) = d M (a, b, f) + l t; it lands at qx = ox + kx r / w, qy = oy - ky u / w (output
+// pixels, full-frame lines), at inverse depth l / w along the field camera's axis.
 struct DepthProjection {
     float cx = 0, cy = 0, f = 0;
     float m[9]{};  // row-major: rows are the field camera's right, up, forward in source axes
@@ -33,17 +34,19 @@ struct DepthProjection {
                               const OutputGeometry& geometry);
 };
 
-// Depth of sky splats: behind every terrain point.
+// Depth of sky splats in the double-precision reference: behind every terrain point.
 inline constexpr float kSkySplat = 1e38f;
+// Inverse depth of sky splats in the fast path: behind every terrain point.
+inline constexpr float kSkyInverseDepth = 0.0f;
 
 // One rendered row projected into one field: per pixel the field-buffer index it lands on
 // (fieldLine * outWidth + x, the field line whose centre is nearest: each stands for two output
-// rows; -1: off the output or behind the eye), its depth along the field camera's axis
-// (kSkySplat for sky) and the source point that lands on that output pixel's centre (first
-// order: the output scaling about the pixel).
+// rows; -1: off the output or behind the eye), its inverse depth along the field camera's axis
+// (nearer is larger; kSkyInverseDepth for sky) and the source point that lands on that output
+// pixel's centre (first order: the output scaling about the pixel).
 struct ProjectedRow {
     std::int32_t* index;
-    float* z;
+    float* zInv;
     float* sx;
     float* sy;
 };
@@ -76,16 +79,20 @@ class DepthWarp {
                           const ig::Pose& fieldPose, const OutputGeometry& geometry,
                           const Quadratic& holeWarp, const FieldView& field, int gainQ8, bool agc,
                           DepthKernel kernel = DepthKernel::Auto);
+    // Sizes the scratch buffers for frames like `frameWidth` x `frameHeight` (rows as long as
+    // its diagonal: any roll the renderer widens the frame for) and fields of `fieldPixels`,
+    // so a field that takes the depth warp first later allocates nothing.
+    void reserve(int frameWidth, int frameHeight, std::size_t fieldPixels);
 
     // The points the last apply() sampled (field line L's pixel x at [L * field width + x]).
     const std::int64_t* pointsX() const { return pointX_.data(); }
     const std::int64_t* pointsY() const { return pointY_.data(); }
 
   private:
-    std::vector<float> depth_;                   // one field: the z-buffer
-    std::vector<std::int64_t> pointX_, pointY_;  // one field: the points sampled (32.32)
+    std::vector<float> depth_;                   // one field: the z-buffer (inverse depths)
+    std::vector<std::int32_t> pointX_, pointY_;  // one field: the points sampled (16.16)
     std::vector<std::int32_t> rowIndex_;         // one rendered row
-    std::vector<float> rowZ_, rowSx_, rowSy_;
+    std::vector<float> rowZInv_, rowSx_, rowSy_;
 };
 
 }  // namespace prp

@@ -37,7 +37,7 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
                  zero = _mm256_setzero_ps();
     const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
     const __m256 ninf = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
-    const __m256 sky = _mm256_set1_ps(kSkySplat), near = _mm256_set1_ps(1e-6f);
+    const __m256 sky = _mm256_set1_ps(kSkyInverseDepth), far = _mm256_set1_ps(1e6f);
     const __m256 ox = _mm256_set1_ps(p.ox), oy = _mm256_set1_ps(p.oy), kx = _mm256_set1_ps(p.kx),
                  ky = _mm256_set1_ps(p.ky);
     const __m256 invSx = _mm256_set1_ps(p.invSx), invSy = _mm256_set1_ps(p.invSy);
@@ -57,19 +57,24 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
         const __m256 terrain =
             _mm256_and_ps(_mm256_cmp_ps(d, inf, _CMP_LT_OQ), _mm256_cmp_ps(d, ninf, _CMP_GT_OQ));
         const __m256 isSky = _mm256_cmp_ps(d, inf, _CMP_EQ_OQ);
-        const __m256 s = _mm256_div_ps(_mm256_blendv_ps(one, d, terrain), len);
-        const __m256 r = _mm256_add_ps(_mm256_mul_ps(s, _mm256_add_ps(_mm256_mul_ps(m0, a), vRowR)),
-                                       _mm256_and_ps(t0, terrain));
-        const __m256 u = _mm256_add_ps(_mm256_mul_ps(s, _mm256_add_ps(_mm256_mul_ps(m3, a), vRowU)),
-                                       _mm256_and_ps(t1, terrain));
-        const __m256 w = _mm256_add_ps(_mm256_mul_ps(s, _mm256_add_ps(_mm256_mul_ps(m6, a), vRowW)),
-                                       _mm256_and_ps(t2, terrain));
-        const __m256 inv = _mm256_div_ps(one, w);
+        const __m256 dd = _mm256_blendv_ps(one, d, terrain);
+        const __m256 r =
+            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m0, a), vRowR)),
+                          _mm256_and_ps(_mm256_mul_ps(t0, len), terrain));
+        const __m256 u =
+            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m3, a), vRowU)),
+                          _mm256_and_ps(_mm256_mul_ps(t1, len), terrain));
+        const __m256 wl =
+            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m6, a), vRowW)),
+                          _mm256_and_ps(_mm256_mul_ps(t2, len), terrain));
+        const __m256 inv = _mm256_div_ps(one, wl);
+        const __m256 zInv = _mm256_mul_ps(len, inv);
         const __m256 qx = _mm256_add_ps(ox, _mm256_mul_ps(kx, _mm256_mul_ps(r, inv)));
         const __m256 qy = _mm256_sub_ps(oy, _mm256_mul_ps(ky, _mm256_mul_ps(u, inv)));
         const __m256 line = _mm256_mul_ps(_mm256_sub_ps(qy, lineOff), half);
-        __m256 inside =
-            _mm256_and_ps(_mm256_or_ps(terrain, isSky), _mm256_cmp_ps(w, near, _CMP_GT_OQ));
+        __m256 inside = _mm256_and_ps(_mm256_or_ps(terrain, isSky),
+                                      _mm256_and_ps(_mm256_cmp_ps(zInv, zero, _CMP_GT_OQ),
+                                                    _mm256_cmp_ps(zInv, far, _CMP_LT_OQ)));
         inside = _mm256_and_ps(inside, _mm256_and_ps(_mm256_cmp_ps(qx, zero, _CMP_GE_OQ),
                                                      _mm256_cmp_ps(qx, ow, _CMP_LT_OQ)));
         inside = _mm256_and_ps(inside, _mm256_and_ps(_mm256_cmp_ps(line, zero, _CMP_GE_OQ),
@@ -80,7 +85,7 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
         const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(iy, vOutW), ix);
         _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.index + x),
                             _mm256_blendv_epi8(_mm256_set1_epi32(-1), index, in));
-        _mm256_storeu_ps(out.z + x, _mm256_blendv_ps(sky, w, terrain));
+        _mm256_storeu_ps(out.zInv + x, _mm256_blendv_ps(sky, zInv, terrain));
         const __m256 fx = _mm256_cvtepi32_ps(ix);
         const __m256 fy = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_slli_epi32(iy, 1), vParity));
         _mm256_storeu_ps(

@@ -120,6 +120,12 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     const WarpModel model = stale ? WarpModel::Hold : chosen;
     const bool depthModel = model == WarpModel::Depth || model == WarpModel::Auto;
     checkFrame(frame, chosen == WarpModel::Depth || chosen == WarpModel::Auto);
+    // The depth warp's buffers from the first field that may take it, not the first that does.
+    if (depthModel && !options_.depthReference) {
+        depthWarp_.reserve(frame.width(), frame.height(),
+                           static_cast<std::size_t>(options_.outWidth) *
+                               static_cast<std::size_t>((options_.outHeight + 1) / 2));
+    }
 
     out.index = fieldIndex;
     out.parity = fieldParity(fieldIndex);

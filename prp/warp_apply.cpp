@@ -184,7 +184,7 @@ ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFrom
     return dispatch(source, QuadraticRows{sourceFromOutput}, field, gainQ8, agc);
 }
 
-ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const std::int64_t* ys,
+ApplyResult applyPoints(const SourceView& source, const std::int32_t* xs, const std::int32_t* ys,
                         std::size_t stride, const FieldView& field, int gainQ8, bool agc,
                         WarpKernel kernel) {
 #if VIG_PRP_HAVE_AVX2

@@ -56,10 +56,10 @@ ApplyResult applyQuadratic(const SourceView& source, const Quadratic& sourceFrom
                            const FieldView& field, int gainQ8, bool agc,
                            WarpKernel kernel = WarpKernel::Auto);
 // Samples given source points: field line L's pixel x at (xs, ys)[L * stride + x], rendered-frame
-// coordinates minus half a pixel in 32.32 fixed point (as the quadratic kernel's points), with
-// the same bilinear taps, edge handling and colour conversion. Kernels as for applyQuadratic
-// (AVX-512 runs the AVX2 kernel).
-ApplyResult applyPoints(const SourceView& source, const std::int64_t* xs, const std::int64_t* ys,
+// coordinates minus half a pixel in 16.16 fixed point (the quadratic kernel's 32.32 points
+// shifted right by 16: the same 8-bit weights), with the same bilinear taps, edge handling and
+// colour conversion. Kernels as for applyQuadratic (AVX-512 runs the AVX2 kernel).
+ApplyResult applyPoints(const SourceView& source, const std::int32_t* xs, const std::int32_t* ys,
                         std::size_t stride, const FieldView& field, int gainQ8, bool agc,
                         WarpKernel kernel = WarpKernel::Auto);
 // Same with a projective map (one division per pixel); its denominator must be positive.

@@ -151,13 +151,14 @@ struct QuadraticLanes {
     }
 };
 
-// Source points given per pixel (32.32, minus half a pixel), one array pair per field line.
+// Source points given per pixel (16.16, minus half a pixel), one array pair per field line,
+// widened to the sampler's 32.32.
 struct ArrayLanes {
-    const std::int64_t* xs;  // line L's points at xs + L * stride
-    const std::int64_t* ys;
+    const std::int32_t* xs;  // line L's points at xs + L * stride
+    const std::int32_t* ys;
     std::size_t stride;
-    const std::int64_t* x = nullptr;
-    const std::int64_t* y = nullptr;
+    const std::int32_t* x = nullptr;
+    const std::int32_t* y = nullptr;
     __m256i xa, xb, ya, yb;
 
     VIG_TARGET_AVX2 void start(int line) {
@@ -167,10 +168,17 @@ struct ArrayLanes {
     // Loads the next 8 points: called only when 8 more pixels follow (the caller's loop bound).
     VIG_TARGET_AVX2 void read() {
         // Natural order (0 1 2 3 | 4 5 6 7) to the slots: a = 0 1 4 5, b = 2 3 6 7.
-        const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x));
-        const __m256i x1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x + 4));
-        const __m256i y0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(y));
-        const __m256i y1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(y + 4));
+        constexpr int kShift = kFracBits - kPointFracBits;
+        const __m256i xi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x));
+        const __m256i yi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(y));
+        const __m256i x0 =
+            _mm256_slli_epi64(_mm256_cvtepi32_epi64(_mm256_castsi256_si128(xi)), kShift);
+        const __m256i x1 =
+            _mm256_slli_epi64(_mm256_cvtepi32_epi64(_mm256_extracti128_si256(xi, 1)), kShift);
+        const __m256i y0 =
+            _mm256_slli_epi64(_mm256_cvtepi32_epi64(_mm256_castsi256_si128(yi)), kShift);
+        const __m256i y1 =
+            _mm256_slli_epi64(_mm256_cvtepi32_epi64(_mm256_extracti128_si256(yi, 1)), kShift);
         xa = _mm256_permute2x128_si256(x0, x1, 0x20);
         xb = _mm256_permute2x128_si256(x0, x1, 0x31);
         ya = _mm256_permute2x128_si256(y0, y1, 0x20);
@@ -371,8 +379,8 @@ ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& source
     });
 }
 
-ApplyResult applyPointsAvx2(const SourceView& source, const std::int64_t* xs,
-                            const std::int64_t* ys, std::size_t stride, const FieldView& field,
+ApplyResult applyPointsAvx2(const SourceView& source, const std::int32_t* xs,
+                            const std::int32_t* ys, std::size_t stride, const FieldView& field,
                             int gainQ8, bool agc) {
     return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {
         ArrayLanes lanes{xs, ys, stride, nullptr, nullptr, {}, {}, {}, {}};

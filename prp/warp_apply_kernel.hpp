@@ -30,6 +30,11 @@ inline constexpr int kGr = 77, kGg = 150, kGb = 29;
 inline constexpr int kFracBits = 32;
 inline constexpr std::int64_t kOne = std::int64_t{1} << kFracBits;
 inline constexpr std::int64_t kHalf = kOne / 2;
+// Given points (applyPoints) have 16 fractional bits: enough for the sampler's 8-bit weights,
+// half the bytes of 32.32.
+inline constexpr int kPointFracBits = 16;
+inline constexpr std::int64_t kPointScale = std::int64_t{1} << (kFracBits - kPointFracBits);
+inline constexpr std::int32_t kPointHalf = std::int32_t{1} << (kPointFracBits - 1);
 
 inline int luma601(int r, int g, int b) {
     return (kYr * r + kYg * g + kYb * b + (16 << 16) + (1 << 15)) >> 16;
@@ -159,14 +164,15 @@ struct ArrayPositions {
 };
 
 // Source points of consecutive pixels held in natural order.
+// Points given per pixel in 16.16 fixed point, read as the sampler's 32.32.
 struct LinePositions {
-    const std::int64_t* x;
-    const std::int64_t* y;
+    const std::int32_t* x;
+    const std::int32_t* y;
     int k = 0;
 
     inline void next() { ++k; }
-    inline std::int64_t px() const { return x[k]; }
-    inline std::int64_t py() const { return y[k]; }
+    inline std::int64_t px() const { return static_cast<std::int64_t>(x[k]) * kPointScale; }
+    inline std::int64_t py() const { return static_cast<std::int64_t>(y[k]) * kPointScale; }
 };
 
 template <bool kGain>
@@ -246,8 +252,8 @@ ApplyResult applyQuadraticAvx2(const SourceView& source, const Quadratic& source
                                const FieldView& field, int gainQ8, bool agc);
 // applyPoints' AVX2 kernel; bit-identical to the scalar one. Needs cpuHasAvx2() and
 // avx2Takes(source, gainQ8).
-ApplyResult applyPointsAvx2(const SourceView& source, const std::int64_t* xs,
-                            const std::int64_t* ys, std::size_t stride, const FieldView& field,
+ApplyResult applyPointsAvx2(const SourceView& source, const std::int32_t* xs,
+                            const std::int32_t* ys, std::size_t stride, const FieldView& field,
                             int gainQ8, bool agc);
 // The same with AVX-512, 16 pixels per step. Needs cpuHasAvx512() and avx2Takes(...).
 ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sourceFromOutput,

@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <type_traits>
 
@@ -100,12 +101,14 @@ void FrameRing::waitForPublish(std::uint64_t seen, double seconds) const {
             nullptr, 0);
 }
 
-FrameRing::FrameRing(std::size_t maxPixels, bool objectIds)
-    : maxPixels_(maxPixels), objectIds_(objectIds) {
+FrameRing::FrameRing(std::size_t maxPixels, int eyes, bool objectIds)
+    : maxPixels_(maxPixels), eyes_(eyes), objectIds_(objectIds) {
     CHECK_GT(maxPixels, 0u);
-    slotBytes_ = roundUp(sizeof(SlotMeta)) + roundUp(maxPixels * sizeof(ig::Rgb8)) +
-                 roundUp(maxPixels * sizeof(float)) +
-                 (objectIds ? roundUp(maxPixels * sizeof(std::uint16_t)) : 0);
+    CHECK(eyes == 1 || eyes == 2) << "eyes " << eyes;
+    eyeBytes_ = roundUp(sizeof(SlotMeta)) + roundUp(maxPixels * sizeof(ig::Rgb8)) +
+                roundUp(maxPixels * sizeof(float)) +
+                (objectIds ? roundUp(maxPixels * sizeof(std::uint16_t)) : 0);
+    slotBytes_ = static_cast<std::size_t>(eyes_) * eyeBytes_;
     mapBytes_ = roundUp(sizeof(Header)) + 3 * slotBytes_;
     const int fd = memfd_create("vig-frames", MFD_CLOEXEC);
     if (fd < 0) throw std::runtime_error(std::string("memfd_create: ") + std::strerror(errno));
@@ -124,7 +127,8 @@ FrameRing::FrameRing(std::size_t maxPixels, bool objectIds)
     h->middle.store(1);
     h->back.store(0);
     for (std::uint32_t s = 0; s < 3; ++s)
-        new (base_ + roundUp(sizeof(Header)) + s * slotBytes_) SlotMeta{};
+        for (int eye = 0; eye < eyes_; ++eye)
+            new (eyeBlock(s, eye)) SlotMeta{};
 }
 
 FrameRing::~FrameRing() {
@@ -135,49 +139,57 @@ FrameRing::Header& FrameRing::header() const {
     return *std::launder(reinterpret_cast<Header*>(base_));
 }
 
-FrameRing::SlotMeta& FrameRing::meta(std::uint32_t slot) const {
+unsigned char* FrameRing::eyeBlock(std::uint32_t slot, int eye) const {
     DCHECK_LT(slot, 3u);
-    return *std::launder(
-        reinterpret_cast<SlotMeta*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_));
+    DCHECK_LT(eye, eyes_);
+    return base_ + roundUp(sizeof(Header)) + slot * slotBytes_ +
+           static_cast<std::size_t>(eye) * eyeBytes_;
 }
 
-ig::Rgb8* FrameRing::color(std::uint32_t slot) const {
-    return reinterpret_cast<ig::Rgb8*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_ +
-                                       roundUp(sizeof(SlotMeta)));
+FrameRing::SlotMeta& FrameRing::meta(std::uint32_t slot, int eye) const {
+    return *std::launder(reinterpret_cast<SlotMeta*>(eyeBlock(slot, eye)));
 }
 
-float* FrameRing::depth(std::uint32_t slot) const {
-    return reinterpret_cast<float*>(base_ + roundUp(sizeof(Header)) + slot * slotBytes_ +
-                                    roundUp(sizeof(SlotMeta)) +
+ig::Rgb8* FrameRing::color(std::uint32_t slot, int eye) const {
+    return reinterpret_cast<ig::Rgb8*>(eyeBlock(slot, eye) + roundUp(sizeof(SlotMeta)));
+}
+
+float* FrameRing::depth(std::uint32_t slot, int eye) const {
+    return reinterpret_cast<float*>(eyeBlock(slot, eye) + roundUp(sizeof(SlotMeta)) +
                                     roundUp(maxPixels_ * sizeof(ig::Rgb8)));
 }
 
-std::uint16_t* FrameRing::ids(std::uint32_t slot) const {
+std::uint16_t* FrameRing::ids(std::uint32_t slot, int eye) const {
     DCHECK(objectIds_);
-    return reinterpret_cast<std::uint16_t*>(
-        base_ + roundUp(sizeof(Header)) + slot * slotBytes_ + roundUp(sizeof(SlotMeta)) +
-        roundUp(maxPixels_ * sizeof(ig::Rgb8)) + roundUp(maxPixels_ * sizeof(float)));
+    return reinterpret_cast<std::uint16_t*>(eyeBlock(slot, eye) + roundUp(sizeof(SlotMeta)) +
+                                            roundUp(maxPixels_ * sizeof(ig::Rgb8)) +
+                                            roundUp(maxPixels_ * sizeof(float)));
 }
 
 void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels,
                             std::int64_t clockNs, bool copyPixels) {
     Header& h = header();
     const std::uint32_t back = h.back.load(std::memory_order_relaxed);
-    SlotMeta& m = meta(back);
-    m.sequence = frame.sequence;
-    m.time = frame.time;
-    m.pose = frame.pose;
-    m.intrinsics = frame.intrinsics;
-    std::copy(frame.controlPoints.begin(), frame.controlPoints.end(), m.controlPoints);
-    m.stats = frame.stats;
-    m.pixels = pixels;
-    m.idPixels = frame.objectId.empty() ? 0 : frame.objectId.size();
-    m.publishNs = clockNs;
-    if (copyPixels) {
-        std::memcpy(color(back), frame.color.data(), pixels * sizeof(ig::Rgb8));
-        std::memcpy(depth(back), frame.depth.data(), pixels * sizeof(float));
-        if (m.idPixels != 0) {
-            std::memcpy(ids(back), frame.objectId.data(), pixels * sizeof(std::uint16_t));
+    for (int e = 0; e < eyes_; ++e) {
+        // The right eye of a raw publish without one is described as the left.
+        const ig::RenderedFrame& eye = e == 1 && frame.right ? *frame.right : frame;
+        SlotMeta& m = meta(back, e);
+        m.sequence = eye.sequence;
+        m.time = eye.time;
+        m.pose = eye.pose;
+        m.intrinsics = eye.intrinsics;
+        std::copy(eye.controlPoints.begin(), eye.controlPoints.end(), m.controlPoints);
+        m.stats = eye.stats;
+        m.pixels = e == 0 || !copyPixels ? pixels : eye.color.size();
+        m.idPixels = eye.objectId.empty() ? 0 : eye.objectId.size();
+        m.publishNs = clockNs;
+        if (copyPixels) {
+            std::memcpy(color(back, e), eye.color.data(), m.pixels * sizeof(ig::Rgb8));
+            std::memcpy(depth(back, e), eye.depth.data(), m.pixels * sizeof(float));
+            if (m.idPixels != 0) {
+                std::memcpy(ids(back, e), eye.objectId.data(),
+                            m.pixels * sizeof(std::uint16_t));
+            }
         }
     }
     const std::uint32_t old = h.middle.exchange(back | kFresh, std::memory_order_acq_rel);
@@ -191,6 +203,15 @@ bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
     const std::size_t n = frame.color.size();
     if (n > maxPixels_ || frame.depth.size() != n) return false;
     if (!frame.objectId.empty() && (!objectIds_ || frame.objectId.size() != n)) return false;
+    if (eyes_ == 2) {
+        if (!frame.right) return false;
+        const std::size_t r = frame.right->color.size();
+        if (r > maxPixels_ || frame.right->depth.size() != r) return false;
+        if (!frame.right->objectId.empty() &&
+            (!objectIds_ || frame.right->objectId.size() != r)) {
+            return false;
+        }
+    }
     publishBack(frame, n, clockNs, true);
     return true;
 }
@@ -199,15 +220,15 @@ void FrameRing::publishRaw(const ig::RenderedFrame& frame, std::uint64_t claimed
     publishBack(frame, claimedPixels, 0, false);
 }
 
-FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
-    Header& h = header();
-    if ((h.middle.load(std::memory_order_acquire) & kFresh) == 0) return Fetch::None;
-    front_ = h.middle.exchange(front_, std::memory_order_acq_rel) & kIndexMask;
-    const SlotMeta& m = meta(front_);
+bool FrameRing::checkEye(int eye, std::string* why) const {
+    const SlotMeta& m = meta(front_, eye);
     const ig::Intrinsics& in = m.intrinsics;
     const auto bad = [&](const std::string& what) {
-        if (why) *why = "frame " + std::to_string(m.sequence) + ": " + what;
-        return Fetch::Bad;
+        if (why) {
+            *why = "frame " + std::to_string(meta(front_, 0).sequence) +
+                   (eye == 1 ? ", right eye: " : ": ") + what;
+        }
+        return false;
     };
     if (in.width < 2 || in.height < 2 || in.margin < 0 || in.windowWidth() < 1 ||
         in.windowHeight() < 1 || !(in.focal > 0.0) || !std::isfinite(in.focal)) {
@@ -228,26 +249,54 @@ FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
     for (const ig::ControlPoint& c : m.controlPoints) {
         if (!finite(c.pixel) || !finite(c.world)) return bad("a control point is not finite");
     }
-    // A frame no newer than the one shown (a restarted renderer answering a request the
-    // last one already had) is not shown.
-    if (fetchedAny_ && m.sequence <= lastSequence_) return Fetch::None;
-    fetchedAny_ = true;
-    lastSequence_ = m.sequence;
+    return true;
+}
+
+void FrameRing::copyEye(int eye, ig::RenderedFrame& into) const {
+    const SlotMeta& m = meta(front_, eye);
+    const std::size_t n = static_cast<std::size_t>(m.pixels);
     into.sequence = m.sequence;
     into.time = m.time;
     into.pose = m.pose;
-    into.intrinsics = in;
+    into.intrinsics = m.intrinsics;
     std::copy(std::begin(m.controlPoints), std::end(m.controlPoints), into.controlPoints.begin());
     into.stats = m.stats;
     into.color.resize(n);
     into.depth.resize(n);
-    std::memcpy(into.color.data(), color(front_), n * sizeof(ig::Rgb8));
-    std::memcpy(into.depth.data(), depth(front_), n * sizeof(float));
+    std::memcpy(into.color.data(), color(front_, eye), n * sizeof(ig::Rgb8));
+    std::memcpy(into.depth.data(), depth(front_, eye), n * sizeof(float));
     if (m.idPixels != 0) {
         into.objectId.resize(n);
-        std::memcpy(into.objectId.data(), ids(front_), n * sizeof(std::uint16_t));
+        std::memcpy(into.objectId.data(), ids(front_, eye), n * sizeof(std::uint16_t));
     } else {
         into.objectId.clear();
+    }
+}
+
+FrameRing::Fetch FrameRing::fetch(ig::RenderedFrame& into, std::string* why) {
+    Header& h = header();
+    if ((h.middle.load(std::memory_order_acquire) & kFresh) == 0) return Fetch::None;
+    front_ = h.middle.exchange(front_, std::memory_order_acq_rel) & kIndexMask;
+    // Every eye is checked before `into` is touched.
+    for (int e = 0; e < eyes_; ++e) {
+        if (!checkEye(e, why)) return Fetch::Bad;
+    }
+    // A frame no newer than the one shown (a restarted renderer answering a request the
+    // last one already had) is not shown.
+    const std::uint64_t sequence = meta(front_, 0).sequence;
+    if (fetchedAny_ && sequence <= lastSequence_) return Fetch::None;
+    fetchedAny_ = true;
+    lastSequence_ = sequence;
+    copyEye(0, into);
+    if (eyes_ == 2) {
+        // The right eye's frame is written in place only while `into` alone holds it (made
+        // here, so not const); one still shown elsewhere is left as it is.
+        if (!into.right || into.right.use_count() != 1) {
+            into.right = std::make_shared<ig::RenderedFrame>();
+        }
+        copyEye(1, const_cast<ig::RenderedFrame&>(*into.right));
+    } else {
+        into.right.reset();
     }
     return Fetch::New;
 }

@@ -7,6 +7,9 @@
 // written. Every slot is checked on the way in (sizes, finite pose and control points): a
 // renderer that writes garbage is caught there, not in the warp.
 //
+// A stereo ring's slots hold the two eyes of a pair, each eye a block of its own (description,
+// colour, depth): the right eye travels as the left one does, published and fetched with it.
+//
 // Render requests go the other way through a sequence lock: the field process posts the pose it
 // wants rendered and the time it is for; the renderer reads the newest one.
 #pragma once
@@ -30,20 +33,22 @@ struct RenderRequest {
 
 class FrameRing {
   public:
-    // A new shared mapping with three slots of up to `maxPixels` pixels (with `objectIds`, each
-    // slot also holds an object-id plane). Throws std::runtime_error naming the system call
-    // when the system refuses.
-    explicit FrameRing(std::size_t maxPixels, bool objectIds = false);
+    // A new shared mapping with three slots of up to `maxPixels` pixels per eye, `eyes` (1, or
+    // 2 for stereo pairs) eyes per slot; with `objectIds`, each eye also holds an object-id
+    // plane. Throws std::runtime_error naming the system call when the system refuses.
+    explicit FrameRing(std::size_t maxPixels, int eyes = 1, bool objectIds = false);
     ~FrameRing();
     FrameRing(const FrameRing&) = delete;
     FrameRing& operator=(const FrameRing&) = delete;
 
     std::size_t maxPixels() const { return maxPixels_; }
+    int eyes() const { return eyes_; }
     bool objectIds() const { return objectIds_; }
 
-    // Renderer side: copies `frame` into the back slot and publishes it. False (nothing
-    // published) when it holds more pixels than a slot or its colour and depth sizes disagree,
-    // or it has object ids of another size, or object ids the ring has no plane for.
+    // Renderer side: copies `frame` (and, in a stereo ring, its right eye) into the back slot
+    // and publishes it. False (nothing published) when an eye holds more pixels than a slot,
+    // its colour and depth sizes disagree, a stereo ring's frame has no right eye, or an eye has
+    // object ids of another size, or object ids the ring has no plane for.
     bool publish(const ig::RenderedFrame& frame, std::int64_t clockNs);
     // Renderer side, for fault injection and tests: publishes the back slot with `meta` as
     // it is (sizes and values unchecked) and no pixels copied.
@@ -51,9 +56,9 @@ class FrameRing {
 
     enum class Fetch { None, New, Bad };
     // Field side: when a frame newer than the last fetched was published, copies it into
-    // `into` (reusing its buffers: no allocation once they have grown to the slot size) and
-    // returns New (`into.objectId` empty when the frame has none); Bad (and `why`) when the
-    // slot does not hold a usable frame; None otherwise
+    // `into` (reusing its buffers: no allocation once they have grown to the slot size; a
+    // stereo ring's right eye into `into.right`, reused when nothing else holds it) and
+    // returns New (`into.objectId` empty when the frame has none); Bad (and `why`) when the slot does not hold a usable frame; None otherwise
     // (also for a frame whose sequence is not above the last one fetched).
     Fetch fetch(ig::RenderedFrame& into, std::string* why);
 
@@ -91,13 +96,20 @@ class FrameRing {
     // publishes it.
     void publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels, std::int64_t clockNs,
                      bool copyPixels);
-    SlotMeta& meta(std::uint32_t slot) const;
-    ig::Rgb8* color(std::uint32_t slot) const;
-    float* depth(std::uint32_t slot) const;
-    std::uint16_t* ids(std::uint32_t slot) const;
+    // Eye `eye` of slot `slot`: its description, colour, depth and object ids.
+    unsigned char* eyeBlock(std::uint32_t slot, int eye) const;
+    SlotMeta& meta(std::uint32_t slot, int eye = 0) const;
+    ig::Rgb8* color(std::uint32_t slot, int eye = 0) const;
+    float* depth(std::uint32_t slot, int eye = 0) const;
+    std::uint16_t* ids(std::uint32_t slot, int eye = 0) const;
+    // Eye `eye` of the front slot: usable (else false and why), and copied into a frame.
+    bool checkEye(int eye, std::string* why) const;
+    void copyEye(int eye, ig::RenderedFrame& into) const;
 
     std::size_t maxPixels_ = 0;
+    int eyes_ = 1;
     bool objectIds_ = false;
+    std::size_t eyeBytes_ = 0;
     std::size_t slotBytes_ = 0;
     std::size_t mapBytes_ = 0;
     unsigned char* base_ = nullptr;

@@ -183,9 +183,6 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
     options_.prp.format = sink.format().format;
     if (options_.stereo) {
         // Each eye's processor makes the eye's part of the sink's frame.
-        if (options_.rendererMode != RendererMode::Thread) {
-            throw ig::InputError("stereo: the renderer must run as a thread (--renderer thread)");
-        }
         const StereoLayout layout = options_.stereo->layout;
         stereoEyeSize(layout, sink.format().width, sink.format().height, options_.prp.outWidth,
                       options_.prp.outHeight);
@@ -326,7 +323,9 @@ double Pipeline::renderTimeout() const {
 }
 
 void Pipeline::startProcess() {
-    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels, options_.objectIds);
+    // A stereo ring carries both eyes of every pair; a scene's frames carry object ids.
+    ring_ = std::make_unique<FrameRing>(options_.maxFramePixels, options_.stereo ? 2 : 1,
+                                        options_.objectIds);
     RendererProcessOptions po;
     po.threads = options_.renderThreads;
     po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;

@@ -9,6 +9,7 @@
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
 #include "io/frame_sink.hpp"
+#include "io/gpio_stick.hpp"
 #include "io/memory_lock.hpp"
 #include "io/output_file.hpp"
 #include "io/stick.hpp"
@@ -29,8 +30,10 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -123,6 +126,77 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     return s;
 }
 
+// --field-log: the stick as the flight last sampled it (the field loop samples it while it
+// advances the flight to a field's instant).
+class RecordingStick final : public io::StickInput {
+  public:
+    explicit RecordingStick(std::unique_ptr<io::StickInput> inner)
+        : inner_(std::move(inner)), gpio_(dynamic_cast<const io::GpioStick*>(inner_.get())) {}
+    io::StickState sample(double t) override {
+        last_ = inner_->sample(t);
+        return last_;
+    }
+    const io::StickState& last() const { return last_; }
+    // Edges read from the chip so far (before debouncing); null for a scripted stick.
+    std::optional<std::uint64_t> edges() const {
+        return gpio_ ? std::optional<std::uint64_t>(gpio_->edgesSeen()) : std::nullopt;
+    }
+
+  private:
+    std::unique_ptr<io::StickInput> inner_;
+    const io::GpioStick* gpio_;
+    io::StickState last_;
+};
+
+// --field-log: the pose of the last field instant the flight was advanced to, which is the
+// pose the field is warped to (predictions for the renderer pass through untouched).
+class RecordingPoses final : public sim::PoseSource {
+  public:
+    explicit RecordingPoses(std::unique_ptr<sim::PoseSource> inner) : inner_(std::move(inner)) {}
+    ig::Pose advanceTo(double t) override {
+        last_ = inner_->advanceTo(t);
+        return last_;
+    }
+    ig::Pose predict(double t) override { return inner_->predict(t); }
+    double startTime() const override { return inner_->startTime(); }
+    const ig::Pose& last() const { return last_; }
+
+  private:
+    std::unique_ptr<sim::PoseSource> inner_;
+    ig::Pose last_;
+};
+
+// One JSON line per field: index, instant, the pose it was warped to, the stick sampled for it
+// (null without a stick; a gpiod stick adds the edges read from the chip so far), the frame it
+// came from and that frame's age.
+std::string fieldLogLine(const prp::Field& field, const ig::Pose& pose,
+                         const RecordingStick* stick) {
+    nlohmann::json j;
+    j["field"] = field.index;
+    j["time_s"] = field.time;
+    j["pose"] = {{"x", pose.position.x},
+                 {"y", pose.position.y},
+                 {"z", pose.position.z},
+                 {"yaw_deg", ig::radToDeg(pose.yaw)},
+                 {"pitch_deg", ig::radToDeg(pose.pitch)},
+                 {"roll_deg", ig::radToDeg(pose.roll)}};
+    if (stick) {
+        const io::StickState& s = stick->last();
+        j["stick"] = {{"pitch", s.pitch},
+                      {"roll", s.roll},
+                      {"yaw", s.yaw},
+                      {"throttle", s.throttle},
+                      {"trigger", s.trigger}};
+        if (const auto edges = stick->edges()) j["stick"]["edges"] = *edges;
+    } else {
+        j["stick"] = nullptr;
+    }
+    j["frame"] = field.frameSequence;
+    j["frame_age_ms"] = field.frameAge * 1e3;
+    j["warp"] = std::string(prp::warpModelName(field.warp.model));
+    return j.dump() + "\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -148,7 +222,7 @@ int main(int argc, char** argv) {
     std::string warpText = "auto";
     double autoThreshold = 0.25;
     std::string clockText = "wall";
-    std::string jsonPath;
+    std::string jsonPath, fieldLogPath;
     double fovDeg = 60.0;
     int margin = 48;
     int renderThreads = 0;
@@ -214,8 +288,8 @@ int main(int argc, char** argv) {
                    "--auto-threshold)")
         ->capture_default_str();
     app.add_option("--stereo", stereoSeparation,
-                   "Stereo: eye separation in metres (centred on the aircraft); --size is per eye, "
-                   "the renderer a thread");
+                   "Stereo: eye separation in metres (centred on the aircraft); --size is per "
+                   "eye");
     app.add_option("--stereo-layout", stereoLayoutText,
                    "Stereo output: sbs (side by side, 2W x H) | tb (top-bottom, W x 2H) | "
                    "anaglyph (red-cyan preview, W x H)")
@@ -225,6 +299,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--clock", clockText, "wall | simulated")->capture_default_str();
     app.add_option("--json", jsonPath, "Write the run's statistics as JSON ('-': stdout)");
+    app.add_option("--field-log", fieldLogPath,
+                   "Write one JSON line per field as it goes out: index, time, the pose it is "
+                   "warped to, the stick sampled for it, its frame");
     app.add_option("--fov", fovDeg, "Horizontal field of view, degrees")->capture_default_str();
     app.add_option("--margin", margin, "Pixels rendered beyond the window on every side")
         ->capture_default_str();
@@ -314,13 +391,6 @@ int main(int argc, char** argv) {
                 throw ig::InputError("--stereo-layout " + base::quoted(stereoLayoutText) +
                                      ": expected sbs, tb or anaglyph");
             }
-            // Stereo frames cross a renderer thread only (the frame ring carries one eye).
-            if (app.count("--renderer") > 0 && rendererText == "process") {
-                throw ig::InputError(
-                    "--stereo needs --renderer thread (the renderer process "
-                    "carries one eye)");
-            }
-            rendererText = "thread";
             stereo = sim::StereoOutput{*stereoSeparation, *layout};
         } else if (app.count("--stereo-layout") > 0) {
             throw ig::InputError("--stereo-layout needs --stereo SEPARATION_M");
@@ -467,7 +537,8 @@ int main(int argc, char** argv) {
             {"--contact", wantContact ? contactPath : std::string(), io::PathRole::Output},
             {"--json", jsonPath, io::PathRole::Output},
             {"--scene", scenePath, io::PathRole::Input},
-            {"--truth", truthPath, io::PathRole::Output}};
+            {"--truth", truthPath, io::PathRole::Output},
+            {"--field-log", fieldLogPath, io::PathRole::Output}};
         io::checkRunPaths(paths);
         // Where things went: standard output, unless an output is written there.
         std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
@@ -490,6 +561,7 @@ int main(int argc, char** argv) {
         double flightSeconds = 10.0;
         std::string flightName;
         sim::CigiPoseSource* cigiSource = nullptr;
+        const RecordingStick* loggedStick = nullptr;
         if (cigi) {
             const sim::Scenario scenario = sim::defaultScenario();
             sim::FlightState start =
@@ -533,12 +605,23 @@ int main(int argc, char** argv) {
                 flightName = "stick " + stickSpec;
             }
             if (!stick) throw ig::InputError("--stick: " + error);
+            if (!fieldLogPath.empty()) {
+                auto recording = std::make_unique<RecordingStick>(std::move(stick));
+                loggedStick = recording.get();
+                stick = std::move(recording);
+            }
             sim::FlightState start =
                 shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
             if (!startText.empty()) start = parseStart(startText, map, scenario.limits);
             flightSeconds = scenario.duration;
             poses =
                 std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, &map);
+        }
+        const RecordingPoses* loggedPoses = nullptr;
+        if (!fieldLogPath.empty()) {
+            auto recording = std::make_unique<RecordingPoses>(std::move(poses));
+            loggedPoses = recording.get();
+            poses = std::move(recording);
         }
         if (duration) flightSeconds = *duration;
         if (!(flightSeconds > 0.0)) {
@@ -588,8 +671,24 @@ int main(int argc, char** argv) {
         if (wantContact) {
             sheet = std::make_unique<io::ContactSheet>(kSheetColumns, kSheetRows, 240);
             weaver = std::make_unique<io::FieldWeaver>(opened);
-            options.onField = [&](const prp::Field&, const io::FieldBuffer& buffer) {
-                if ((buffer.index / 2) % sheetEvery != 0) return;
+        }
+        // The field log is written and flushed line by line, so a reader can follow the run.
+        std::unique_ptr<std::FILE, int (*)(std::FILE*)> fieldLog(nullptr, std::fclose);
+        if (!fieldLogPath.empty()) {
+            fieldLog.reset(std::fopen(fieldLogPath.c_str(), "w"));
+            if (!fieldLog) {
+                throw ig::InputError("--field-log " + fieldLogPath + ": cannot write (" +
+                                     std::strerror(errno) + ")");
+            }
+        }
+        if (sheet || fieldLog) {
+            options.onField = [&](const prp::Field& field, const io::FieldBuffer& buffer) {
+                if (fieldLog) {
+                    const std::string line = fieldLogLine(field, loggedPoses->last(), loggedStick);
+                    std::fputs(line.c_str(), fieldLog.get());
+                    std::fflush(fieldLog.get());
+                }
+                if (!sheet || (buffer.index / 2) % sheetEvery != 0) return;
                 weaver->add(buffer, [&](const std::uint8_t* frame, std::size_t stride) {
                     sheet->offer(opened, frame, stride);
                 });
@@ -654,10 +753,9 @@ int main(int argc, char** argv) {
                      level.height, geometry.coverRoll ? " (wider when banked)" : "");
 
         if (stereo) {
-            std::fprintf(stderr,
-                         "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer thread)\n",
+            std::fprintf(stderr, "flythrough: stereo %s, eyes %dx%d %.3f m apart (renderer %s)\n",
                          std::string(sim::stereoLayoutName(stereo->layout)).c_str(), width, height,
-                         stereo->separation);
+                         stereo->separation, rendererText.c_str());
         }
         options.stop = &io::stopFlag();
         // On the wall clock the field process keeps its memory resident: no field waits on a
@@ -681,6 +779,9 @@ int main(int argc, char** argv) {
         // A failed run drops its output (the sink discards it); a good one is closed, and a
         // file appears only when it is complete.
         if (!result.ok()) throw std::runtime_error("--out " + outSpec + ": " + result.error);
+        if (fieldLog && (std::ferror(fieldLog.get()) || std::fclose(fieldLog.release()) != 0)) {
+            throw std::runtime_error("--field-log " + fieldLogPath + ": write failed");
+        }
         const int closed = sink->close(&error);
         sink.reset();
         if (closed != 0) throw std::runtime_error(error);

@@ -51,9 +51,9 @@ ig::Pose moved(const ig::Pose& p, int k) {
     return at;
 }
 
-// The AVX2 projection gives the scalar one's bits: every index, and depth and source point of
-// every pixel that lands, over random poses, depths (sky, NaN, negative, zero, huge, behind
-// the eye) and row widths that leave partial groups of eight.
+// The AVX2 projection gives the scalar one's bits: every index, and inverse depth and source point
+// of every pixel that lands, over random poses, depths (sky, NaN, negative, zero, huge, behind the
+// eye) and row widths that leave partial groups of eight.
 TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
     if (!depthKernelSupported(DepthKernel::Avx2)) GTEST_SKIP() << "no AVX2 on this processor";
     std::mt19937 rng(7);

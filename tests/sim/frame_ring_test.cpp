@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 
 namespace {
@@ -67,6 +68,73 @@ TEST(FrameRing, WhatIsPublishedIsFetchedOnce) {
     ig::RenderedFrame odd = patterned(4);
     odd.depth.pop_back();
     EXPECT_FALSE(ring.publish(odd, 0));
+}
+
+// A pair: the right eye as a frame of its own, its pixels from another pattern.
+ig::RenderedFrame pair(std::uint64_t sequence) {
+    ig::RenderedFrame left = patterned(sequence);
+    auto right = std::make_shared<ig::RenderedFrame>(patterned(sequence + 1000));
+    right->sequence = sequence;
+    right->pose.position.x += 2.0;
+    left.right = right;
+    return left;
+}
+
+TEST(FrameRing, StereoSlotsCarryBothEyes) {
+    sim::FrameRing ring(48 * 32, 2);
+    EXPECT_EQ(ring.eyes(), 2);
+    ig::RenderedFrame got;
+    std::string why;
+    // A stereo ring takes pairs only.
+    EXPECT_FALSE(ring.publish(patterned(1), 0));
+    ASSERT_TRUE(ring.publish(pair(1), 0));
+    ASSERT_EQ(ring.fetch(got, &why), sim::FrameRing::Fetch::New) << why;
+    EXPECT_TRUE(whole(got));
+    ASSERT_TRUE(got.right);
+    const ig::RenderedFrame want = patterned(1001);
+    EXPECT_EQ(got.right->color, want.color);
+    EXPECT_EQ(got.right->depth, want.depth);
+    EXPECT_EQ(got.right->pose.position.x, 3.0);
+    EXPECT_EQ(got.right->sequence, 1u);
+    // Nothing else holds the right eye: the next pair is written into the same frame.
+    const ig::RenderedFrame* right = got.right.get();
+    ASSERT_TRUE(ring.publish(pair(2), 0));
+    ASSERT_EQ(ring.fetch(got, &why), sim::FrameRing::Fetch::New);
+    EXPECT_EQ(got.right.get(), right);
+    EXPECT_EQ(got.right->color, patterned(1002).color);
+    // A right eye still held elsewhere (a field being warped) is never written over.
+    const std::shared_ptr<const ig::RenderedFrame> shown = got.right;
+    ASSERT_TRUE(ring.publish(pair(3), 0));
+    ASSERT_EQ(ring.fetch(got, &why), sim::FrameRing::Fetch::New);
+    EXPECT_NE(got.right.get(), shown.get());
+    EXPECT_EQ(shown->color, patterned(1002).color);
+    EXPECT_EQ(got.right->color, patterned(1003).color);
+    // A right eye too large for a slot, or of mismatched sizes: not published.
+    ig::RenderedFrame big = pair(4);
+    big.right = std::make_shared<ig::RenderedFrame>(patterned(4, 64, 32));
+    EXPECT_FALSE(ring.publish(big, 0));
+    ig::RenderedFrame odd = pair(4);
+    auto oddRight = std::make_shared<ig::RenderedFrame>(*odd.right);
+    oddRight->depth.pop_back();
+    odd.right = oddRight;
+    EXPECT_FALSE(ring.publish(odd, 0));
+}
+
+// A right eye that is garbage makes the whole pair bad, named as the right eye's, and leaves
+// the frame fetched before untouched.
+TEST(FrameRing, ABadRightEyeIsRefused) {
+    sim::FrameRing ring(48 * 32, 2);
+    ig::RenderedFrame got = patterned(0);
+    std::string why;
+    ig::RenderedFrame bad = pair(1);
+    auto right = std::make_shared<ig::RenderedFrame>(*bad.right);
+    right->controlPoints[3].world.x = std::numeric_limits<double>::quiet_NaN();
+    bad.right = right;
+    ASSERT_TRUE(ring.publish(bad, 0));
+    EXPECT_EQ(ring.fetch(got, &why), sim::FrameRing::Fetch::Bad);
+    EXPECT_NE(why.find("right eye"), std::string::npos) << why;
+    EXPECT_EQ(got.sequence, 0u);
+    EXPECT_FALSE(got.right);
 }
 
 TEST(FrameRing, GarbageIsRefusedWithItsReason) {

@@ -1,6 +1,7 @@
 // Stereo through the PRP: each eye warped to its own pose, the layouts, zero separation, the
 // vertical disparity of the two fits, and each eye's error against its own true render.
 #include "sim/pipeline.hpp"
+#include "sim/render_process.hpp"
 #include "sim/stereo_output.hpp"
 
 #include "ig/cli.hpp"
@@ -122,9 +123,12 @@ class KeepingSink final : public io::FrameSink {
     io::VideoFormat format_;
 };
 
+// `fault` (a renderer process only): a fault the renderer injects into itself once.
 sim::PipelineResult runStereo(const sim::Trajectory& tr, double separation, int eyeWidth,
                               int eyeHeight, double seconds, KeepingSink& sink,
-                              sim::StereoLayout layout = sim::StereoLayout::SideBySide) {
+                              sim::StereoLayout layout = sim::StereoLayout::SideBySide,
+                              sim::RendererMode mode = sim::RendererMode::Thread,
+                              const std::string& fault = "") {
     sim::TrajectoryPoses poses(tr);
     sim::RenderGeometry geometry;
     geometry.windowWidth = eyeWidth;
@@ -140,6 +144,12 @@ sim::PipelineResult runStereo(const sim::Trajectory& tr, double separation, int 
     options.clock = sim::ClockMode::Simulated;
     options.duration = seconds;
     options.stereo = sim::StereoOutput{separation, layout};
+    options.rendererMode = mode;
+    options.maxFramePixels = sim::maxFramePixels(geometry);
+    if (!fault.empty()) {
+        options.fault = sim::parseRendererFault(fault, "fault");
+        options.renderTimeout = 1.0;
+    }
     sim::Pipeline pipeline(poses, sim::makeStereoRenderer(pugetSound(), geometry, separation), sink,
                            *clock, options);
     return pipeline.run();
@@ -163,6 +173,38 @@ TEST(StereoPipeline, ZeroSeparationGivesIdenticalEyes) {
     }
     EXPECT_TRUE(r.stats.stereo);
     EXPECT_LT(r.stats.verticalDisparityPx.max, 1e-9);
+}
+
+// The renderer process carries both eyes in its ring: the same fields, byte for byte, as the
+// renderer thread.
+TEST(StereoPipeline, RendererProcessGivesTheThreadsFields) {
+    KeepingSink thread, process;
+    const sim::PipelineResult a = runStereo(trajectory("low.csv"), 2.0, 64, 48, 0.5, thread);
+    const sim::PipelineResult b =
+        runStereo(trajectory("low.csv"), 2.0, 64, 48, 0.5, process, sim::StereoLayout::SideBySide,
+                  sim::RendererMode::Process);
+    ASSERT_TRUE(a.ok() && b.ok()) << a.error << b.error;
+    ASSERT_EQ(thread.fields.size(), 30u);
+    ASSERT_EQ(process.fields.size(), thread.fields.size());
+    for (std::size_t f = 0; f < thread.fields.size(); ++f)
+        ASSERT_EQ(thread.fields[f], process.fields[f]) << "field " << f;
+    EXPECT_TRUE(b.stats.restarts.empty());
+    EXPECT_EQ(a.stats.framesRendered, b.stats.framesRendered);
+}
+
+// A stereo renderer process that crashes is restarted as a mono one is: every field goes out,
+// each pair whole (the eyes of one frame: no field took a frame without its right eye).
+TEST(StereoPipeline, RendererProcessSurvivesACrash) {
+    KeepingSink sink;
+    const sim::PipelineResult r =
+        runStereo(trajectory("low.csv"), 2.0, 64, 48, 1.5, sink, sim::StereoLayout::SideBySide,
+                  sim::RendererMode::Process, "crash@0.5");
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(sink.fields.size(), 90u);
+    ASSERT_EQ(r.stats.restarts.size(), 1u);
+    EXPECT_NE(r.stats.restarts[0].cause.find("killed by signal 9"), std::string::npos)
+        << r.stats.restarts[0].cause;
+    EXPECT_GT(r.stats.framesShown, 2u);
 }
 
 // The eyes show the same world point on rows at most a quarter of an output row apart, low and

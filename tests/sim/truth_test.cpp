@@ -168,7 +168,7 @@ const nlohmann::json* findObject(const nlohmann::json& field, int id) {
 }
 
 TEST(FrameRing, CarriesObjectIds) {
-    sim::FrameRing ring(64, true);
+    sim::FrameRing ring(64, 1, true);
     ig::RenderedFrame f;
     f.sequence = 1;
     f.intrinsics = ig::Intrinsics::fromFov(8, 8, 1.0, 0);

@@ -102,6 +102,57 @@ if [ -x /vig/flythrough ]; then
     check "flythrough --out v4l2:$out" flythrough --synthetic 256 --contact none --quiet --out "v4l2:$out" --duration 1 --renderer thread
 fi
 
+# The stick reaches the pose the PRP warps each field to without waiting for the renderer: after
+# an edge on the simulated chip, the first field whose stick sample has the line pressed already
+# shows it in its pose (the flight-path angle climbs there, level before), no field logged before
+# the edge was made saw it, and the press counts at most two fields after the field that read the
+# edge from the chip (the 10 ms debounce is less than a field; one more for a field that starts
+# late). Field indices from --field-log, no timings.
+stick_pose_check() {
+    for o in 0 1 2 3 4 5 6; do echo "$o 0" >$gpio; done
+    log=/tmp/fields.jsonl
+    rm -f $log
+    flythrough --synthetic 256 --size 32x24 --margin 4 --renderer thread --render-threads 1 \
+        --contact none --quiet --out null --duration 3 \
+        --stick gpiod:vig-gpio-sim:0,1,2,3,4,5,6 --field-log $log &
+    pid=$!
+    before=0
+    while [ "$before" -lt 40 ] && kill -0 $pid 2>/dev/null; do
+        sleep 0.02
+        before=$(cat $log 2>/dev/null | wc -l)
+    done
+    echo "0 1" >$gpio
+    wait $pid || return 1
+    echo "edge made after $before fields were logged"
+    awk -v before="$before" '
+        function num(text, key) {
+            if (!match(text, "\"" key "\":-?[0-9.e+-]+")) return -1
+            return substr(text, RSTART + length(key) + 3, RLENGTH - length(key) - 3) + 0
+        }
+        {
+            n = num($0, "field"); pitch[n] = num($0, "pitch_deg"); frame[n] = num($0, "frame")
+            if (!match($0, "\"stick\":[{][^}]*[}]")) { print "no stick in field " n; bad = 1 }
+            stick = substr($0, RSTART, RLENGTH)
+            edges[n] = num(stick, "edges"); pressed[n] = num(stick, "pitch") > 0.5
+            if (edges[n] > 0 && readAt == "") readAt = n
+            if (pressed[n] && first == "") first = n
+            last = n
+        }
+        END {
+            if (bad) exit 1
+            if (readAt == "" || first == "") { print "the edge never reached the stick"; exit 1 }
+            for (k = first - 3; k <= first + 1; ++k)
+                if (k >= 0 && k <= last)
+                    printf "field %d  edges %d  pressed %d  pitch %.5f deg  frame %d\n", k, edges[k], pressed[k], pitch[k], frame[k]
+            if (readAt < before || first < before) { print "a field logged before the edge saw it"; exit 1 }
+            if (first > readAt + 2) { print "field " readAt " read the edge, the press counted only at field " first; exit 1 }
+            if (first < 2 || pitch[first - 1] != pitch[first - 2]) { print "not level before the press"; exit 1 }
+            if (!(pitch[first] > pitch[first - 1] + 1e-3)) { print "the pose of field " first " does not show the press"; exit 1 }
+            print "field " readAt " read the edge; the pose climbs from field " first ", the first to sample the press"
+        }' $log
+}
+VIG_TAIL=12 check "flythrough --stick gpiod: an edge shows in the next field's pose" stick_pose_check
+
 echo "VIG-RESULT: $passed passed, $failed failed"
 echo VIG-END
 poweroff -f
