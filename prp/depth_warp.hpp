@@ -84,9 +84,10 @@ class DepthWarp {
     // so a field that takes the depth warp first later allocates nothing.
     void reserve(int frameWidth, int frameHeight, std::size_t fieldPixels);
 
-    // The points the last apply() sampled (field line L's pixel x at [L * field width + x]).
-    const std::int64_t* pointsX() const { return pointX_.data(); }
-    const std::int64_t* pointsY() const { return pointY_.data(); }
+    // The points the last apply() sampled (field line L's pixel x at [L * field width + x];
+    // 16.16 fixed point, as applyPoints takes them).
+    const std::int32_t* pointsX() const { return pointX_.data(); }
+    const std::int32_t* pointsY() const { return pointY_.data(); }
 
   private:
     std::vector<float> depth_;                   // one field: the z-buffer (inverse depths)

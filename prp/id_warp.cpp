@@ -32,13 +32,14 @@ void warpIdsHomography(const IdSource& source, const Homography& sourceFromOutpu
     warpRows(source, ProjectiveRows{sourceFromOutput}, field);
 }
 
-void warpIdsPoints(const IdSource& source, const std::int64_t* xs, const std::int64_t* ys,
+void warpIdsPoints(const IdSource& source, const std::int32_t* xs, const std::int32_t* ys,
                    std::size_t stride, const IdFieldView& field) {
     for (int line = 0; line < field.lines; ++line) {
         const std::size_t at = static_cast<std::size_t>(line) * stride;
         std::uint16_t* __restrict out = field.ids + static_cast<std::size_t>(line) * field.stride;
         for (int x = 0; x < field.width; ++x)
-            out[x] = nearestId(source, xs[at + x], ys[at + x]);
+            out[x] = nearestId(source, static_cast<std::int64_t>(xs[at + x]) * 65536,
+                               static_cast<std::int64_t>(ys[at + x]) * 65536);
     }
 }
 

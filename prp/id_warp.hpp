@@ -46,7 +46,8 @@ void warpIdsQuadratic(const IdSource& source, const Quadratic& sourceFromOutput,
                       const IdFieldView& field);
 void warpIdsHomography(const IdSource& source, const Homography& sourceFromOutput,
                        const IdFieldView& field);
-void warpIdsPoints(const IdSource& source, const std::int64_t* xs, const std::int64_t* ys,
+// Points as applyPoints takes them (16.16 fixed point).
+void warpIdsPoints(const IdSource& source, const std::int32_t* xs, const std::int32_t* ys,
                    std::size_t stride, const IdFieldView& field);
 
 }  // namespace prp
