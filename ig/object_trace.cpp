@@ -57,9 +57,26 @@ void walkGrid(double ox, double oy, double dx, double dy, double baseX, double b
     }
 }
 
+}  // namespace
+
+float faceShade(VoxelFace face) {
+    switch (face) {
+        case VoxelFace::Top:
+            return kFaceShadeTop;
+        case VoxelFace::Bottom:
+            return kFaceShadeBottom;
+        case VoxelFace::X:
+            return kFaceShadeX;
+        case VoxelFace::Y:
+            return kFaceShadeY;
+    }
+    return 1.0f;
+}
+
 // The voxels of one cell entry that the ray meets over [ta, tb] (inside the cell's column).
-void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
-                 const glm::dvec3& d, double ta, double tb, int axis, std::vector<VoxelHit>& hits) {
+void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
+                      const glm::dvec3& d, double ta, double tb, int axis,
+                      std::vector<VoxelHit>& hits) {
     const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
     const double zLo = std::min(zA, zB), zHi = std::max(zA, zB);
     const double h = table.voxelHeight(cell.stick);
@@ -88,43 +105,53 @@ void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dve
     }
 }
 
-}  // namespace
-
-float faceShade(VoxelFace face) {
-    switch (face) {
-        case VoxelFace::Top:
-            return kFaceShadeTop;
-        case VoxelFace::Bottom:
-            return kFaceShadeBottom;
-        case VoxelFace::X:
-            return kFaceShadeX;
-        case VoxelFace::Y:
-            return kFaceShadeY;
+bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out) {
+    const float a = hit.color.a / 255.0f;
+    const float shade = faceShade(hit.face);
+    float c[3] = {hit.color.r * shade, hit.color.g * shade, hit.color.b * shade};
+    applyHaze(sky, c, hit.enter);
+    const float w = out.transmittance * a;
+    for (int i = 0; i < 3; ++i)
+        out.rgb[i] += w * c[i];
+    out.transmittance *= 1.0f - a;
+    if (out.id == 0) {
+        out.id = hit.id;
+        out.depth = hit.enter;
     }
-    return 1.0f;
+    if (out.transmittance < 1.0f / 1024.0f) {
+        out.transmittance = 0.0f;
+        return true;
+    }
+    return false;
 }
 
-void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
-                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
-                  ObjectTraceScratch& scratch, ObjectShading& out) {
-    out = ObjectShading{};
-    if (layers.empty()) return;
-    const ObjectLayer& first = *layers[0];
-    const TerrainMap& map = first.map();
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
+    if (layers.empty()) return false;
+    const TerrainMap& map = layers[0]->map();
     float lo = std::numeric_limits<float>::infinity(), hi = -lo;
     for (const ObjectLayer* l : layers) {
         if (l->empty()) continue;
         lo = std::min(lo, l->minBottom());
         hi = std::max(hi, l->maxTop());
     }
-    if (!(lo <= hi)) return;
+    if (!(lo <= hi)) return false;
     // The ray inside the objects' box: the map's footprint, their height range.
-    double t0 = 0.0, t1 = std::isfinite(tEnd) ? tEnd : kInf;
-    if (!clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) ||
-        !clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) ||
-        !clipSlab(origin.z, dir.z, lo, hi, t0, t1) || !(t0 < t1)) {
-        return;
-    }
+    t0 = 0.0;
+    t1 = std::isfinite(tEnd) ? tEnd : kInf;
+    return clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) &&
+           clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) &&
+           clipSlab(origin.z, dir.z, lo, hi, t0, t1) && t0 < t1;
+}
+
+void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
+                  ObjectTraceScratch& scratch, ObjectShading& out) {
+    out = ObjectShading{};
+    double t0 = 0.0, t1 = 0.0;
+    if (!objectRaySpan(layers, origin, dir, tEnd, t0, t1)) return;
+    const ObjectLayer& first = *layers[0];
+    const TerrainMap& map = first.map();
     const int k = first.subdivision();
     const double csx = first.cellSizeX(), csy = first.cellSizeY();
     const int bw = map.width() - 1, bh = map.height() - 1;
@@ -149,29 +176,13 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                          hits.clear();
                          for (const ObjectLayer* l : layers) {
                              for (const ObjectCell& cell : l->cellsAt(cx, cy))
-                                 collectHits(l->table(), cell, origin, dir, ta, tb, axis, hits);
+                                 collectVoxelHits(l->table(), cell, origin, dir, ta, tb, axis,
+                                                  hits);
                          }
                          if (hits.empty()) return true;
-                         std::sort(hits.begin(), hits.end(),
-                                   [](const VoxelHit& a, const VoxelHit& b) {
-                                       return a.enter < b.enter;
-                                   });
+                         sortHits(hits);
                          for (const VoxelHit& hit : hits) {
-                             const float a = hit.color.a / 255.0f;
-                             const float shade = faceShade(hit.face);
-                             float c[3] = {hit.color.r * shade, hit.color.g * shade,
-                                           hit.color.b * shade};
-                             applyHaze(sky, c, hit.enter);
-                             const float w = out.transmittance * a;
-                             for (int i = 0; i < 3; ++i)
-                                 out.rgb[i] += w * c[i];
-                             out.transmittance *= 1.0f - a;
-                             if (out.id == 0) {
-                                 out.id = hit.id;
-                                 out.depth = hit.enter;
-                             }
-                             if (out.transmittance < 1.0f / 1024.0f) {
-                                 out.transmittance = 0.0f;
+                             if (blendVoxelHit(hit, sky, out)) {
                                  done = true;
                                  return false;
                              }
@@ -180,6 +191,77 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                      });
             return !done;
         });
+}
+
+void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits) {
+    const TerrainMap& map = layer.map();
+    const std::int64_t k = layer.subdivision();
+    const double sx = map.spacingX(), sy = map.spacingY();
+    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
+    // Grid line g of the object grid as traceObjects' walk places it: the terrain cell's edge
+    // plus whole object cells (a terrain cell's own edge where g falls on one).
+    const auto lineX = [&](std::int64_t g) {
+        const std::int64_t b = g / k;
+        return static_cast<double>(b) * sx + static_cast<double>(g - b * k) * csx;
+    };
+    const auto lineY = [&](std::int64_t g) {
+        const std::int64_t b = g / k;
+        return static_cast<double>(b) * sy + static_cast<double>(g - b * k) * csy;
+    };
+    // The ray inside the box, from where it enters it (or t0) to where it leaves its height range.
+    double ta = t0, tz = t1;
+    if (!clipSlab(o.x, d.x, lineX(box.cx0), lineX(box.cx1 + 1), ta, tz) ||
+        !clipSlab(o.y, d.y, lineY(box.cy0), lineY(box.cy1 + 1), ta, tz) ||
+        !clipSlab(o.z, d.z, box.zLo, box.zHi, ta, tz)) {
+        return;
+    }
+    const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
+    const int stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
+    std::int64_t cx =
+        std::clamp(static_cast<std::int64_t>(std::floor((o.x + ta * d.x) / csx)), box.cx0, box.cx1);
+    std::int64_t cy =
+        std::clamp(static_cast<std::int64_t>(std::floor((o.y + ta * d.y) / csy)), box.cy0, box.cy1);
+    // The first cell's entry as the full walk finds it: the later of the grid lines crossed into
+    // it, or t0 (with no side crossed) when the walk starts in it.
+    const double ex = d.x != 0.0 ? (lineX(cx + (d.x < 0.0)) - o.x) * invX : -kInf;
+    const double ey = d.y != 0.0 ? (lineY(cy + (d.y < 0.0)) - o.y) * invY : -kInf;
+    int axis = ex > ey ? 0 : 1;
+    ta = std::max(ex, ey);
+    if (ta <= t0) {
+        ta = t0;
+        axis = -1;
+    }
+    double tx = d.x != 0.0 ? (lineX(cx + (d.x > 0.0)) - o.x) * invX : kInf;
+    double ty = d.y != 0.0 ? (lineY(cy + (d.y > 0.0)) - o.y) * invY : kInf;
+    for (;;) {
+        const double tb = std::min({tx, ty, t1});
+        if (tb >= ta) {
+            const std::span<const ObjectCell> entries = layer.boxCellsAt(box, cx, cy);
+            for (const ObjectCell& cell : entries) {
+                if (cell.id == box.id)
+                    collectVoxelHits(layer.table(), cell, o, d, ta, tb, axis, hits);
+            }
+        }
+        if (tb >= t1 || tb >= tz) return;
+        if (tx <= ty) {
+            cx += stepX;
+            axis = 0;
+            if (cx < box.cx0 || cx > box.cx1) return;
+            tx = (lineX(cx + (d.x > 0.0)) - o.x) * invX;
+        } else {
+            cy += stepY;
+            axis = 1;
+            if (cy < box.cy0 || cy > box.cy1) return;
+            ty = (lineY(cy + (d.y > 0.0)) - o.y) * invY;
+        }
+        ta = tb;
+    }
+}
+
+void sortHits(std::vector<VoxelHit>& hits) {
+    std::sort(hits.begin(), hits.end(),
+              [](const VoxelHit& a, const VoxelHit& b) { return a.enter < b.enter; });
 }
 
 Rgb8 composeOver(const ObjectShading& shading, Rgb8 background) {

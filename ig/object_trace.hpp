@@ -51,6 +51,27 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                   const glm::dvec3& dir, double tEnd, const SkyModel& sky,
                   ObjectTraceScratch& scratch, ObjectShading& out);
 
+// ---- The walk's parts, shared with the footprint pass (ig/object_pass.*) ----------------------
+// The span [t0, t1] traceObjects walks: the ray inside the map's footprint and the layers'
+// height range, up to tEnd; false when empty (or no layer holds anything).
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1);
+// Appends the voxels of `cell` the ray meets over [ta, tb] inside the cell's column, entered
+// across `axis` (0 x, 1 y, -1 none: the walk starts in the cell).
+void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
+                      const glm::dvec3& d, double ta, double tb, int axis,
+                      std::vector<VoxelHit>& hits);
+// Appends the voxels of object `box` (its id's entries only) that the ray meets within
+// [t0, t1] (objectRaySpan's span): the same hits, entries and faces as traceObjects' walk finds
+// in those cells, found by walking the box's cells alone from the one the ray enters first.
+void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits);
+// Sorts hits by entry along the ray.
+void sortHits(std::vector<VoxelHit>& hits);
+// Blends one hit (in order along the ray) into `out`; true when less than 1/1024 of what lies
+// behind still shows (out.transmittance is then 0 and the walk stops).
+bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out);
+
 // `background` seen through `shading`: the background itself (bit for bit) where nothing
 // covers it, else the blend, rounded.
 Rgb8 composeOver(const ObjectShading& shading, Rgb8 background);

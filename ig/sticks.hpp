@@ -116,6 +116,15 @@ struct PlacedObject {
     int cells = 0;     // object cells it covers
 };
 
+// The box of one object's cells in a layer (every cell holding an entry with its id): for
+// drawing objects by their screen footprint (ig/object_pass.*).
+struct ObjectBox {
+    std::int64_t cx0 = 0, cy0 = 0, cx1 = -1, cy1 = -1;  // object cells, inclusive
+    float zLo = 0.0f, zHi = 0.0f;                       // lowest bottom, highest top, metres
+    std::uint16_t id = 0;
+    std::uint32_t rows = 0;  // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
+};
+
 // Objects over one terrain map, on an object grid that divides each terrain cell into k x k
 // object cells (k = spacing / requested cell size, rounded, at least 1), origin at the map's
 // south-west sample. Cells are kept sparse (sorted by cell, several objects may share one);
@@ -151,12 +160,20 @@ class ObjectLayer {
     float maxTop() const { return maxTop_; }
     bool empty() const { return keys_.empty() && entries_.empty(); }
 
+    // One box per object id present (by increasing id), kept by finish().
+    const std::vector<ObjectBox>& boxes() const { return boxes_; }
+    // The entries of object cell (cx, cy), which must lie in `box` (DCHECKed), found from the
+    // box's row index instead of a search of every cell: entries of any id.
+    std::span<const ObjectCell> boxCellsAt(const ObjectBox& box, std::int64_t cx,
+                                           std::int64_t cy) const;
+
     const StickTable& table() const { return table_; }
     const std::vector<PlacedObject>& objects() const { return objects_; }
     std::size_t cellEntries() const { return keys_.size(); }
-    // Bytes of the table, the cell entries and the per-terrain-cell ranges.
+    // Bytes of the table, the cell entries, the boxes and the per-terrain-cell ranges.
     std::size_t bytes() const;
     std::size_t cellBytes() const;
+    std::size_t boxBytes() const;  // the boxes and their row index
 
   private:
     struct Entry {
@@ -170,6 +187,7 @@ class ObjectLayer {
     // placement first uses it (kUnencoded before).
     static constexpr std::uint32_t kUnencoded = 0xfffffffeu;
     std::vector<std::uint32_t>& columns(const ObjectModel& model, double scale);
+    void indexBoxes();
     std::uint32_t column(const ObjectModel& model, double scale, std::vector<std::uint32_t>& cols,
                          int x, int y);
 
@@ -184,6 +202,9 @@ class ObjectLayer {
     std::vector<float> blockLo_, blockHi_;
     float minBottom_ = 0.0f, maxTop_ = 0.0f;
     std::vector<PlacedObject> objects_;
+    std::vector<ObjectBox> boxes_;
+    std::vector<std::uint32_t> rowStarts_;  // per box row: first entry at or after its cx0
+    std::size_t maxPerCell_ = 0;            // most entries any one cell holds
     std::unordered_map<std::string, std::vector<std::uint32_t>> columnCache_;
     bool finished_ = true;
 };
