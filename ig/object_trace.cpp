@@ -260,8 +260,13 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
 }
 
 void sortHits(std::vector<VoxelHit>& hits) {
-    std::sort(hits.begin(), hits.end(),
-              [](const VoxelHit& a, const VoxelHit& b) { return a.enter < b.enter; });
+    for (std::size_t i = 0; i < hits.size(); ++i)
+        hits[i].seq = static_cast<std::uint32_t>(i);
+    std::sort(hits.begin(), hits.end(), [](const VoxelHit& a, const VoxelHit& b) {
+        if (a.enter != b.enter) return a.enter < b.enter;
+        if (a.id != b.id) return a.id < b.id;
+        return a.seq < b.seq;
+    });
 }
 
 Rgb8 composeOver(const ObjectShading& shading, Rgb8 background) {

@@ -27,6 +27,7 @@ struct VoxelHit {
     Rgba8 color;
     VoxelFace face = VoxelFace::Top;
     std::uint16_t id = 0;
+    std::uint32_t seq = 0;  // position when collected (sortHits' last key)
 };
 
 // What the objects in front of a background make of a pixel.
@@ -66,7 +67,8 @@ void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm
 // in those cells, found by walking the box's cells alone from the one the ray enters first.
 void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
                     const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits);
-// Sorts hits by entry along the ray.
+// Sorts hits by entry along the ray; voxels entered at the same point (objects sharing a cell)
+// by id, then in the order collected: the same order however the hits were gathered.
 void sortHits(std::vector<VoxelHit>& hits);
 // Blends one hit (in order along the ray) into `out`; true when less than 1/1024 of what lies
 // behind still shows (out.transmittance is then 0 and the walk stops).

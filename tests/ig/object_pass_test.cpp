@@ -333,6 +333,36 @@ TEST(ObjectPass, OneVoxelMastIsDrawnAtEveryPitch) {
     }
 }
 
+// Objects overlapping in the same cells: their voxels are entered at the same points, and the
+// pass must order them as the reference does (by id), whichever box it walks first.
+TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
+    const TerrainMap map = flatMap();
+    const ObjectModel& tree = shippedModels()[0];
+    const ObjectModel& leaves = shippedModels()[1];
+    ObjectLayer layer(map, 0.5);
+    // Placed in decreasing id order, each pair on one spot with different headings.
+    for (int i = 0; i < 6; ++i) {
+        const double x = 300.0 + 7.0 * i, y = 330.0 + 3.0 * (i % 2);
+        layer.place(i % 2 ? leaves : tree,
+                    Placement{static_cast<std::uint16_t>(40 - 2 * i), x, y, 100.0, 0.3 * i, 0.5});
+        layer.place(tree, Placement{static_cast<std::uint16_t>(39 - 2 * i), x, y, 100.0,
+                                    0.3 * i + 0.8, 0.5});
+    }
+    layer.finish();
+    const Intrinsics in = Intrinsics::fromFov(160, 120, degToRad(40.0));
+    for (const double pitchDeg : {0.0, -20.0, -60.0}) {
+        Pose pose;
+        pose.position = pitchDeg > -30.0 ? glm::dvec3{318.0, 300.0, 108.0 - pitchDeg}
+                                         : glm::dvec3{318.0, 318.0, 140.0};
+        pose.pitch = degToRad(pitchDeg);
+        const RenderedFrame ref = renderWith(map, {}, CasterKind::Reference, &layer, pose, in);
+        const RenderedFrame got = renderWith(map, {}, CasterKind::Fast, &layer, pose, in);
+        EXPECT_GT(ref.objectId.size() - pixelsOf(ref, 0), 1000u) << "pitch " << pitchDeg;
+        EXPECT_EQ(got.objectId, ref.objectId) << "pitch " << pitchDeg;
+        EXPECT_TRUE(got.color == ref.color) << "pitch " << pitchDeg;
+    }
+}
+
 TEST(ObjectPass, ObjectBehindARidgeHasNoPixel) {
     ObjectModel box;
     box.name = "box";
