@@ -27,6 +27,8 @@ constexpr int kTile = 32;  // pixels on a side of a tile
 constexpr double kNear = 1e-6;
 // Height added above and below each box: its range is float, the voxels' heights double.
 constexpr double kBoxPad = 1e-3;
+// Pixels added around a box's projection (a fraction of one).
+constexpr double kMargin = 1e-3;
 
 // One box's pixel rectangle (inclusive), and which box it is.
 struct Footprint {
@@ -88,9 +90,10 @@ bool footprint(const ObjectLayer& layer, const ObjectBox& box, const Camera& cam
             add(glm::dvec3{a.x + s * (b.x - a.x), a.y + s * (b.y - a.y), kNear});
         }
     }
-    // Pixel x has its centre at x + 0.5; one pixel of margin for the rounding of both sides.
-    const double fx0 = std::ceil(u0 - 1.5), fx1 = std::floor(u1 + 0.5);
-    const double fy0 = std::ceil(v0 - 1.5), fy1 = std::floor(v1 + 0.5);
+    // Pixel x has its centre at x + 0.5; a margin of kMargin for the rounding of the
+    // projection and of the rays (both exact to about 1e-12 pixel).
+    const double fx0 = std::ceil(u0 - 0.5 - kMargin), fx1 = std::floor(u1 - 0.5 + kMargin);
+    const double fy0 = std::ceil(v0 - 0.5 - kMargin), fy1 = std::floor(v1 - 0.5 + kMargin);
     if (!(fx1 >= cx0 && fx0 < cx1 && fy1 >= 0.0 && fy0 < h)) return false;
     out.x0 = static_cast<int>(std::max<double>(fx0, cx0));
     out.x1 = static_cast<int>(std::min<double>(fx1, cx1 - 1));
@@ -104,7 +107,27 @@ struct TileScratch {
     std::vector<std::uint32_t> start;  // per pixel of the tile + 1: its first footprint
     std::vector<std::uint32_t> list;   // footprints by pixel
     std::vector<VoxelHit> hits;
+    std::vector<std::pair<double, std::uint32_t>> order;  // a pixel's boxes by entry
 };
+
+// Where the ray enters box `b` of `layer` within [t0, t1] (its cells' columns and height
+// range); +inf when it misses.
+double boxEntry(const ObjectLayer& layer, std::uint32_t b, const TerrainRay& ray, double t0,
+                double t1) {
+    const ObjectBox& box = layer.boxes()[b];
+    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
+    // A cell wider than the box's grid lines by rounding only: the walk finds the exact ones.
+    const double pad = 1e-6 * std::max(layer.map().extentX(), layer.map().extentY());
+    double ta = t0, tb = t1;
+    if (!clipSlab(ray.origin.x, ray.dir.x, static_cast<double>(box.cx0) * csx - pad,
+                  static_cast<double>(box.cx1 + 1) * csx + pad, ta, tb) ||
+        !clipSlab(ray.origin.y, ray.dir.y, static_cast<double>(box.cy0) * csy - pad,
+                  static_cast<double>(box.cy1 + 1) * csy + pad, ta, tb) ||
+        !clipSlab(ray.origin.z, ray.dir.z, box.zLo - 2 * kBoxPad, box.zHi + 2 * kBoxPad, ta, tb)) {
+        return INFINITY;
+    }
+    return ta;
+}
 
 }  // namespace
 
@@ -189,12 +212,23 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
                 const TerrainRay ray(map, eye, camera.rayDirection(x + 0.5, y + 0.5));
                 double t0, t1;
                 if (!objectRaySpan(layers, ray.origin, ray.dir, frame.depth[idx], t0, t1)) continue;
-                s.hits.clear();
+                // The boxes in the order the ray enters them, walked until one opaque voxel
+                // hides the rest.
+                s.order.clear();
                 for (std::uint32_t i = s.start[p]; i < s.start[p + 1]; ++i) {
                     const Footprint& f = feet[s.list[i]];
+                    const double enter = boxEntry(*layers[f.layer], f.box, ray, t0, t1);
+                    if (enter <= t1) s.order.push_back({enter, s.list[i]});
+                }
+                std::sort(s.order.begin(), s.order.end());
+                s.hits.clear();
+                double cutoff = t1;
+                for (const auto& [enter, fi] : s.order) {
+                    if (enter > cutoff) break;
+                    const Footprint& f = feet[fi];
                     const ObjectLayer& layer = *layers[f.layer];
-                    collectBoxHits(layer, layer.boxes()[f.box], ray.origin, ray.dir, t0, t1,
-                                   s.hits);
+                    collectBoxHits(layer, layer.boxes()[f.box], ray.origin, ray.dir, t0, t1, s.hits,
+                                   cutoff);
                 }
                 if (s.hits.empty()) continue;
                 sortHits(s.hits);

@@ -12,7 +12,7 @@ namespace ig {
 // Draws `layers` (all on one map and object grid) over columns [x0, x1) of `frame`, whose colour
 // and depth hold the terrain seen through each pixel centre (depth +inf for sky) and whose
 // objectId holds width * height zeros (CHECKed). Every pixel whose centre ray may meet an
-// object's box (its cells and height range, projected; one pixel of margin) walks the cells of
+// object's box (its cells and height range, projected) walks the cells of
 // those boxes up to the pixel's depth and composes the voxels it meets front to back over the
 // terrain colour: the colour, id and depth traceObjects gives for the same ray and depth. Other
 // pixels are left bit for bit. Rows of tiles go to the library's workers when `parallel` (call

@@ -13,6 +13,9 @@ namespace ig {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Height added above and below an object's box when the ray is clipped to it: the box's range
+// is float, its voxels' heights double.
+constexpr double kBoxPad = 1e-3;
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -194,7 +197,8 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
 }
 
 void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
-                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits) {
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits,
+                    double& cutoff) {
     const TerrainMap& map = layer.map();
     const std::int64_t k = layer.subdivision();
     const double sx = map.spacingX(), sy = map.spacingY();
@@ -213,7 +217,7 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     double ta = t0, tz = t1;
     if (!clipSlab(o.x, d.x, lineX(box.cx0), lineX(box.cx1 + 1), ta, tz) ||
         !clipSlab(o.y, d.y, lineY(box.cy0), lineY(box.cy1 + 1), ta, tz) ||
-        !clipSlab(o.z, d.z, box.zLo, box.zHi, ta, tz)) {
+        !clipSlab(o.z, d.z, box.zLo - kBoxPad, box.zHi + kBoxPad, ta, tz)) {
         return;
     }
     const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
@@ -235,13 +239,17 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     double tx = d.x != 0.0 ? (lineX(cx + (d.x > 0.0)) - o.x) * invX : kInf;
     double ty = d.y != 0.0 ? (lineY(cy + (d.y > 0.0)) - o.y) * invY : kInf;
     for (;;) {
+        if (ta > cutoff) return;  // behind an opaque voxel already found
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta) {
             const std::span<const ObjectCell> entries = layer.boxCellsAt(box, cx, cy);
+            const std::size_t before = hits.size();
             for (const ObjectCell& cell : entries) {
                 if (cell.id == box.id)
                     collectVoxelHits(layer.table(), cell, o, d, ta, tb, axis, hits);
             }
+            for (std::size_t i = before; i < hits.size(); ++i)
+                if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
         }
         if (tb >= t1 || tb >= tz) return;
         if (tx <= ty) {

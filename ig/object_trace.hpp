@@ -65,8 +65,11 @@ void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm
 // Appends the voxels of object `box` (its id's entries only) that the ray meets within
 // [t0, t1] (objectRaySpan's span): the same hits, entries and faces as traceObjects' walk finds
 // in those cells, found by walking the box's cells alone from the one the ray enters first.
+// `cutoff`: no cell entered beyond it is walked (nothing there can show); lowered to the entry
+// of every opaque voxel found. Start it at t1 and pass it on from box to box.
 void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
-                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits);
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits,
+                    double& cutoff);
 // Sorts hits by entry along the ray; voxels entered at the same point (objects sharing a cell)
 // by id, then in the order collected: the same order however the hits were gathered.
 void sortHits(std::vector<VoxelHit>& hits);
