@@ -85,10 +85,11 @@ void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm
     const double h = table.voxelHeight(cell.stick);
     const int runs = table.runCount(cell.stick);
     const VoxelFace side = axis == 1 ? VoxelFace::Y : VoxelFace::X;
-    for (int r = 0; r < runs; ++r) {
-        const StickRun run = table.run(cell.stick, r);
+    StickRun run = table.firstRun(cell.stick);
+    for (int r = 0; r < runs; ++r, run = r < runs ? StickTable::nextRun(run) : run) {
         const double runLo = cell.baseZ + run.first * h, runHi = runLo + run.count * h;
-        if (zHi < runLo || zLo > runHi) continue;
+        if (zHi < runLo) break;  // this run and every one above it
+        if (zLo > runHi) continue;
         const double last = run.count - 1;
         const int k0 = static_cast<int>(std::clamp(std::floor((zLo - runLo) / h), 0.0, last));
         const int k1 = static_cast<int>(std::clamp(std::floor((zHi - runLo) / h), 0.0, last));
@@ -203,50 +204,64 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     const std::int64_t k = layer.subdivision();
     const double sx = map.spacingX(), sy = map.spacingY();
     const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
-    // Grid line g of the object grid as traceObjects' walk places it: the terrain cell's edge
-    // plus whole object cells (a terrain cell's own edge where g falls on one).
-    const auto lineX = [&](std::int64_t g) {
-        const std::int64_t b = g / k;
-        return static_cast<double>(b) * sx + static_cast<double>(g - b * k) * csx;
+    // Grid line l of terrain cell b, as traceObjects' walk places it: the terrain cell's edge
+    // plus whole object cells (the next terrain cell's own edge for l = k).
+    const auto line = [k](std::int64_t b, std::int64_t l, double spacing, double cell) {
+        if (l == k) {
+            ++b;
+            l = 0;
+        }
+        return static_cast<double>(b) * spacing + static_cast<double>(l) * cell;
     };
-    const auto lineY = [&](std::int64_t g) {
-        const std::int64_t b = g / k;
-        return static_cast<double>(b) * sy + static_cast<double>(g - b * k) * csy;
+    const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
+    const auto clip = [](double oc, double dc, double inv, double lo, double hi, double& a,
+                         double& b) {
+        if (dc == 0.0) return oc >= lo && oc <= hi;
+        double ta = (lo - oc) * inv, tb = (hi - oc) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        a = std::max(a, ta);
+        b = std::min(b, tb);
+        return a <= b;
     };
-    // The ray inside the box, from where it enters it (or t0) to where it leaves its height range.
+    // The ray inside the box, from where it enters it (or t0) to where it leaves its height
+    // range (the box padded: the walk below finds the exact cells).
+    const double padX = 1e-9 * sx, padY = 1e-9 * sy;
     double ta = t0, tz = t1;
-    if (!clipSlab(o.x, d.x, lineX(box.cx0), lineX(box.cx1 + 1), ta, tz) ||
-        !clipSlab(o.y, d.y, lineY(box.cy0), lineY(box.cy1 + 1), ta, tz) ||
+    if (!clip(o.x, d.x, invX, static_cast<double>(box.cx0) * csx - padX,
+              static_cast<double>(box.cx1 + 1) * csx + padX, ta, tz) ||
+        !clip(o.y, d.y, invY, static_cast<double>(box.cy0) * csy - padY,
+              static_cast<double>(box.cy1 + 1) * csy + padY, ta, tz) ||
         !clipSlab(o.z, d.z, box.zLo - kBoxPad, box.zHi + kBoxPad, ta, tz)) {
         return;
     }
-    const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
     const int stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
+    const std::int64_t upX = d.x > 0.0, upY = d.y > 0.0;
     std::int64_t cx =
         std::clamp(static_cast<std::int64_t>(std::floor((o.x + ta * d.x) / csx)), box.cx0, box.cx1);
     std::int64_t cy =
         std::clamp(static_cast<std::int64_t>(std::floor((o.y + ta * d.y) / csy)), box.cy0, box.cy1);
+    // The cells as (terrain cell, object cell within it), stepped without dividing.
+    std::int64_t bx = cx / k, lx = cx - bx * k, by = cy / k, ly = cy - by * k;
     // The first cell's entry as the full walk finds it: the later of the grid lines crossed into
     // it, or t0 (with no side crossed) when the walk starts in it.
-    const double ex = d.x != 0.0 ? (lineX(cx + (d.x < 0.0)) - o.x) * invX : -kInf;
-    const double ey = d.y != 0.0 ? (lineY(cy + (d.y < 0.0)) - o.y) * invY : -kInf;
+    const double ex = d.x != 0.0 ? (line(bx, lx + 1 - upX, sx, csx) - o.x) * invX : -kInf;
+    const double ey = d.y != 0.0 ? (line(by, ly + 1 - upY, sy, csy) - o.y) * invY : -kInf;
     int axis = ex > ey ? 0 : 1;
     ta = std::max(ex, ey);
     if (ta <= t0) {
         ta = t0;
         axis = -1;
     }
-    double tx = d.x != 0.0 ? (lineX(cx + (d.x > 0.0)) - o.x) * invX : kInf;
-    double ty = d.y != 0.0 ? (lineY(cy + (d.y > 0.0)) - o.y) * invY : kInf;
+    double tx = d.x != 0.0 ? (line(bx, lx + upX, sx, csx) - o.x) * invX : kInf;
+    double ty = d.y != 0.0 ? (line(by, ly + upY, sy, csy) - o.y) * invY : kInf;
+    const StickTable& table = layer.table();
     for (;;) {
         if (ta > cutoff) return;  // behind an opaque voxel already found
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta) {
-            const std::span<const ObjectCell> entries = layer.boxCellsAt(box, cx, cy);
             const std::size_t before = hits.size();
-            for (const ObjectCell& cell : entries) {
-                if (cell.id == box.id)
-                    collectVoxelHits(layer.table(), cell, o, d, ta, tb, axis, hits);
+            for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
+                if (cell.id == box.id) collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
             }
             for (std::size_t i = before; i < hits.size(); ++i)
                 if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
@@ -256,12 +271,28 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
             cx += stepX;
             axis = 0;
             if (cx < box.cx0 || cx > box.cx1) return;
-            tx = (lineX(cx + (d.x > 0.0)) - o.x) * invX;
+            lx += stepX;
+            if (lx == k) {
+                ++bx;
+                lx = 0;
+            } else if (lx < 0) {
+                --bx;
+                lx = k - 1;
+            }
+            tx = (line(bx, lx + upX, sx, csx) - o.x) * invX;
         } else {
             cy += stepY;
             axis = 1;
             if (cy < box.cy0 || cy > box.cy1) return;
-            ty = (lineY(cy + (d.y > 0.0)) - o.y) * invY;
+            ly += stepY;
+            if (ly == k) {
+                ++by;
+                ly = 0;
+            } else if (ly < 0) {
+                --by;
+                ly = k - 1;
+            }
+            ty = (line(by, ly + upY, sy, csy) - o.y) * invY;
         }
         ta = tb;
     }

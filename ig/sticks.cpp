@@ -229,14 +229,12 @@ void ObjectLayer::finish() {
 }
 
 void ObjectLayer::indexBoxes() {
-    // Each id's cell range and height range, then each box row's first entry.
+    // Each id's cell range and height range, then each box row's first entry and each box
+    // cell's first entry (from a walk along the row's sorted keys).
     std::vector<std::int32_t> boxOf(65536, -1);
     boxes_.clear();
-    maxPerCell_ = 0;
     const auto nx = static_cast<std::uint64_t>(nx_);
-    for (std::size_t i = 0, run = 0; i < keys_.size(); ++i) {
-        run = i > 0 && keys_[i] == keys_[i - 1] ? run + 1 : 1;
-        maxPerCell_ = std::max(maxPerCell_, run);
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
         const ObjectCell& c = cells_[i];
         const auto cx = static_cast<std::int64_t>(keys_[i] % nx);
         const auto cy = static_cast<std::int64_t>(keys_[i] / nx);
@@ -244,7 +242,7 @@ void ObjectLayer::indexBoxes() {
         std::int32_t& b = boxOf[c.id];
         if (b < 0) {
             b = static_cast<std::int32_t>(boxes_.size());
-            boxes_.push_back(ObjectBox{cx, cy, cx, cy, lo, hi, c.id, 0});
+            boxes_.push_back(ObjectBox{cx, cy, cx, cy, lo, hi, c.id, 0, 0});
             continue;
         }
         ObjectBox& box = boxes_[static_cast<std::size_t>(b)];
@@ -258,33 +256,31 @@ void ObjectLayer::indexBoxes() {
     std::sort(boxes_.begin(), boxes_.end(),
               [](const ObjectBox& a, const ObjectBox& b) { return a.id < b.id; });
     rowStarts_.clear();
+    cellOffsets_.clear();
     for (ObjectBox& box : boxes_) {
         box.rows = static_cast<std::uint32_t>(rowStarts_.size());
+        box.cells = static_cast<std::uint32_t>(cellOffsets_.size());
+        bool fits = true;
         for (std::int64_t cy = box.cy0; cy <= box.cy1; ++cy) {
-            const std::uint64_t key =
-                static_cast<std::uint64_t>(cy) * nx + static_cast<std::uint64_t>(box.cx0);
-            rowStarts_.push_back(static_cast<std::uint32_t>(
-                std::lower_bound(keys_.begin(), keys_.end(), key) - keys_.begin()));
+            const std::uint64_t row = static_cast<std::uint64_t>(cy) * nx;
+            const auto start = static_cast<std::size_t>(
+                std::lower_bound(keys_.begin(), keys_.end(),
+                                 row + static_cast<std::uint64_t>(box.cx0)) -
+                keys_.begin());
+            rowStarts_.push_back(static_cast<std::uint32_t>(start));
+            std::size_t i = start;
+            for (std::int64_t cx = box.cx0; cx <= box.cx1; ++cx) {
+                while (i < keys_.size() && keys_[i] < row + static_cast<std::uint64_t>(cx))
+                    ++i;
+                fits = fits && i - start <= 0xffffu;
+                cellOffsets_.push_back(static_cast<std::uint16_t>(i - start));
+            }
+        }
+        if (!fits) {
+            cellOffsets_.resize(box.cells);
+            box.cells = kNoCellIndex;
         }
     }
-}
-
-std::span<const ObjectCell> ObjectLayer::boxCellsAt(const ObjectBox& box, std::int64_t cx,
-                                                    std::int64_t cy) const {
-    DCHECK(finished_);
-    DCHECK(cx >= box.cx0 && cx <= box.cx1 && cy >= box.cy0 && cy <= box.cy1);
-    // The entries of the row from cx0 to cx number at most (cx - cx0 + 1) * maxPerCell_.
-    const std::size_t begin = rowStarts_[box.rows + static_cast<std::size_t>(cy - box.cy0)];
-    const std::size_t bound =
-        std::min(keys_.size(), begin + static_cast<std::size_t>(cx - box.cx0 + 1) * maxPerCell_);
-    const std::uint64_t key = static_cast<std::uint64_t>(cy) * static_cast<std::uint64_t>(nx_) +
-                              static_cast<std::uint64_t>(cx);
-    const std::uint64_t* keys = keys_.data();
-    const std::uint64_t* it = std::lower_bound(keys + begin, keys + bound, key);
-    const std::uint64_t* end = it;
-    while (end != keys + bound && *end == key)
-        ++end;
-    return {cells_.data() + (it - keys), static_cast<std::size_t>(end - it)};
 }
 
 std::span<const ObjectCell> ObjectLayer::cellsAt(std::int64_t cx, std::int64_t cy) const {
@@ -303,7 +299,8 @@ std::size_t ObjectLayer::cellBytes() const {
 }
 
 std::size_t ObjectLayer::boxBytes() const {
-    return boxes_.size() * sizeof(ObjectBox) + rowStarts_.size() * sizeof(std::uint32_t);
+    return boxes_.size() * sizeof(ObjectBox) + rowStarts_.size() * sizeof(std::uint32_t) +
+           cellOffsets_.size() * sizeof(std::uint16_t);
 }
 
 std::size_t ObjectLayer::bytes() const {

@@ -363,6 +363,33 @@ TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
     }
 }
 
+// 300 walls of one voxel's depth on one row of cells: each wall's cells hold 300 entries, more
+// than a box's 16-bit cell index counts, so the boxes search their rows instead.
+TEST(ObjectPass, CrowdedRowsSearchedWithoutTheCellIndex) {
+    const TerrainMap map = flatMap();
+    ObjectModel wall;
+    wall.name = "wall";
+    wall.grid = VoxModel(256, 1, 4);
+    wall.palette = defaultVoxPalette();
+    for (int z = 0; z < 4; ++z)
+        for (int x = 0; x < 256; ++x)
+            wall.grid.set(x, 0, z, static_cast<std::uint8_t>(1 + (x + z) % 250));
+    ObjectLayer layer(map, 0.5);
+    for (int i = 0; i < 300; ++i)
+        layer.place(
+            wall, Placement{static_cast<std::uint16_t>(1000 - i), 320.0, 320.25, 100.0, 0.0, 0.5});
+    layer.finish();
+    Pose pose;
+    pose.position = {320.0, 300.0, 104.0};
+    pose.pitch = degToRad(-5.0);
+    const Intrinsics in = Intrinsics::fromFov(64, 48, degToRad(60.0));
+    const RenderedFrame ref = renderWith(map, {}, CasterKind::Reference, &layer, pose, in);
+    const RenderedFrame got = renderWith(map, {}, CasterKind::Fast, &layer, pose, in);
+    EXPECT_GT(pixelsOf(ref, 701), 100u);  // the lowest id, first of the voxels entered together
+    EXPECT_EQ(got.objectId, ref.objectId);
+    EXPECT_TRUE(got.color == ref.color);
+}
+
 TEST(ObjectPass, ObjectBehindARidgeHasNoPixel) {
     ObjectModel box;
     box.name = "box";
