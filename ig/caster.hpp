@@ -74,8 +74,9 @@ struct RenderOptions {
     double spanMaxStretch = 2.0;
     // Voxel objects drawn over the terrain (not owned; all on the caster's map and one object
     // grid): the static layer, and the moving objects stamped at the frame's instant. Drawn by
-    // the reference and naive casters, which then fill the frame's object-id image; empty: no
-    // objects, and the images are the terrain's alone, bit for bit.
+    // every caster (the fast and span ones in a pass after their terrain, ig/object_pass.hpp),
+    // which then fills the frame's object-id image; empty: no objects, and the images are the
+    // terrain's alone, bit for bit.
     std::vector<const ObjectLayer*> objects;
     // Sun lighting applied to each finished frame (ig/lighting_pass.hpp): the casters then draw
     // the map's colours as albedo and light them by the sun at the frame's time. Null: the

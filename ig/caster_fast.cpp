@@ -21,6 +21,7 @@
 #include "ig/level0_march.hpp"
 #include "ig/multires_march.hpp"
 #include "ig/node_skip.hpp"
+#include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 #include "ig/slope_bound.hpp"
@@ -96,11 +97,13 @@ class FastCaster final : public Caster {
         checkRoll(camera);
         const int units = workUnits(camera);
         tbb::combinable<UnitCounters> counters;
+        frame.objectId.clear();  // the units draw terrain; the objects follow in one pass
         runWithThreads(options_.threads, [&] {
             // The image is a pool of columns (or groups of four); idle workers take the next.
             // Each is independent, so the image does not depend on the thread count.
             tbb::parallel_for(0, units,
                               [&](int unit) { renderUnit(camera, frame, unit, counters.local()); });
+            drawObjectsOverTerrain(options_.objects, options_.sky, camera, frame);
         });
         const UnitCounters total = counters.combine([](UnitCounters a, UnitCounters b) {
             return UnitCounters{a.steps + b.steps, a.restarts + b.restarts};
@@ -149,6 +152,10 @@ class FastCaster final : public Caster {
                          1.0 / scale,
                          (map_.maxHeight() - offset) / scale};
         (this->*renderUnit_)(mv, camera, d0, unit, frame, counters);
+        if (!options_.objects.empty() && !frame.objectId.empty()) {  // a frame drawn by units
+            const auto [x0, x1] = unitColumns(camera, unit);
+            drawObjects(options_.objects, options_.sky, camera, frame, x0, x1, false);
+        }
     }
 
   private:

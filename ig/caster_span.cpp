@@ -14,6 +14,7 @@
 #include "base/check.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
+#include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 
@@ -142,6 +143,7 @@ class SpanCaster final : public Caster {
                              ": expected 1..16");
         }
         RenderOptions fast = options_;
+        fast.objects.clear();  // drawn by this caster over either path's terrain
         fast.levels = options_.levels == 0 ? kLevelsAuto : options_.levels;
         pyramid_ = std::make_shared<const TerrainPyramid>(map, fast.levels);
         // Built now, on the span caster's pyramid: a steep frame in flight neither waits for a
@@ -183,10 +185,13 @@ class SpanCaster final : public Caster {
         if (!(stretch <= options_.spanMaxStretch)) {
             frame.stats.path = "fast";
             fallback_.renderUnitsInto(camera, frame, counters);
-            return;
+        } else {
+            frame.stats.path = "span";
+            renderSpans(camera, frame, counters);
         }
-        frame.stats.path = "span";
-        renderSpans(camera, frame, counters);
+        runWithThreads(options_.threads, [&] {
+            drawObjectsOverTerrain(options_.objects, options_.sky, camera, frame);
+        });
     }
 
   private:

@@ -13,6 +13,9 @@ namespace ig {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Height added above and below an object's box when the ray is clipped to it: the box's range
+// is float, its voxels' heights double.
+constexpr double kBoxPad = 1e-3;
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -57,18 +60,36 @@ void walkGrid(double ox, double oy, double dx, double dy, double baseX, double b
     }
 }
 
+}  // namespace
+
+float faceShade(VoxelFace face) {
+    switch (face) {
+        case VoxelFace::Top:
+            return kFaceShadeTop;
+        case VoxelFace::Bottom:
+            return kFaceShadeBottom;
+        case VoxelFace::X:
+            return kFaceShadeX;
+        case VoxelFace::Y:
+            return kFaceShadeY;
+    }
+    return 1.0f;
+}
+
 // The voxels of one cell entry that the ray meets over [ta, tb] (inside the cell's column).
-void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
-                 const glm::dvec3& d, double ta, double tb, int axis, std::vector<VoxelHit>& hits) {
+void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
+                      const glm::dvec3& d, double ta, double tb, int axis,
+                      std::vector<VoxelHit>& hits) {
     const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
     const double zLo = std::min(zA, zB), zHi = std::max(zA, zB);
     const double h = table.voxelHeight(cell.stick);
     const int runs = table.runCount(cell.stick);
     const VoxelFace side = axis == 1 ? VoxelFace::Y : VoxelFace::X;
-    for (int r = 0; r < runs; ++r) {
-        const StickRun run = table.run(cell.stick, r);
+    StickRun run = table.firstRun(cell.stick);
+    for (int r = 0; r < runs; ++r, run = r < runs ? StickTable::nextRun(run) : run) {
         const double runLo = cell.baseZ + run.first * h, runHi = runLo + run.count * h;
-        if (zHi < runLo || zLo > runHi) continue;
+        if (zHi < runLo) break;  // this run and every one above it
+        if (zLo > runHi) continue;
         const double last = run.count - 1;
         const int k0 = static_cast<int>(std::clamp(std::floor((zLo - runLo) / h), 0.0, last));
         const int k1 = static_cast<int>(std::clamp(std::floor((zHi - runLo) / h), 0.0, last));
@@ -88,43 +109,53 @@ void collectHits(const StickTable& table, const ObjectCell& cell, const glm::dve
     }
 }
 
-}  // namespace
-
-float faceShade(VoxelFace face) {
-    switch (face) {
-        case VoxelFace::Top:
-            return kFaceShadeTop;
-        case VoxelFace::Bottom:
-            return kFaceShadeBottom;
-        case VoxelFace::X:
-            return kFaceShadeX;
-        case VoxelFace::Y:
-            return kFaceShadeY;
+bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out) {
+    const float a = hit.color.a / 255.0f;
+    const float shade = faceShade(hit.face);
+    float c[3] = {hit.color.r * shade, hit.color.g * shade, hit.color.b * shade};
+    applyHaze(sky, c, hit.enter);
+    const float w = out.transmittance * a;
+    for (int i = 0; i < 3; ++i)
+        out.rgb[i] += w * c[i];
+    out.transmittance *= 1.0f - a;
+    if (out.id == 0) {
+        out.id = hit.id;
+        out.depth = hit.enter;
     }
-    return 1.0f;
+    if (out.transmittance < 1.0f / 1024.0f) {
+        out.transmittance = 0.0f;
+        return true;
+    }
+    return false;
 }
 
-void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
-                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
-                  ObjectTraceScratch& scratch, ObjectShading& out) {
-    out = ObjectShading{};
-    if (layers.empty()) return;
-    const ObjectLayer& first = *layers[0];
-    const TerrainMap& map = first.map();
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
+    if (layers.empty()) return false;
+    const TerrainMap& map = layers[0]->map();
     float lo = std::numeric_limits<float>::infinity(), hi = -lo;
     for (const ObjectLayer* l : layers) {
         if (l->empty()) continue;
         lo = std::min(lo, l->minBottom());
         hi = std::max(hi, l->maxTop());
     }
-    if (!(lo <= hi)) return;
+    if (!(lo <= hi)) return false;
     // The ray inside the objects' box: the map's footprint, their height range.
-    double t0 = 0.0, t1 = std::isfinite(tEnd) ? tEnd : kInf;
-    if (!clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) ||
-        !clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) ||
-        !clipSlab(origin.z, dir.z, lo, hi, t0, t1) || !(t0 < t1)) {
-        return;
-    }
+    t0 = 0.0;
+    t1 = std::isfinite(tEnd) ? tEnd : kInf;
+    return clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) &&
+           clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) &&
+           clipSlab(origin.z, dir.z, lo, hi, t0, t1) && t0 < t1;
+}
+
+void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                  const glm::dvec3& dir, double tEnd, const SkyModel& sky,
+                  ObjectTraceScratch& scratch, ObjectShading& out) {
+    out = ObjectShading{};
+    double t0 = 0.0, t1 = 0.0;
+    if (!objectRaySpan(layers, origin, dir, tEnd, t0, t1)) return;
+    const ObjectLayer& first = *layers[0];
+    const TerrainMap& map = first.map();
     const int k = first.subdivision();
     const double csx = first.cellSizeX(), csy = first.cellSizeY();
     const int bw = map.width() - 1, bh = map.height() - 1;
@@ -149,29 +180,13 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                          hits.clear();
                          for (const ObjectLayer* l : layers) {
                              for (const ObjectCell& cell : l->cellsAt(cx, cy))
-                                 collectHits(l->table(), cell, origin, dir, ta, tb, axis, hits);
+                                 collectVoxelHits(l->table(), cell, origin, dir, ta, tb, axis,
+                                                  hits);
                          }
                          if (hits.empty()) return true;
-                         std::sort(hits.begin(), hits.end(),
-                                   [](const VoxelHit& a, const VoxelHit& b) {
-                                       return a.enter < b.enter;
-                                   });
+                         sortHits(hits);
                          for (const VoxelHit& hit : hits) {
-                             const float a = hit.color.a / 255.0f;
-                             const float shade = faceShade(hit.face);
-                             float c[3] = {hit.color.r * shade, hit.color.g * shade,
-                                           hit.color.b * shade};
-                             applyHaze(sky, c, hit.enter);
-                             const float w = out.transmittance * a;
-                             for (int i = 0; i < 3; ++i)
-                                 out.rgb[i] += w * c[i];
-                             out.transmittance *= 1.0f - a;
-                             if (out.id == 0) {
-                                 out.id = hit.id;
-                                 out.depth = hit.enter;
-                             }
-                             if (out.transmittance < 1.0f / 1024.0f) {
-                                 out.transmittance = 0.0f;
+                             if (blendVoxelHit(hit, sky, out)) {
                                  done = true;
                                  return false;
                              }
@@ -180,6 +195,117 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                      });
             return !done;
         });
+}
+
+void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits,
+                    double& cutoff) {
+    const TerrainMap& map = layer.map();
+    const std::int64_t k = layer.subdivision();
+    const double sx = map.spacingX(), sy = map.spacingY();
+    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
+    // Grid line l of terrain cell b, as traceObjects' walk places it: the terrain cell's edge
+    // plus whole object cells (the next terrain cell's own edge for l = k).
+    const auto line = [k](std::int64_t b, std::int64_t l, double spacing, double cell) {
+        if (l == k) {
+            ++b;
+            l = 0;
+        }
+        return static_cast<double>(b) * spacing + static_cast<double>(l) * cell;
+    };
+    const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
+    const auto clip = [](double oc, double dc, double inv, double lo, double hi, double& a,
+                         double& b) {
+        if (dc == 0.0) return oc >= lo && oc <= hi;
+        double ta = (lo - oc) * inv, tb = (hi - oc) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        a = std::max(a, ta);
+        b = std::min(b, tb);
+        return a <= b;
+    };
+    // The ray inside the box, from where it enters it (or t0) to where it leaves its height
+    // range (the box padded: the walk below finds the exact cells).
+    const double padX = 1e-9 * sx, padY = 1e-9 * sy;
+    double ta = t0, tz = t1;
+    if (!clip(o.x, d.x, invX, static_cast<double>(box.cx0) * csx - padX,
+              static_cast<double>(box.cx1 + 1) * csx + padX, ta, tz) ||
+        !clip(o.y, d.y, invY, static_cast<double>(box.cy0) * csy - padY,
+              static_cast<double>(box.cy1 + 1) * csy + padY, ta, tz) ||
+        !clipSlab(o.z, d.z, box.zLo - kBoxPad, box.zHi + kBoxPad, ta, tz)) {
+        return;
+    }
+    const int stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
+    const std::int64_t upX = d.x > 0.0, upY = d.y > 0.0;
+    std::int64_t cx =
+        std::clamp(static_cast<std::int64_t>(std::floor((o.x + ta * d.x) / csx)), box.cx0, box.cx1);
+    std::int64_t cy =
+        std::clamp(static_cast<std::int64_t>(std::floor((o.y + ta * d.y) / csy)), box.cy0, box.cy1);
+    // The cells as (terrain cell, object cell within it), stepped without dividing.
+    std::int64_t bx = cx / k, lx = cx - bx * k, by = cy / k, ly = cy - by * k;
+    // The first cell's entry as the full walk finds it: the later of the grid lines crossed into
+    // it, or t0 (with no side crossed) when the walk starts in it.
+    const double ex = d.x != 0.0 ? (line(bx, lx + 1 - upX, sx, csx) - o.x) * invX : -kInf;
+    const double ey = d.y != 0.0 ? (line(by, ly + 1 - upY, sy, csy) - o.y) * invY : -kInf;
+    int axis = ex > ey ? 0 : 1;
+    ta = std::max(ex, ey);
+    if (ta <= t0) {
+        ta = t0;
+        axis = -1;
+    }
+    double tx = d.x != 0.0 ? (line(bx, lx + upX, sx, csx) - o.x) * invX : kInf;
+    double ty = d.y != 0.0 ? (line(by, ly + upY, sy, csy) - o.y) * invY : kInf;
+    const StickTable& table = layer.table();
+    for (;;) {
+        if (ta > cutoff) return;  // behind an opaque voxel already found
+        const double tb = std::min({tx, ty, t1});
+        if (tb >= ta) {
+            const std::size_t before = hits.size();
+            for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
+                if (cell.id == box.id) collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
+            }
+            for (std::size_t i = before; i < hits.size(); ++i)
+                if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
+        }
+        if (tb >= t1 || tb >= tz) return;
+        if (tx <= ty) {
+            cx += stepX;
+            axis = 0;
+            if (cx < box.cx0 || cx > box.cx1) return;
+            lx += stepX;
+            if (lx == k) {
+                ++bx;
+                lx = 0;
+            } else if (lx < 0) {
+                --bx;
+                lx = k - 1;
+            }
+            tx = (line(bx, lx + upX, sx, csx) - o.x) * invX;
+        } else {
+            cy += stepY;
+            axis = 1;
+            if (cy < box.cy0 || cy > box.cy1) return;
+            ly += stepY;
+            if (ly == k) {
+                ++by;
+                ly = 0;
+            } else if (ly < 0) {
+                --by;
+                ly = k - 1;
+            }
+            ty = (line(by, ly + upY, sy, csy) - o.y) * invY;
+        }
+        ta = tb;
+    }
+}
+
+void sortHits(std::vector<VoxelHit>& hits) {
+    for (std::size_t i = 0; i < hits.size(); ++i)
+        hits[i].seq = static_cast<std::uint32_t>(i);
+    std::sort(hits.begin(), hits.end(), [](const VoxelHit& a, const VoxelHit& b) {
+        if (a.enter != b.enter) return a.enter < b.enter;
+        if (a.id != b.id) return a.id < b.id;
+        return a.seq < b.seq;
+    });
 }
 
 Rgb8 composeOver(const ObjectShading& shading, Rgb8 background) {

@@ -27,6 +27,7 @@ struct VoxelHit {
     Rgba8 color;
     VoxelFace face = VoxelFace::Top;
     std::uint16_t id = 0;
+    std::uint32_t seq = 0;  // position when collected (sortHits' last key)
 };
 
 // What the objects in front of a background make of a pixel.
@@ -50,6 +51,31 @@ struct ObjectTraceScratch {
 void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
                   const glm::dvec3& dir, double tEnd, const SkyModel& sky,
                   ObjectTraceScratch& scratch, ObjectShading& out);
+
+// ---- The walk's parts, shared with the footprint pass (ig/object_pass.*) ----------------------
+// The span [t0, t1] traceObjects walks: the ray inside the map's footprint and the layers'
+// height range, up to tEnd; false when empty (or no layer holds anything).
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1);
+// Appends the voxels of `cell` the ray meets over [ta, tb] inside the cell's column, entered
+// across `axis` (0 x, 1 y, -1 none: the walk starts in the cell).
+void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
+                      const glm::dvec3& d, double ta, double tb, int axis,
+                      std::vector<VoxelHit>& hits);
+// Appends the voxels of object `box` (its id's entries only) that the ray meets within
+// [t0, t1] (objectRaySpan's span): the same hits, entries and faces as traceObjects' walk finds
+// in those cells, found by walking the box's cells alone from the one the ray enters first.
+// `cutoff`: no cell entered beyond it is walked (nothing there can show); lowered to the entry
+// of every opaque voxel found. Start it at t1 and pass it on from box to box.
+void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
+                    const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits,
+                    double& cutoff);
+// Sorts hits by entry along the ray; voxels entered at the same point (objects sharing a cell)
+// by id, then in the order collected: the same order however the hits were gathered.
+void sortHits(std::vector<VoxelHit>& hits);
+// Blends one hit (in order along the ray) into `out`; true when less than 1/1024 of what lies
+// behind still shows (out.transmittance is then 0 and the walk stops).
+bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out);
 
 // `background` seen through `shading`: the background itself (bit for bit) where nothing
 // covers it, else the blend, rounded.

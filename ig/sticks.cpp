@@ -225,6 +225,62 @@ void ObjectLayer::finish() {
     entries_.clear();
     entries_.shrink_to_fit();
     finished_ = true;
+    indexBoxes();
+}
+
+void ObjectLayer::indexBoxes() {
+    // Each id's cell range and height range, then each box row's first entry and each box
+    // cell's first entry (from a walk along the row's sorted keys).
+    std::vector<std::int32_t> boxOf(65536, -1);
+    boxes_.clear();
+    const auto nx = static_cast<std::uint64_t>(nx_);
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+        const ObjectCell& c = cells_[i];
+        const auto cx = static_cast<std::int64_t>(keys_[i] % nx);
+        const auto cy = static_cast<std::int64_t>(keys_[i] / nx);
+        const float lo = c.baseZ + table_.bottom(c.stick), hi = c.baseZ + table_.top(c.stick);
+        std::int32_t& b = boxOf[c.id];
+        if (b < 0) {
+            b = static_cast<std::int32_t>(boxes_.size());
+            boxes_.push_back(ObjectBox{cx, cy, cx, cy, lo, hi, c.id, 0, 0});
+            continue;
+        }
+        ObjectBox& box = boxes_[static_cast<std::size_t>(b)];
+        box.cx0 = std::min(box.cx0, cx);
+        box.cx1 = std::max(box.cx1, cx);
+        box.cy0 = std::min(box.cy0, cy);
+        box.cy1 = std::max(box.cy1, cy);
+        box.zLo = std::min(box.zLo, lo);
+        box.zHi = std::max(box.zHi, hi);
+    }
+    std::sort(boxes_.begin(), boxes_.end(),
+              [](const ObjectBox& a, const ObjectBox& b) { return a.id < b.id; });
+    rowStarts_.clear();
+    cellOffsets_.clear();
+    for (ObjectBox& box : boxes_) {
+        box.rows = static_cast<std::uint32_t>(rowStarts_.size());
+        box.cells = static_cast<std::uint32_t>(cellOffsets_.size());
+        bool fits = true;
+        for (std::int64_t cy = box.cy0; cy <= box.cy1; ++cy) {
+            const std::uint64_t row = static_cast<std::uint64_t>(cy) * nx;
+            const auto start = static_cast<std::size_t>(
+                std::lower_bound(keys_.begin(), keys_.end(),
+                                 row + static_cast<std::uint64_t>(box.cx0)) -
+                keys_.begin());
+            rowStarts_.push_back(static_cast<std::uint32_t>(start));
+            std::size_t i = start;
+            for (std::int64_t cx = box.cx0; cx <= box.cx1; ++cx) {
+                while (i < keys_.size() && keys_[i] < row + static_cast<std::uint64_t>(cx))
+                    ++i;
+                fits = fits && i - start <= 0xffffu;
+                cellOffsets_.push_back(static_cast<std::uint16_t>(i - start));
+            }
+        }
+        if (!fits) {
+            cellOffsets_.resize(box.cells);
+            box.cells = kNoCellIndex;
+        }
+    }
 }
 
 std::span<const ObjectCell> ObjectLayer::cellsAt(std::int64_t cx, std::int64_t cy) const {
@@ -242,8 +298,14 @@ std::size_t ObjectLayer::cellBytes() const {
     return keys_.size() * (sizeof(std::uint64_t) + sizeof(ObjectCell));
 }
 
+std::size_t ObjectLayer::boxBytes() const {
+    return boxes_.size() * sizeof(ObjectBox) + rowStarts_.size() * sizeof(std::uint32_t) +
+           cellOffsets_.size() * sizeof(std::uint16_t);
+}
+
 std::size_t ObjectLayer::bytes() const {
-    return table_.bytes() + cellBytes() + (blockLo_.size() + blockHi_.size()) * sizeof(float);
+    return table_.bytes() + cellBytes() + boxBytes() +
+           (blockLo_.size() + blockHi_.size()) * sizeof(float);
 }
 
 void includeStickTops(TerrainMap& map, const ObjectLayer& layer) {

@@ -2,9 +2,11 @@
 // the cells of an object grid, each cell a list of vertical runs held in a shared stick table.
 #pragma once
 
+#include "base/check.hpp"
 #include "ig/terrain.hpp"
 #include "ig/vox.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -78,6 +80,12 @@ class StickTable {
     float voxelHeight(std::uint32_t offset) const;
     // Run r of the list at `offset` (runs are visited in order, so this walks from the start).
     StickRun run(std::uint32_t offset, int r) const;
+    // The runs bottom to top without walking from the start each time: firstRun, then nextRun
+    // runCount - 1 times.
+    StickRun firstRun(std::uint32_t offset) const { return decodeRun(&words_[offset + 2]); }
+    static StickRun nextRun(const StickRun& r) {
+        return decodeRun(r.values + (r.type == StickType::Uniform ? 1 : r.count));
+    }
     // Height of the list's top above its base, metres.
     float top(std::uint32_t offset) const;
     // Bottom of the lowest run above its base, metres.
@@ -91,6 +99,11 @@ class StickTable {
     std::size_t runsOfType(StickType t) const { return runsByType_[static_cast<int>(t)]; }
 
   private:
+    static StickRun decodeRun(const std::uint32_t* header) {
+        const std::uint32_t h = *header;
+        return StickRun{static_cast<StickType>(h & 3u), static_cast<int>((h >> 8) & 0xfffu),
+                        static_cast<int>(h >> 20), header + 1};
+    }
     bool share_;
     std::vector<std::uint32_t> words_;
     std::unordered_map<std::string, std::uint32_t> index_;  // list bytes -> offset
@@ -114,6 +127,16 @@ struct PlacedObject {
     double heading = 0.0, scale = 1.0;
     double top = 0.0;  // highest point, metres
     int cells = 0;     // object cells it covers
+};
+
+// The box of one object's cells in a layer (every cell holding an entry with its id): for
+// drawing objects by their screen footprint (ig/object_pass.*).
+struct ObjectBox {
+    std::int64_t cx0 = 0, cy0 = 0, cx1 = -1, cy1 = -1;  // object cells, inclusive
+    float zLo = 0.0f, zHi = 0.0f;                       // lowest bottom, highest top, metres
+    std::uint16_t id = 0;
+    std::uint32_t rows = 0;   // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
+    std::uint32_t cells = 0;  // first of its cells' offsets from their row's start, row by row
 };
 
 // Objects over one terrain map, on an object grid that divides each terrain cell into k x k
@@ -151,12 +174,39 @@ class ObjectLayer {
     float maxTop() const { return maxTop_; }
     bool empty() const { return keys_.empty() && entries_.empty(); }
 
+    // One box per object id present (by increasing id), kept by finish().
+    const std::vector<ObjectBox>& boxes() const { return boxes_; }
+    // The entries of object cell (cx, cy), which must lie in `box` (DCHECKed), found from the
+    // box's own index instead of a search of every cell: entries of any id.
+    std::span<const ObjectCell> boxCellsAt(const ObjectBox& box, std::int64_t cx,
+                                           std::int64_t cy) const {
+        DCHECK(cx >= box.cx0 && cx <= box.cx1 && cy >= box.cy0 && cy <= box.cy1);
+        const auto r = static_cast<std::size_t>(cy - box.cy0);
+        const std::uint64_t key = static_cast<std::uint64_t>(cy) * static_cast<std::uint64_t>(nx_) +
+                                  static_cast<std::uint64_t>(cx);
+        std::size_t first = rowStarts_[box.rows + r];
+        if (box.cells != kNoCellIndex) {
+            first += cellOffsets_[box.cells + r * static_cast<std::size_t>(box.cx1 - box.cx0 + 1) +
+                                  static_cast<std::size_t>(cx - box.cx0)];
+        } else {
+            first = static_cast<std::size_t>(
+                std::lower_bound(keys_.begin() + static_cast<std::ptrdiff_t>(first), keys_.end(),
+                                 key) -
+                keys_.begin());
+        }
+        std::size_t end = first;
+        while (end < keys_.size() && keys_[end] == key)
+            ++end;
+        return {cells_.data() + first, end - first};
+    }
+
     const StickTable& table() const { return table_; }
     const std::vector<PlacedObject>& objects() const { return objects_; }
     std::size_t cellEntries() const { return keys_.size(); }
-    // Bytes of the table, the cell entries and the per-terrain-cell ranges.
+    // Bytes of the table, the cell entries, the boxes and the per-terrain-cell ranges.
     std::size_t bytes() const;
     std::size_t cellBytes() const;
+    std::size_t boxBytes() const;  // the boxes and their row index
 
   private:
     struct Entry {
@@ -170,6 +220,7 @@ class ObjectLayer {
     // placement first uses it (kUnencoded before).
     static constexpr std::uint32_t kUnencoded = 0xfffffffeu;
     std::vector<std::uint32_t>& columns(const ObjectModel& model, double scale);
+    void indexBoxes();
     std::uint32_t column(const ObjectModel& model, double scale, std::vector<std::uint32_t>& cols,
                          int x, int y);
 
@@ -184,6 +235,12 @@ class ObjectLayer {
     std::vector<float> blockLo_, blockHi_;
     float minBottom_ = 0.0f, maxTop_ = 0.0f;
     std::vector<PlacedObject> objects_;
+    std::vector<ObjectBox> boxes_;
+    std::vector<std::uint32_t> rowStarts_;  // per box row: first entry at or after its cx0
+    // Per box cell: its first entry - its row's start (a box whose rows hold more entries than
+    // 16 bits count has none, kNoCellIndex, and searches its rows).
+    std::vector<std::uint16_t> cellOffsets_;
+    static constexpr std::uint32_t kNoCellIndex = 0xffffffffu;
     std::unordered_map<std::string, std::vector<std::uint32_t>> columnCache_;
     bool finished_ = true;
 };

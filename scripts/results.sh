@@ -7,7 +7,7 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart cigi  (default: all)
+#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart cigi objects  (default: all)
 #   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|cigi|field-clock) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart, cigi or field-clock" >&2
+                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|cigi|objects|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart, cigi, objects or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -41,7 +41,7 @@ wanted() {
 if [ "$build" = 1 ]; then
     scripts/setup.sh
     cmake --preset release >/dev/null
-    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp ig-render \
+    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp bench-objects ig-render \
         warp-eval stereo-eval flythrough io-check
 fi
 mkdir -p "$data" "$cache"
@@ -209,6 +209,11 @@ fi
 # CIGI over loopback: host message to field, with and without a flood; decoding rates (a minute).
 if wanted cigi; then
     scripts/bench-cigi.sh 20 "$data/cigi_bench.json"
+fi
+# Voxel objects: a populated Puget Sound against the same view without, error against the
+# reference, memory per object (about a minute).
+if wanted objects; then
+    run objects_bench "$bin/bench-objects" --repeat 3 --json "$data/objects_bench.json"
 fi
 if [ ${#only[@]} -gt 0 ] && wanted field-clock; then
     scripts/bench-field-clock.sh 600 "$data/field_clock.json"

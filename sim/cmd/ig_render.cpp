@@ -56,7 +56,7 @@ constexpr const char* kConventions = R"(Conventions:
   The fast and span casters render roll = 0 (the post-rendering processor applies roll as a 2D
   rotation); the naive and reference casters honour any roll. The span caster hands steep frames
   to the fast caster (its JSON "path" says which drew the frame).
-  Objects (--scene, reference and naive casters): --objects-out writes each pixel's object id
+  Objects (--scene, every caster; not with --stereo or --poses): --objects-out writes each pixel's object id
   as a 16-bit grey PNG (0: terrain or sky); --json lists each visible object's pixel count and
   box [x0, y0, x1, y1] (inclusive). Moving objects are placed at --time (default: the earliest
   trajectory start).
@@ -407,7 +407,7 @@ int main(int argc, char** argv) {
     std::optional<double> sceneTime;
     app.add_option("--scene", scenePath,
                    "Scene file (JSON): voxel objects placed and scattered over the terrain; drawn "
-                   "by the reference and naive casters");
+                   "by every caster over its terrain");
     app.add_option("--objects-out", objectsOut,
                    "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene)");
     app.add_option("--time", sceneTime,
@@ -463,11 +463,9 @@ int main(int argc, char** argv) {
         }
         if (sceneTime && !std::isfinite(*sceneTime))
             throw ig::InputError("--time: not a finite number");
-        if (!scenePath.empty() && (kind == ig::CasterKind::Fast || kind == ig::CasterKind::Span ||
-                                   stereo.enabled() || batchMode)) {
-            throw ig::InputError(
-                "--scene: objects are drawn by the reference and naive casters; "
-                "add --caster reference (or naive), without --stereo or --poses");
+        if (!scenePath.empty() && (stereo.enabled() || batchMode)) {
+            throw ig::InputError("--scene: objects are drawn in single frames; drop " +
+                                 std::string(stereo.enabled() ? "--stereo" : "--poses"));
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
@@ -504,9 +502,8 @@ int main(int argc, char** argv) {
             motion.emplace(*scene);
             time = sceneTime.value_or(motion->startTime());
             moving.emplace(motion->stamp(time));
-            // The max-height bounds cover the objects (static ones: the moving ones are
-            // stamped per frame and looked up by the casters directly).
-            ig::includeStickTops(map, *scene->staticLayer);
+            // Every caster draws the objects over its terrain by their own walk (the fast ones
+            // by the objects' screen footprint), so the terrain's bounds stay as they are.
             options.objects = {&*scene->staticLayer, &*moving};
         }
         const auto caster = ig::makeCaster(kind, map, options);

@@ -1,0 +1,478 @@
+// Voxel objects drawn by the fast casters' footprint pass, against the per-pixel trace on the
+// same terrain (bit for bit) and against the reference caster (over pose sweeps on Puget Sound
+// and Goleta, with objects placed where each pose looks).
+#include "ig/object_pass.hpp"
+#include "ig/caster.hpp"
+#include "ig/image_compare.hpp"
+#include "ig/object_trace.hpp"
+#include "ig/pose_sweep.hpp"
+#include "ig/sticks.hpp"
+#include "ig/terrain_io.hpp"
+#include "ig/vox.hpp"
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace ig;
+
+const TerrainMap& puget() {
+    static const TerrainMap map = loadPugetSound();
+    return map;
+}
+const TerrainMap& goleta() {
+    static const TerrainMap map = loadGoleta();
+    return map;
+}
+
+// The shipped models: opaque textured (conifer), semi-transparent (broadleaf), glass and a
+// doorway of cavities (house), thin floating runs (mast).
+const std::vector<ObjectModel>& shippedModels() {
+    static const std::vector<ObjectModel> models = [] {
+        std::vector<ObjectModel> m;
+        for (const char* name : {"conifer", "broadleaf", "house", "mast"}) {
+            const std::string path = std::string(VIG_DATA_DIR) + "/models/" + name + ".vox";
+            m.push_back(objectModelFromVox(readVox(path), 0, path));
+        }
+        return m;
+    }();
+    return models;
+}
+
+// Objects where a view looks: one on the ground under each pixel of a 6 x 5 grid whose centre
+// ray meets the terrain, about 30 pixels tall at the distance of the nearest such hit, headings
+// varied. Null when the view sees no ground.
+std::unique_ptr<ObjectLayer> objectsInView(const TerrainMap& map, const Pose& pose,
+                                           const Intrinsics& in) {
+    const Camera camera(pose, in);
+    std::vector<glm::dvec3> at;
+    double nearest = INFINITY;
+    for (int j = 0; j < 5; ++j) {
+        for (int i = 0; i < 6; ++i) {
+            const glm::dvec3 d = glm::normalize(
+                camera.rayDirection((i + 0.5) * in.width / 6.0, (j + 0.7) * in.height / 5.0));
+            const RayHit hit = intersectTerrain(map, pose.position, d);
+            if (!hit.hit) continue;
+            at.push_back(hit.point);
+            nearest = std::min(nearest, hit.distance);
+        }
+    }
+    if (at.empty()) return nullptr;
+    const double tall = nearest * 30.0 / in.focal;  // metres
+    const double scale = std::clamp(tall / 32.0, 0.01, 1000.0);
+    auto layer = std::make_unique<ObjectLayer>(map, std::max(scale, map.spacingX() / 4000.0));
+    for (std::size_t i = 0; i < at.size(); ++i) {
+        const ObjectModel& m = shippedModels()[i % 4];
+        layer->place(
+            m, Placement{static_cast<std::uint16_t>(1 + i), at[i].x, at[i].y,
+                         map.surfaceHeight(at[i].x, at[i].y), 0.7 * static_cast<double>(i), scale});
+    }
+    layer->finish();
+    return layer;
+}
+
+RenderedFrame renderWith(const TerrainMap& map, RenderOptions options, CasterKind kind,
+                         const ObjectLayer* layer, const Pose& pose, const Intrinsics& in) {
+    if (layer != nullptr) options.objects = {layer};
+    const auto caster = makeCaster(kind, map, options);
+    return renderFrame(*caster, map, pose, in);
+}
+
+// How a frame's objects compare with the reference's.
+struct ObjectAgreement {
+    std::size_t refPixels = 0;           // the reference's object pixels
+    std::size_t idDiffer = 0;            // pixels whose id differs
+    std::size_t idDifferSameGround = 0;  // ... where the terrain-only frames agree (depth 1e-4)
+    std::size_t depthOff = 0;            // same non-zero id, depth off by more than 1 %
+    double maePct = 0.0;                 // mean colour error over the union of object pixels
+    std::size_t pixels = 0;              // that union
+};
+
+ObjectAgreement compareObjects(const RenderedFrame& got, const RenderedFrame& ref,
+                               const RenderedFrame& gotTerrain, const RenderedFrame& refTerrain) {
+    ObjectAgreement a;
+    double err = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < ref.objectId.size(); ++i) {
+        const std::uint16_t g = got.objectId[i], r = ref.objectId[i];
+        a.refPixels += r != 0;
+        if (g != r) {
+            ++a.idDiffer;
+            const float dg = gotTerrain.depth[i], dr = refTerrain.depth[i];
+            const bool same = dg == dr || std::abs(dg - dr) <= 1e-4f * dr;
+            a.idDifferSameGround += same;
+        } else if (r != 0 && !(std::abs(got.depth[i] - ref.depth[i]) <= 0.01f * ref.depth[i])) {
+            ++a.depthOff;
+        }
+        if (g == 0 && r == 0) continue;
+        const Rgb8 p = got.color[i], q = ref.color[i];
+        err += std::abs(p.r - q.r) + std::abs(p.g - q.g) + std::abs(p.b - q.b);
+        ++n;
+    }
+    a.pixels = n;
+    a.maePct = n ? 100.0 * err / (3.0 * 255.0 * static_cast<double>(n)) : 0.0;
+    return a;
+}
+
+std::vector<CasterKernel> kernelsOnThisProcessor() {
+    std::vector<CasterKernel> k;
+    for (const CasterKernel c : {CasterKernel::Scalar, CasterKernel::Avx2, CasterKernel::Avx512})
+        if (casterKernelMissing(c).empty()) k.push_back(c);
+    return k;
+}
+
+// The pass against the per-pixel trace, both over the same fast terrain image: the same ids,
+// colours and depths to the bit on every pixel.
+void expectPassEqualsPerPixelTrace(const TerrainMap& map, int poses) {
+    const Intrinsics in = Intrinsics::fromFov(128, 96, degToRad(60.0));
+    std::size_t objectPixels = 0;
+    int k = 0;
+    for (const Pose& pose : sweepPoses(map, poses)) {
+        const auto layer = objectsInView(map, pose, in);
+        ++k;
+        if (!layer) continue;
+        const RenderedFrame terrain = renderWith(map, {}, CasterKind::Fast, nullptr, pose, in);
+        const Camera camera(pose, in);
+        const std::vector<const ObjectLayer*> layers = {layer.get()};
+        RenderedFrame pass = terrain, twin = terrain;
+        pass.objectId.assign(terrain.color.size(), 0);
+        twin.objectId.assign(terrain.color.size(), 0);
+        drawObjects(layers, SkyModel{}, camera, pass, 0, in.width, false);
+        drawObjectsPerPixel(layers, SkyModel{}, camera, twin, 0, in.width);
+        std::size_t idDiffer = 0, colorDiffer = 0, depthDiffer = 0;
+        for (std::size_t i = 0; i < pass.color.size(); ++i) {
+            idDiffer += pass.objectId[i] != twin.objectId[i];
+            colorDiffer += !(pass.color[i] == twin.color[i]);
+            depthDiffer += pass.depth[i] != twin.depth[i];
+            objectPixels += twin.objectId[i] != 0;
+        }
+        EXPECT_EQ(idDiffer, 0u) << "pose " << k - 1;
+        EXPECT_EQ(colorDiffer, 0u) << "pose " << k - 1;
+        EXPECT_EQ(depthDiffer, 0u) << "pose " << k - 1;
+    }
+    EXPECT_GT(objectPixels, static_cast<std::size_t>(poses) * 200u);
+}
+
+TEST(ObjectPass, EqualsThePerPixelTraceOverPugetSoundSweep) {
+    expectPassEqualsPerPixelTrace(puget(), 16);
+}
+
+TEST(ObjectPass, EqualsThePerPixelTraceOverGoletaSweep) {
+    expectPassEqualsPerPixelTrace(goleta(), 16);
+}
+
+// The fast casters with objects against the reference with the same objects. Where the terrain
+// images agree the ids agree (a pixel's objects are walked up to its terrain depth); the id may
+// differ only where the two casters see different ground (the multiresolution caster's coarse
+// levels far away, a silhouette's rounding), which the bounds below allow for.
+struct SweepFigures {
+    std::size_t refPixels = 0, idDiffer = 0, idDifferSameGround = 0, depthOff = 0;
+    double maePct = 0.0;       // over every pose's object pixels together
+    double worstMaePct = 0.0;  // the worst pose's
+};
+
+// A sweep's poses, their objects and the reference's frames with and without them, made once
+// per map for every caster compared.
+struct ReferenceSweep {
+    struct View {
+        Pose pose;
+        std::unique_ptr<ObjectLayer> layer;
+        RenderedFrame ref, refTerrain;
+    };
+    std::vector<View> views;
+};
+
+constexpr int kSweepPoses = 10;
+
+const ReferenceSweep& referenceSweep(const TerrainMap& map, const Intrinsics& in) {
+    static std::vector<std::pair<const TerrainMap*, std::unique_ptr<ReferenceSweep>>> cache;
+    for (const auto& [m, sweep] : cache)
+        if (m == &map) return *sweep;
+    auto sweep = std::make_unique<ReferenceSweep>();
+    for (const Pose& pose : sweepPoses(map, kSweepPoses)) {
+        ReferenceSweep::View v;
+        v.pose = pose;
+        v.layer = objectsInView(map, pose, in);
+        if (!v.layer) continue;
+        v.ref = renderWith(map, {}, CasterKind::Reference, v.layer.get(), pose, in);
+        v.refTerrain = renderWith(map, {}, CasterKind::Reference, nullptr, pose, in);
+        sweep->views.push_back(std::move(v));
+    }
+    cache.emplace_back(&map, std::move(sweep));
+    return *cache.back().second;
+}
+
+SweepFigures sweepAgainstReference(const TerrainMap& map, const RenderOptions& options,
+                                   CasterKind kind) {
+    const Intrinsics in = Intrinsics::fromFov(128, 96, degToRad(60.0));
+    SweepFigures s;
+    double errSum = 0.0, pixels = 0.0;
+    for (const ReferenceSweep::View& v : referenceSweep(map, in).views) {
+        const RenderedFrame got = renderWith(map, options, kind, v.layer.get(), v.pose, in);
+        const RenderedFrame gotTerrain = renderWith(map, options, kind, nullptr, v.pose, in);
+        const ObjectAgreement a = compareObjects(got, v.ref, gotTerrain, v.refTerrain);
+        s.refPixels += a.refPixels;
+        s.idDiffer += a.idDiffer;
+        s.idDifferSameGround += a.idDifferSameGround;
+        s.depthOff += a.depthOff;
+        s.worstMaePct = std::max(s.worstMaePct, a.maePct);
+        errSum += a.maePct * static_cast<double>(a.pixels);
+        pixels += static_cast<double>(a.pixels);
+    }
+    s.maePct = pixels > 0.0 ? errSum / pixels : 0.0;
+    return s;
+}
+
+void expectAgreesWithReference(const char* what, const SweepFigures& s, double idFraction) {
+    std::printf(
+        "%s: %zu object pixels, ids differ on %zu (%zu where the terrain agrees), depth "
+        "off on %zu, colour error %.3f %% (worst pose %.3f %%)\n",
+        what, s.refPixels, s.idDiffer, s.idDifferSameGround, s.depthOff, s.maePct, s.worstMaePct);
+    EXPECT_GT(s.refPixels, 2000u) << what;
+    EXPECT_EQ(s.idDifferSameGround, 0u) << what;
+    EXPECT_LE(static_cast<double>(s.idDiffer), idFraction * static_cast<double>(s.refPixels))
+        << what;
+    EXPECT_EQ(s.depthOff, 0u) << what;
+    EXPECT_LE(s.maePct, 0.5) << what;
+}
+
+TEST(ObjectPass, FastCasterMatchesReferenceOverPugetSoundSweep) {
+    const TerrainMap& map = puget();
+    for (const CasterKernel kernel : kernelsOnThisProcessor()) {
+        for (const int levels : {0, kLevelsAuto}) {
+            RenderOptions o;
+            o.kernel = kernel;
+            o.levels = levels;
+            const std::string what = "Puget Sound, " + std::string(casterKernelName(kernel)) +
+                                     (levels == 0 ? ", levels 0" : ", levels auto");
+            // Single level: the terrain is the reference's, so are the objects. Levels auto: the
+            // coarse levels' ground in the distance hides or shows an object's foot differently.
+            expectAgreesWithReference(what.c_str(), sweepAgainstReference(map, o, CasterKind::Fast),
+                                      levels == 0 ? 0.0 : 0.02);
+        }
+    }
+}
+
+TEST(ObjectPass, FastCasterMatchesReferenceOverGoletaSweep) {
+    const TerrainMap& map = goleta();
+    for (const int levels : {0, kLevelsAuto}) {
+        RenderOptions o;
+        o.levels = levels;
+        expectAgreesWithReference(levels == 0 ? "Goleta, levels 0" : "Goleta, levels auto",
+                                  sweepAgainstReference(map, o, CasterKind::Fast),
+                                  levels == 0 ? 0.0 : 0.02);
+    }
+}
+
+TEST(ObjectPass, SpanAndSupersampleCastersMatchReference) {
+    const TerrainMap& map = puget();
+    RenderOptions span;
+    expectAgreesWithReference("Puget Sound, span",
+                              sweepAgainstReference(map, span, CasterKind::Span), 0.02);
+    RenderOptions autoSuper;
+    autoSuper.supersample = kSupersampleAuto;
+    // Objects are sampled at the pixel centre over the averaged terrain colour (the ground
+    // under an object's foot is the nearest of the pixel's rays).
+    expectAgreesWithReference("Puget Sound, supersample auto",
+                              sweepAgainstReference(map, autoSuper, CasterKind::Fast), 0.02);
+}
+
+// ---- Hard cases on a flat map ---------------------------------------------------------------
+
+// A flat 65 x 65 map at 10 m, 100 m high; `ridge` raises the row y = 300 m to 400 m.
+TerrainMap flatMap(bool ridge = false) {
+    TerrainMap map(65, 65, 10.0, 10.0, 0.1, 0.0);
+    for (int iy = 0; iy < 65; ++iy)
+        for (int ix = 0; ix < 65; ++ix) {
+            map.setRaw(ix, iy, ridge && iy == 30 ? 4000 : 1000);
+            map.setColor(ix, iy, Rgb8{90, 140, 60});
+        }
+    map.updateRange();
+    return map;
+}
+
+std::size_t pixelsOf(const RenderedFrame& f, std::uint16_t id) {
+    return static_cast<std::size_t>(std::count(f.objectId.begin(), f.objectId.end(), id));
+}
+
+TEST(ObjectPass, OneVoxelMastIsDrawnAtEveryPitch) {
+    const TerrainMap map = flatMap();
+    ObjectModel mast;
+    mast.name = "mast";
+    mast.grid = VoxModel(1, 1, 40);
+    mast.palette = defaultVoxPalette();
+    for (int z = 0; z < 40; ++z)
+        mast.grid.set(0, 0, z, static_cast<std::uint8_t>(1 + z));
+    ObjectLayer layer(map, 0.5);
+    layer.place(mast, Placement{9, 320.25, 320.25, 100.0, 0.0, 0.5});  // 0.5 m wide, 20 m tall
+    layer.finish();
+    const Intrinsics in = Intrinsics::fromFov(96, 72, degToRad(40.0));
+    for (int pitchDeg = 0; pitchDeg >= -90; pitchDeg -= 10) {
+        // 60 m from the mast's middle, looking at it.
+        const double pitch = degToRad(pitchDeg);
+        Pose pose;
+        pose.position = {320.25, 320.25 - 60.0 * std::cos(pitch), 110.0 - 60.0 * std::sin(pitch)};
+        pose.pitch = pitch;
+        const RenderedFrame ref = renderWith(map, {}, CasterKind::Reference, &layer, pose, in);
+        for (const int levels : {0, kLevelsAuto}) {
+            RenderOptions o;
+            o.levels = levels;
+            const RenderedFrame got = renderWith(map, o, CasterKind::Fast, &layer, pose, in);
+            EXPECT_GT(pixelsOf(got, 9), 0u) << "pitch " << pitchDeg;
+            EXPECT_EQ(got.objectId, ref.objectId) << "pitch " << pitchDeg << " levels " << levels;
+        }
+    }
+}
+
+// Objects overlapping in the same cells: their voxels are entered at the same points, and the
+// pass must order them as the reference does (by id), whichever box it walks first.
+TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
+    const TerrainMap map = flatMap();
+    const ObjectModel& tree = shippedModels()[0];
+    const ObjectModel& leaves = shippedModels()[1];
+    ObjectLayer layer(map, 0.5);
+    // Placed in decreasing id order, each pair on one spot with different headings.
+    for (int i = 0; i < 6; ++i) {
+        const double x = 300.0 + 7.0 * i, y = 330.0 + 3.0 * (i % 2);
+        layer.place(i % 2 ? leaves : tree,
+                    Placement{static_cast<std::uint16_t>(40 - 2 * i), x, y, 100.0, 0.3 * i, 0.5});
+        layer.place(tree, Placement{static_cast<std::uint16_t>(39 - 2 * i), x, y, 100.0,
+                                    0.3 * i + 0.8, 0.5});
+    }
+    layer.finish();
+    const Intrinsics in = Intrinsics::fromFov(160, 120, degToRad(40.0));
+    for (const double pitchDeg : {0.0, -20.0, -60.0}) {
+        Pose pose;
+        pose.position = pitchDeg > -30.0 ? glm::dvec3{318.0, 300.0, 108.0 - pitchDeg}
+                                         : glm::dvec3{318.0, 318.0, 140.0};
+        pose.pitch = degToRad(pitchDeg);
+        const RenderedFrame ref = renderWith(map, {}, CasterKind::Reference, &layer, pose, in);
+        const RenderedFrame got = renderWith(map, {}, CasterKind::Fast, &layer, pose, in);
+        EXPECT_GT(ref.objectId.size() - pixelsOf(ref, 0), 1000u) << "pitch " << pitchDeg;
+        EXPECT_EQ(got.objectId, ref.objectId) << "pitch " << pitchDeg;
+        EXPECT_TRUE(got.color == ref.color) << "pitch " << pitchDeg;
+    }
+}
+
+// 300 walls of one voxel's depth on one row of cells: each wall's cells hold 300 entries, more
+// than a box's 16-bit cell index counts, so the boxes search their rows instead.
+TEST(ObjectPass, CrowdedRowsSearchedWithoutTheCellIndex) {
+    const TerrainMap map = flatMap();
+    ObjectModel wall;
+    wall.name = "wall";
+    wall.grid = VoxModel(256, 1, 4);
+    wall.palette = defaultVoxPalette();
+    for (int z = 0; z < 4; ++z)
+        for (int x = 0; x < 256; ++x)
+            wall.grid.set(x, 0, z, static_cast<std::uint8_t>(1 + (x + z) % 250));
+    ObjectLayer layer(map, 0.5);
+    for (int i = 0; i < 300; ++i)
+        layer.place(
+            wall, Placement{static_cast<std::uint16_t>(1000 - i), 320.0, 320.25, 100.0, 0.0, 0.5});
+    layer.finish();
+    Pose pose;
+    pose.position = {320.0, 300.0, 104.0};
+    pose.pitch = degToRad(-5.0);
+    const Intrinsics in = Intrinsics::fromFov(64, 48, degToRad(60.0));
+    const RenderedFrame ref = renderWith(map, {}, CasterKind::Reference, &layer, pose, in);
+    const RenderedFrame got = renderWith(map, {}, CasterKind::Fast, &layer, pose, in);
+    EXPECT_GT(pixelsOf(ref, 701), 100u);  // the lowest id, first of the voxels entered together
+    EXPECT_EQ(got.objectId, ref.objectId);
+    EXPECT_TRUE(got.color == ref.color);
+}
+
+TEST(ObjectPass, ObjectBehindARidgeHasNoPixel) {
+    ObjectModel box;
+    box.name = "box";
+    box.grid = VoxModel(2, 2, 2);
+    box.palette = defaultVoxPalette();
+    for (auto& v : box.grid.voxels)
+        v = 50;
+    for (const bool ridge : {false, true}) {
+        const TerrainMap map = flatMap(ridge);
+        ObjectLayer layer(map, 1.0);
+        layer.place(box, Placement{4, 320.0, 400.0, 100.0, 0.0, 5.0});  // 10 m cube behind y = 300
+        layer.finish();
+        Pose pose;
+        pose.position = {320.0, 150.0, 150.0};
+        pose.pitch = degToRad(-10.0);
+        const Intrinsics in = Intrinsics::fromFov(96, 72, degToRad(40.0));
+        for (const CasterKind kind : {CasterKind::Fast, CasterKind::Span}) {
+            const RenderedFrame f = renderWith(map, {}, kind, &layer, pose, in);
+            if (ridge)
+                EXPECT_EQ(pixelsOf(f, 4), 0u);
+            else
+                EXPECT_GT(pixelsOf(f, 4), 20u);
+        }
+    }
+}
+
+// An empty scene leaves every image of every fast caster as it is without one, bit for bit.
+TEST(ObjectPass, EmptySceneLeavesImagesBitForBit) {
+    const TerrainMap& map = puget();
+    const ObjectLayer empty(map, 1.0);
+    const Intrinsics in = Intrinsics::fromFov(96, 64, degToRad(60.0));
+    RenderOptions l0, lauto, super;
+    lauto.levels = kLevelsAuto;
+    super.supersample = kSupersampleAuto;
+    const std::vector<std::pair<CasterKind, RenderOptions>> casters = {{CasterKind::Fast, l0},
+                                                                       {CasterKind::Fast, lauto},
+                                                                       {CasterKind::Fast, super},
+                                                                       {CasterKind::Span, l0}};
+    for (const Pose& pose : sweepPoses(map, 6)) {
+        for (const auto& [kind, o] : casters) {
+            const RenderedFrame without = renderWith(map, o, kind, nullptr, pose, in);
+            const RenderedFrame with = renderWith(map, o, kind, &empty, pose, in);
+            EXPECT_TRUE(without.objectId.empty());
+            EXPECT_EQ(with.objectId, std::vector<std::uint16_t>(with.color.size(), 0));
+            EXPECT_TRUE(with.color == without.color);
+            EXPECT_TRUE(with.depth == without.depth);
+        }
+    }
+}
+
+// The image with objects does not depend on the thread count, nor on drawing the frame by its
+// work units (columns) instead of render().
+TEST(ObjectPass, OutputIndependentOfThreadsAndUnits) {
+    const TerrainMap& map = puget();
+    const Intrinsics in = Intrinsics::fromFov(160, 120, degToRad(60.0));
+    for (const Pose& pose : sweepPoses(map, 4)) {
+        const auto layer = objectsInView(map, pose, in);
+        if (!layer) continue;
+        RenderOptions one, three;
+        one.threads = 1;
+        three.threads = 3;
+        const RenderedFrame a = renderWith(map, one, CasterKind::Fast, layer.get(), pose, in);
+        const RenderedFrame b = renderWith(map, three, CasterKind::Fast, layer.get(), pose, in);
+        EXPECT_GT(a.objectId.size() - pixelsOf(a, 0), 0u);
+        EXPECT_EQ(a.objectId, b.objectId);
+        EXPECT_TRUE(a.color == b.color);
+        EXPECT_TRUE(a.depth == b.depth);
+        // Unit by unit, on a frame whose id image is allocated first.
+        RenderOptions o;
+        o.objects = {layer.get()};
+        const auto caster = makeCaster(CasterKind::Fast, map, o);
+        const Camera camera(pose, in);
+        RenderedFrame u = a;
+        std::fill(u.color.begin(), u.color.end(), Rgb8{});
+        std::fill(u.depth.begin(), u.depth.end(), 0.0f);
+        std::fill(u.objectId.begin(), u.objectId.end(), 0);
+        UnitCounters counters;
+        for (int unit = caster->workUnits(camera) - 1; unit >= 0; --unit)
+            caster->renderUnit(camera, u, unit, counters);
+        EXPECT_EQ(u.objectId, a.objectId);
+        EXPECT_TRUE(u.color == a.color);
+        EXPECT_TRUE(u.depth == a.depth);
+    }
+}
+
+}  // namespace
