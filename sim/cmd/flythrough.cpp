@@ -337,7 +337,7 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--scene", scenePath,
                    "Scene file (JSON): voxel objects over the terrain, moving ones stamped at "
-                   "each frame's instant (casters naive and reference)");
+                   "each frame's instant (every caster)");
     app.add_option("--truth", truthPath,
                    "Per-field ground truth of the scene's objects, JSON lines (needs --scene)");
     app.add_flag("--terrain-points-only", terrainPointsOnly,
@@ -464,12 +464,6 @@ int main(int argc, char** argv) {
         if (!truthPath.empty() && scenePath.empty()) {
             throw ig::InputError("--truth: give a --scene whose objects it describes");
         }
-        if (!scenePath.empty() &&
-            (casterKind == ig::CasterKind::Fast || casterKind == ig::CasterKind::Span)) {
-            throw ig::InputError(
-                "--scene: objects are drawn by the reference and naive casters; "
-                "add --caster naive (or reference) at a small --size");
-        }
         if (!scenePath.empty() && stereoSeparation) {
             throw ig::InputError(
                 "--scene: not with --stereo (the stereo renderer draws no "
@@ -551,8 +545,6 @@ int main(int argc, char** argv) {
         if (!scenePath.empty()) {
             scene.emplace(ig::loadScene(scenePath, map));
             motion.emplace(*scene);
-            // The max-height bounds cover the static objects (before any caster is built).
-            ig::includeStickTops(map, *scene->staticLayer);
         }
         const bool shippedMap = ig::usesShippedMap(terrain);
 
