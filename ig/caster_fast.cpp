@@ -15,8 +15,11 @@
 #include "base/check.hpp"
 #include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
+#include "ig/caster_lanes.hpp"
 #include "ig/coherence.hpp"
 #include "ig/error.hpp"
+#include "ig/far_march.hpp"
+#include "ig/fast_column.hpp"
 #include "ig/grid_march.hpp"
 #include "ig/level0_march.hpp"
 #include "ig/multires_march.hpp"
@@ -24,17 +27,6 @@
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
 #include "ig/slope_bound.hpp"
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define VIG_CASTER_PACKETS 1
-#define VIG_CASTER_AVX2 __attribute__((target("avx2")))
-#define VIG_CASTER_WIDE 1
-#define VIG_CASTER_AVX512 __attribute__((target("avx2,avx512f,avx512dq,avx512vl,avx512bw")))
-#include <immintrin.h>
-#else
-#define VIG_CASTER_PACKETS 0
-#define VIG_CASTER_WIDE 0
-#endif
 
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
@@ -62,6 +54,21 @@ int parseLevels(std::string_view text) {
     return n;
 }
 
+namespace fast {
+
+// (fast_column.hpp)
+bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn, double rz) {
+    const double sMajor = majorX ? cc.spacingX : cc.spacingY;
+    const double sMinor = majorX ? cc.spacingY : cc.spacingX;
+    const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
+    if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
+    // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
+    const double reach = st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
+    return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
+}
+
+}  // namespace fast
+
 namespace {
 
 // A restarted ray descends the max-height pyramid only when its way through the map box spans
@@ -88,6 +95,8 @@ class FastCaster final : public Caster {
                            : std::make_shared<const TerrainPyramid>(map, options_.levels);
         topLevel_ = pyramid_->levelCount() - 1;
         slopes_ = std::make_unique<SlopeBlocks>(map);
+        far_.emplace(map_, *pyramid_, options_.sky);
+        rows_ = RowsCaster{&options_.sky, pyramid_.get(), options_.skipNodes, &*far_};
     }
     CasterKind kind() const override { return CasterKind::Fast; }
     std::string_view kernelName() const override { return casterKernelName(kernel_); }
@@ -190,7 +199,13 @@ class FastCaster final : public Caster {
         if (options_.levels != 0) {
             renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 0>
                                 : &FastCaster::renderLinearColumn<false, 0>;
+            // The row batches, each compiled for its instruction set (caster_rows_*.cpp): four
+            // lanes with AVX2; eight with AVX-512, and four where eight do not go.
 #if VIG_CASTER_PACKETS
+            if (k == CasterKernel::Avx2 || k == CasterKernel::Avx512) {
+                rowsNarrow_ = rows_avx2::kernel();
+                CHECK(rowsNarrow_.lanes == 4) << "this build lacks the AVX2 row batches";
+            }
             if (k == CasterKernel::Avx2) {
                 kernel_ = k;
                 renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 4>
@@ -199,6 +214,8 @@ class FastCaster final : public Caster {
 #endif
 #if VIG_CASTER_WIDE
             if (k == CasterKernel::Avx512) {
+                rowsWide_ = rows_avx512::kernel();
+                CHECK(rowsWide_.lanes == 8) << "this build lacks the AVX-512 row batches";
                 kernel_ = k;
                 renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 8>
                                     : &FastCaster::renderLinearColumn<false, 8>;
@@ -273,18 +290,6 @@ class FastCaster final : public Caster {
         return quantizeColor(rgb);
     }
 
-    // What every ray of one image column shares.
-    struct ColumnContext {
-        const MapView* mv;
-        glm::dvec3 base, down, eye;  // ray of row y: base + y * down
-        EyeGrid eg;
-        double d0;
-        double invSx, invSy;
-        double maxSlope;
-        double spacingX, spacingY;
-        bool multires;
-    };
-
     // A ray of a column in major-axis form: direction d (length len); per major grid unit u it
     // travels lenPerU along d, rn minor cells and rz metres up; inv = 1 / |major component|
     // (grid units); the major axis is x (majorX) or y, travelled in direction sgn.
@@ -296,28 +301,6 @@ class FastCaster final : public Caster {
         double rn, rz;
     };
 
-    // The ray below, in major-axis form: it and the next ray share the major coordinate at
-    // equal u (major grid units travelled from the eye), so coherence compares them there.
-    struct ColumnState {
-        bool havePrev = false, prevMajorX = false, prevAbove = false;
-        int prevSgn = 0;
-        double prevRn = 0.0, prevRz = 0.0, prevU = 0.0;
-        std::uint64_t steps = 0, restarts = 0;
-        WedgeSlope wedge;  // the terrain's slope bound over the column's wedge, by distance
-        // Clearance chain of the restarted rays (see restartInChain): segment j says a ray with
-        // minor slope in [rnLo, rnHi] and height slope at most rzHi passed above the cell maxima
-        // within one minor cell of its track from the previous segment's end (0 for the first)
-        // to `end`.
-        struct Segment {
-            double rnLo, rnHi, rzHi, end;
-        };
-        static constexpr int kChain = 16;
-        Segment chain[kChain];
-        int chainLength = 0;
-        bool chainMajorX = false;
-        int chainSgn = 0;
-    };
-
     // Starts a column's state: its slope bounds look at the wedge its rays sweep.
     void startColumn(const Camera& camera, const ColumnContext& cc, ColumnState& st) const {
         const glm::dvec3 last = cc.base + static_cast<double>(camera.intrinsics().height) * cc.down;
@@ -327,24 +310,6 @@ class FastCaster final : public Caster {
                 reach = std::max(reach, std::hypot(x - cc.eye.x, y - cc.eye.y));
         st.wedge.reset(slopes_.get(), {cc.eye.x, cc.eye.y}, {cc.base.x, cc.base.y},
                        {last.x, last.y}, reach, cc.maxSlope);
-    }
-
-    // Whether this ray (rn minor cells and rz metres per major unit) climbs over the ray below
-    // fast enough to stay clear of the terrain up to where that ray stopped: per major unit it
-    // must rise more than the steepest terrain within that distance of the eye, in the column's
-    // wedge, rises across the gap between them. Tested with the map's global bound first (no
-    // local bound exceeds it, so a pass there is a pass); the same arithmetic in both paths
-    // (the images are compared bit for bit).
-    static bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn,
-                            double rz) {
-        const double sMajor = majorX ? cc.spacingX : cc.spacingY;
-        const double sMinor = majorX ? cc.spacingY : cc.spacingX;
-        const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
-        if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
-        // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
-        const double reach =
-            st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
-        return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
     }
 
     // One ray of a column, any case: coherent, restarted, past the level-0 distance, straight
@@ -451,8 +416,8 @@ class FastCaster final : public Caster {
                                                               rz, st.prevU, uNear, st.steps);
             if (r.kind == ColumnMarch::kFresh) return false;
             if (r.kind == ColumnMarch::kFar) {
-                linearFar(cc, d, len, inv, majorX, sgn, rn, rz, r.u, st.prevU, st.prevAbove,
-                          st.steps, c, tHit);
+                far_->linearFar(cc, d.x, d.y, d.z, len, inv, majorX, sgn, rn, rz, r.u, st.prevU,
+                                st.prevAbove, st.steps, c, tHit);
             } else {
                 finishCoherent(cc, d, len, len * inv, r, st, c, tHit);
             }
@@ -461,14 +426,6 @@ class FastCaster final : public Caster {
         st.prevRz = rz;
         return true;
     }
-
-    // A march on major lines tries to pass max-height nodes (skipNodes) once it has sampled
-    // kSkipAfter lines without ending, starting with nodes of 2^kSkipFirstLevel cells, and again
-    // kSkipRetry lines after a try that passed none, twice as many after each further one (rays
-    // grazing far over the terrain would otherwise sample every line up to the level-0
-    // distance; rays close over it would try in vain).
-    static constexpr long kSkipAfter = 16, kSkipRetry = 8;
-    static constexpr int kSkipFirstLevel = 4;
 
     // The pyramid whose nodes long marches pass, or none (RenderOptions::skipNodes).
     const TerrainPyramid* skipPyramid() const {
@@ -680,271 +637,6 @@ class FastCaster final : public Caster {
         l.height = mv.height;
         l.heights = mv.heights;
         return l;
-    }
-
-    // Where a ray of the multiresolution caster has passed the level-0 distance above the
-    // terrain: on over the coarser levels, each band of distance [d0 2^k, d0 2^(k+1)) sampled
-    // where the ray crosses level k's major grid lines, its surface blended toward level k + 1's
-    // by distance (weight D / (d0 2^k) - 1), the hit between the last line passed above and the
-    // first under, its colour the same blend of the two levels' colours.
-    // Sets the colour, the hit distance (negative: sky), where the ray stopped (uStop) and
-    // whether it climbed over the map's highest point (above).
-    void linearFar(const ColumnContext& cc, const glm::dvec3& d, double len, double inv,
-                   bool majorX, int sgn, double rn, double rz, double uStart, double& uStop,
-                   bool& above, std::uint64_t& steps, Rgb8& c, double& tHit) const {
-        const double hs = std::sqrt(d.x * d.x + d.y * d.y) * inv;  // metres per major unit
-        // Far rays may pass over long stretches of terrain between hits (a row's hit moves by
-        // many cells there): after a few lines without a hit they skip down the max-height
-        // nodes, which bound every display level and so any blend of two.
-        const double lenPerU = len * inv;
-        double from = uStart;
-        FarHit f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, kFarLines, steps)
-                          : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, kFarLines, steps);
-        if (f.kind == ColumnMarch::kFar) {
-            const TerrainRay ray(map_, cc.eye, d);
-            double t0, t1;
-            const double tFrom = f.u * lenPerU;
-            if (!clipToMapBox(map_, ray, t0, t1) || !(t1 > tFrom)) {
-                uStop = f.u;
-                above = false;
-                tHit = -1.0;
-                c = skyColor(options_.sky, d.z / len);
-                return;
-            }
-            const double t = skipEmptySpace(*pyramid_, ray, std::max(t0, tFrom), t1, steps);
-            if (t < 0.0) {
-                // Nothing met up to where the ray leaves the map box: through its top (every
-                // ray above does too) or a side.
-                uStop = std::max(f.u, t1 / lenPerU);
-                above = ray.dir.z >= 0.0 && ray.origin.z + t1 * ray.dir.z >= map_.maxHeight();
-                tHit = -1.0;
-                c = skyColor(options_.sky, d.z / len);
-                return;
-            }
-            from = std::max(f.u, t / lenPerU);
-            f = majorX ? marchLinearFar<true>(cc, sgn, rn, rz, hs, from, -1, steps)
-                       : marchLinearFar<false>(cc, sgn, rn, rz, hs, from, -1, steps);
-        }
-        uStop = std::max(f.u, from);
-        above = f.kind == ColumnMarch::kAbove;
-        tHit = -1.0;
-        if (f.kind != ColumnMarch::kHit) {
-            c = skyColor(options_.sky, d.z / len);
-            return;
-        }
-        tHit = f.u * len * inv;
-        float rgb[3];
-        const double s = 1.0 / (1 << f.level);
-        levelColor(pyramid_->level(f.level), f.gx * s, f.gy * s, rgb);
-        if (f.weight > 0.0) {
-            float p[3];
-            levelColor(pyramid_->level(f.level + 1), 0.5 * f.gx * s, 0.5 * f.gy * s, p);
-            const float w = static_cast<float>(f.weight);
-            for (int i = 0; i < 3; ++i)
-                rgb[i] += (p[i] - rgb[i]) * w;
-        }
-        c = haze(rgb, tHit);
-    }
-
-    // Lines a far ray samples before it skips down the max-height nodes.
-    static constexpr long kFarLines = 16;
-
-    struct FarHit {
-        ColumnMarch::Kind kind = ColumnMarch::kStop;
-        double u = 0.0;             // level-0 major units from the eye
-        int level = 0;              // the band's level
-        double weight = 0.0;        // of level + 1
-        double gx = 0.0, gy = 0.0;  // level-0 grid coordinates of the hit
-    };
-
-    // Height (raw) of a level's surface where it crosses major line `line` at minor coordinate
-    // `n` (both in the level's grid units), linear along the line.
-    template <bool kMajorX>
-    [[gnu::always_inline]] static double lineSample(const PyramidLevel& l, long line, double n) {
-        const int minorCount = kMajorX ? l.height : l.width;
-        const int i = std::min(static_cast<int>(n), minorCount - 2);
-        const double f = n - i;
-        const std::ptrdiff_t minorStride = kMajorX ? l.width : 1;
-        const std::uint16_t* p =
-            l.heights + (kMajorX ? line + static_cast<std::ptrdiff_t>(i) * l.width
-                                 : line * static_cast<std::ptrdiff_t>(l.width) + i);
-        const double h0 = p[0];
-        return h0 + f * (static_cast<double>(p[minorStride]) - h0);
-    }
-
-    // A level's bilinear surface (raw) at its grid coordinates (major m, minor n), clamped.
-    template <bool kMajorX>
-    static double levelSurface(const PyramidLevel& l, double m, double n) {
-        const double gx = std::clamp(kMajorX ? m : n, 0.0, l.width - 1.0);
-        const double gy = std::clamp(kMajorX ? n : m, 0.0, l.height - 1.0);
-        const int ix = std::min(static_cast<int>(gx), l.width - 2);
-        const int iy = std::min(static_cast<int>(gy), l.height - 2);
-        const double fx = gx - ix, fy = gy - iy;
-        const std::uint16_t* p = l.heights + l.index(ix, iy);
-        const double a = p[0] + fx * (static_cast<double>(p[1]) - p[0]);
-        const double b = p[l.width] + fx * (static_cast<double>(p[l.width + 1]) - p[l.width]);
-        return a + fy * (b - a);
-    }
-
-    template <bool kMajorX>
-    // The band march from uStart; with budget >= 0, after that many lines it stops (kind kFar)
-    // at u, up to which the ray is clear.
-    FarHit marchLinearFar(const ColumnContext& cc, int sgn, double rn, double rz, double hs,
-                          double uStart, long budget, std::uint64_t& steps) const {
-        FarHit out;
-        out.u = uStart;
-        if (!(hs > 0.0)) return out;
-        const MapView& mv = *cc.mv;
-        const double em = kMajorX ? cc.eg.gx : cc.eg.gy, en = kMajorX ? cc.eg.gy : cc.eg.gx;
-        const double dzr = rz * mv.invScale;
-        const bool rising = dzr >= 0.0;
-        int k = 0;
-        double dk = cc.d0;
-        while (k < topLevel_ && uStart * hs >= 2.0 * dk) {
-            ++k;
-            dk *= 2.0;
-        }
-        double u = uStart;
-        std::uint64_t count = 0;
-        for (;;) {
-            const PyramidLevel& l = pyramid_->level(k);
-            const PyramidLevel* p = k < topLevel_ ? &pyramid_->level(k + 1) : nullptr;
-            const double size = static_cast<double>(1 << k), invSize = 1.0 / size;
-            const double uEnd = p ? 2.0 * dk / hs : std::numeric_limits<double>::infinity();
-            const int majorCount = kMajorX ? l.width : l.height;
-            const int minorCount = kMajorX ? l.height : l.width;
-            // The first line of this level at or after u.
-            const double gm = (em + sgn * u) * invSize;
-            long line = sgn > 0 ? -floorToLong(-gm) : floorToLong(gm);
-            double ul = ((line * size) - em) * sgn;
-            double n = (en + rn * ul) * invSize;
-            auto surface = [&](long ln, double nn, double uu) {
-                const double hk = lineSample<kMajorX>(l, ln, nn);
-                if (!p) return std::pair{hk, 0.0};
-                const double w = std::clamp(uu * hs / dk - 1.0, 0.0, 1.0);
-                if (w == 0.0) return std::pair{hk, 0.0};
-                const double hp = levelSurface<kMajorX>(*p, 0.5 * ln, 0.5 * nn);
-                return std::pair{hk + w * (hp - hk), w};
-            };
-            double zr = cc.eg.zRaw + dzr * ul;
-            double above = 0.0, weight = 0.0, uA = ul - size;
-            bool started = false, first = true;
-            if (u < ul && line >= 0 && line <= majorCount - 1) {
-                // Node A is the start itself (inside the map), on the blended surface there.
-                const double gmu = (em + sgn * u) * invSize, gnu = (en + rn * u) * invSize;
-                if (gmu >= 0.0 && gmu <= majorCount - 1.0 && gnu >= 0.0 &&
-                    gnu <= minorCount - 1.0) {
-                    double h = levelSurface<kMajorX>(l, gmu, gnu), w = 0.0;
-                    if (p) {
-                        w = std::clamp(u * hs / dk - 1.0, 0.0, 1.0);
-                        if (w > 0.0) h += w * (levelSurface<kMajorX>(*p, 0.5 * gmu, 0.5 * gnu) - h);
-                    }
-                    above = cc.eg.zRaw + dzr * u - h;
-                    weight = w;
-                    uA = u;
-                    started = true;
-                    first = false;
-                    if (above <= 0.0) {
-                        steps += count + 1;
-                        out.kind = ColumnMarch::kHit;
-                        out.u = u;
-                        out.level = k;
-                        out.weight = w;
-                        const double gmHit = em + sgn * u, gnHit = en + rn * u;
-                        out.gx = kMajorX ? gmHit : gnHit;
-                        out.gy = kMajorX ? gnHit : gmHit;
-                        return out;
-                    }
-                }
-            }
-            // Steps are skipped where the ray passes over the max-height nodes that bound this
-            // band's two levels (node level k + 1, or k at the top band).
-            const int j = std::max(p ? k + 1 : k, 1);
-            const bool skip = j < pyramid_->nodeLevelCount();
-            const int shift = j - k;
-            const int lastNm = skip ? (kMajorX ? pyramid_->nodesX(j) : pyramid_->nodesY(j)) - 1 : 0;
-            const int lastNn = skip ? (kMajorX ? pyramid_->nodesY(j) : pyramid_->nodesX(j)) - 1 : 0;
-            for (;;) {
-                ++count;
-                if (budget >= 0 && static_cast<long>(count) > budget && !first) {
-                    // Clear up to the previous line.
-                    steps += count;
-                    out.kind = ColumnMarch::kFar;
-                    out.u = std::max(u, ul - size);
-                    return out;
-                }
-                if (line < 0 || line > majorCount - 1 || !(n >= 0.0) || n > minorCount - 1.0) {
-                    steps += count;
-                    out.kind = ColumnMarch::kStop;
-                    out.u = ul;
-                    return out;
-                }
-                if (rising && zr > mv.maxRaw) {
-                    steps += count;
-                    out.kind = ColumnMarch::kAbove;
-                    out.u = ul;
-                    return out;
-                }
-                if (skip && !first) {
-                    // The piece of ray since the previous line, against the nodes under it.
-                    const double zLow = rising ? zr - dzr * size : zr;
-                    const double nPrev = n - rn;
-                    const int cm = static_cast<int>(sgn > 0 ? line - 1 : line) >> shift;
-                    const int na = std::min(static_cast<int>(std::min(n, nPrev)) >> shift, lastNn);
-                    const int nb = std::min(static_cast<int>(std::max(n, nPrev)) >> shift, lastNn);
-                    const int nm = std::min(cm, lastNm);
-                    int bound = 0;
-                    for (int c = std::max(na, 0); c <= nb; ++c)
-                        bound = std::max<int>(bound, kMajorX ? pyramid_->nodeMaxRaw(j, nm, c)
-                                                             : pyramid_->nodeMaxRaw(j, c, nm));
-                    if (zLow > bound) {
-                        started = false;
-                        if (ul >= uEnd) break;
-                        line += sgn;
-                        ul += size;
-                        n += rn;
-                        zr += dzr * size;
-                        continue;
-                    }
-                    if (!started) {
-                        // The previous line, passed over without a sample: the ray is above it.
-                        const auto [ha, wa] = surface(line - sgn, nPrev, ul - size);
-                        above = zr - dzr * size - ha;
-                        weight = wa;
-                        uA = ul - size;
-                        started = true;
-                    }
-                }
-                first = false;
-                const auto [h, w] = surface(line, n, ul);
-                const double diff = zr - h;
-                if (diff <= 0.0) {
-                    const double f = started ? above / (above - diff) : 1.0;
-                    // Between the previous node (a line, or the start) and this line.
-                    steps += count;
-                    out.kind = ColumnMarch::kHit;
-                    out.u = started ? uA + f * (ul - uA) : ul;
-                    out.level = k;
-                    out.weight = started ? weight + f * (w - weight) : w;
-                    const double gmHit = em + sgn * out.u, gnHit = en + rn * out.u;
-                    out.gx = kMajorX ? gmHit : gnHit;
-                    out.gy = kMajorX ? gnHit : gmHit;
-                    return out;
-                }
-                if (ul >= uEnd) break;
-                above = diff;
-                weight = w;
-                uA = ul;
-                started = true;
-                line += sgn;
-                ul += size;
-                n += rn;
-                zr += dzr * size;
-            }
-            u = ul;
-            ++k;
-            dk *= 2.0;
-        }
     }
 
     // A restarted ray (its climb over the ray below does not outrun the slope bound: steep
@@ -1210,15 +902,15 @@ class FastCaster final : public Caster {
                 bool tried = false;
 #if VIG_CASTER_WIDE
                 if (wide && v >= 7) {
-                    v = runRows(LaneCount<8>{}, cc, st, v, rays, colorOut, depthOut,
-                                static_cast<std::size_t>(w), r);
+                    v = rowsWide_.run(rows_, cc, st, v, rays, colorOut, depthOut,
+                                      static_cast<std::size_t>(w), r);
                     tried = r != RowsOutcome::kOther;
                 }
 #endif
                 // Where eight do not go together (or fewer are left), four may: one batch.
                 if (!tried && v >= 3) {
-                    v = runRows(LaneCount<4>{}, cc, st, v, wide ? 1 : rays, colorOut, depthOut,
-                                static_cast<std::size_t>(w), r);
+                    v = rowsNarrow_.run(rows_, cc, st, v, wide ? 1 : rays, colorOut, depthOut,
+                                        static_cast<std::size_t>(w), r);
                 }
                 if (r == RowsOutcome::kDone) continue;
                 if (r == RowsOutcome::kFar) {
@@ -1240,14 +932,14 @@ class FastCaster final : public Caster {
                     double yy[8];
                     for (int l = 0; l < 8; ++l)
                         yy[l] = rowOf(v - l);
-                    r = linearRows(LaneCount<8>{}, cc, st, yy, c, tHit);
+                    r = rowsWide_.cast(rows_, cc, st, yy, c, tHit);
                     // Where eight do not go together, four may.
                     if (r == RowsOutcome::kOther) n = 4;
                 }
 #endif
                 if (n == 4) {
                     const double yy[4] = {rowOf(v), rowOf(v - 1), rowOf(v - 2), rowOf(v - 3)};
-                    r = linearRows(LaneCount<4>{}, cc, st, yy, c, tHit);
+                    r = rowsNarrow_.cast(rows_, cc, st, yy, c, tHit);
                 }
                 if (r == RowsOutcome::kFar) {
                     // Every ray above starts past the level-0 distance too.
@@ -1341,9 +1033,6 @@ class FastCaster final : public Caster {
     // where some ray is not coherent (bottom ray, restart, sky above the map's top). Every
     // operation is the scalar path's, in the same order and precision (no fused multiply-add),
     // so the image is bit for bit the one column at a time gives.
-    using V4 = double __attribute__((vector_size(32)));
-    using M4 = decltype(V4{} < V4{});
-
     // One lane's bound scan (marchCoherent's inner loop) from step k on, and how it ended.
     struct LaneScan {
         std::int64_t n, dn;  // minor coordinate at the step's start (32.32) and per step
@@ -1356,7 +1045,7 @@ class FastCaster final : public Caster {
         std::ptrdiff_t ib;
         std::int64_t next;
     };
-    enum class ScanEnd{kReach, kLeave, kExhausted, kClimb};
+    enum class ScanEnd { kReach, kLeave, kExhausted, kClimb };
 
     template <bool kMajorX>
     [[gnu::always_inline]] static ScanEnd scanLane(const MapView& mv, LaneScan& q,
@@ -1402,38 +1091,11 @@ class FastCaster final : public Caster {
         return end;
     }
 
-    // (vmax, vmin and vclamp01 on four lanes: caster_rows.inc.)
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vsqrt(V4 v) {
-        return reinterpret_cast<V4>(_mm256_sqrt_pd(reinterpret_cast<__m256d>(v)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vfloor(V4 v) {
-        return reinterpret_cast<V4>(_mm256_floor_pd(reinterpret_cast<__m256d>(v)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static int vmask(M4 m) {
-        return _mm256_movemask_pd(reinterpret_cast<__m256d>(m));
-    }
     // roundToInt64 on four lanes, as an integer-valued double (exact below 2^53).
     [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 vroundAway(V4 v) {
         const V4 h = v >= 0.0 ? v + 0.5 : v - 0.5;
         return reinterpret_cast<V4>(
             _mm256_round_pd(reinterpret_cast<__m256d>(h), _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC));
-    }
-    // The 32 bits at byte offset scale * idx from base, four lanes (idx integer-valued, below
-    // 2^31; inactive lanes must carry a valid index).
-    // (Four scalar loads: hardware gathers are slow where microcode guards them.)
-    template <int kScale>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static __m128i gather32(const void* base, V4 idx) {
-        alignas(16) int i[4];
-        _mm_store_si128(reinterpret_cast<__m128i*>(i),
-                        _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(idx)));
-        const auto* b = static_cast<const unsigned char*>(base);
-        int v[4];
-        for (int l = 0; l < 4; ++l)
-            std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
-        return _mm_setr_epi32(v[0], v[1], v[2], v[3]);
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 toV4(__m128i v) {
-        return reinterpret_cast<V4>(_mm256_cvtepi32_pd(v));
     }
     // Two adjacent 16-bit samples at idx and idx + 1, four lanes.
     [[gnu::always_inline]] VIG_CASTER_AVX2 static void gatherPair(const std::uint16_t* base, V4 idx,
@@ -1510,16 +1172,6 @@ class FastCaster final : public Caster {
         outFx = hit ? (kMajorX ? fm : fn) : outFx;
         outFy = hit ? (kMajorX ? fn : fm) : outFy;
         got = got || hit;
-    }
-
-    // Channel k (0..2: r, g, b) of four texels gathered as 32-bit lanes (gather32), and the
-    // texels read from one byte earlier (the last one of the map) moved down to their own r.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static V4 texelChannel(__m128i texels, int k) {
-        return toV4(
-            _mm_and_si128(_mm_srl_epi32(texels, _mm_cvtsi32_si128(8 * k)), _mm_set1_epi32(0xFF)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static __m128i texelsFromEarlier(__m128i texels) {
-        return _mm_srli_epi32(texels, 8);
     }
 
     // Casts row y of the four columns where it can (see above); `done[l]` tells which lanes it
@@ -1704,278 +1356,6 @@ class FastCaster final : public Caster {
         }
     }
 
-    // N consecutive rays of one column (bottom to top) cast together by the multiresolution
-    // caster (linearRows, caster_rows.inc; four lanes with AVX2, eight with AVX-512): when each
-    // climbs clear of the ray below them (the column state; the same proof as linearRay's,
-    // against that one ray), all march from where it stopped, over the same major grid lines
-    // in step, each lane sampling the surface on its own track; linearRay's march and hit, lane
-    // by lane. A lane that reaches the level-0 distance goes on alone into linearFar. kDone when
-    // cast (colours and hit distances set, the state moved on); otherwise the state is untouched
-    // and the rays are cast one by one (kFar: they start past the level-0 distance).
-    enum class RowsOutcome{kDone, kFar, kOther};
-    template <int N>
-    struct LaneCount {};
-    // The surface where each lane crosses a level-0 major line, linear along the line:
-    // lineSample's h, h0, h1 and i (an integer-valued double), lane by lane.
-    template <class V>
-    struct LineN {
-        V h, h0, h1, i;
-    };
-
-    // One step of a row batch's lanes from major line A to line B (stepHits): A's cell iA
-    // (an integer-valued double) and the ray's height over A's sample on the side the track
-    // moves to, dEdgeA; the minor coordinate nA at A; B's ray height zB; the ray's height over
-    // the surface at A (above) and at B (below); A and B's major distances uA, uB; the step's
-    // index k.
-    template <class V>
-    struct LaneStep {
-        V iA, dEdgeA, nA, zB, above, below;
-        double uA, uB;
-        long k;
-    };
-
-    // Whether the four 32-bit lanes of v are equal.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static bool sameInAllLanes(__m128i v) {
-        return _mm_movemask_epi8(_mm_cmpeq_epi32(v, _mm_shuffle_epi32(v, 0))) == 0xFFFF;
-    }
-
-    // The surface where each lane crosses level-0 major line `line` at minor coordinate n
-    // (in [0, lastN] in every lane): lineSample on four lanes.
-    template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static LineN<V4> sampleLine(const MapView& mv, long line,
-                                                                       V4 n, double lastN) {
-        const V4 i = vmin(vfloor(n), V4{} + (lastN - 1.0));
-        const V4 f = n - i;
-        const __m128i ii = _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(i));
-        const std::uint16_t* h = mv.heights;
-        __m128i a, b;
-        if (kMajorX) {
-            // Minor along y: the two samples are a row apart. Offsets in 32 bits (the packet
-            // paths run on maps of fewer than 2^31 samples).
-            const int w = mv.width;
-            const __m128i off = _mm_add_epi32(_mm_mullo_epi32(ii, _mm_set1_epi32(w)),
-                                              _mm_set1_epi32(static_cast<int>(line)));
-            const int o0 = _mm_cvtsi128_si32(off), o3 = _mm_extract_epi32(off, 3);
-            if (sameInAllLanes(ii)) {
-                // All four tracks cross the line in one cell (common where cells span many
-                // pixels): two loads.
-                const V4 h0 = V4{} + static_cast<double>(h[o0]);
-                const V4 h1 = V4{} + static_cast<double>(h[o0 + w]);
-                return {h0 + f * (h1 - h0), h0, h1, i};
-            }
-            const int o1 = _mm_extract_epi32(off, 1), o2 = _mm_extract_epi32(off, 2);
-            __m128i v = _mm_cvtsi32_si128(h[o0]);
-            v = _mm_insert_epi16(v, h[o1], 1);
-            v = _mm_insert_epi16(v, h[o2], 2);
-            v = _mm_insert_epi16(v, h[o3], 3);
-            v = _mm_insert_epi16(v, h[o0 + w], 4);
-            v = _mm_insert_epi16(v, h[o1 + w], 5);
-            v = _mm_insert_epi16(v, h[o2 + w], 6);
-            v = _mm_insert_epi16(v, h[o3 + w], 7);
-            a = _mm_cvtepu16_epi32(v);
-            b = _mm_cvtepu16_epi32(_mm_srli_si128(v, 8));
-        } else {
-            // Minor along x: the two samples are adjacent, one 32-bit load.
-            const auto* row = reinterpret_cast<const unsigned char*>(h + line * mv.width);
-            const int i0 = _mm_cvtsi128_si32(ii), i3 = _mm_extract_epi32(ii, 3);
-            if (sameInAllLanes(ii)) {
-                // All four tracks cross the line in one cell: one load.
-                int v0;
-                std::memcpy(&v0, row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
-                const __m128i g = _mm_set1_epi32(v0);
-                const V4 h0 = toV4(_mm_and_si128(g, _mm_set1_epi32(0xFFFF)));
-                const V4 h1 = toV4(_mm_srli_epi32(g, 16));
-                return {h0 + f * (h1 - h0), h0, h1, i};
-            }
-            const int i1 = _mm_extract_epi32(ii, 1), i2 = _mm_extract_epi32(ii, 2);
-            int v[4];
-            std::memcpy(&v[0], row + 2 * static_cast<std::ptrdiff_t>(i0), 4);
-            std::memcpy(&v[1], row + 2 * static_cast<std::ptrdiff_t>(i1), 4);
-            std::memcpy(&v[2], row + 2 * static_cast<std::ptrdiff_t>(i2), 4);
-            std::memcpy(&v[3], row + 2 * static_cast<std::ptrdiff_t>(i3), 4);
-            __m128i g = _mm_cvtsi32_si128(v[0]);
-            g = _mm_insert_epi32(g, v[1], 1);
-            g = _mm_insert_epi32(g, v[2], 2);
-            g = _mm_insert_epi32(g, v[3], 3);
-            a = _mm_and_si128(g, _mm_set1_epi32(0xFFFF));
-            b = _mm_srli_epi32(g, 16);
-        }
-        const V4 h0 = toV4(a), h1 = toV4(b);
-        return {h0 + f * (h1 - h0), h0, h1, i};
-    }
-    // Four pixels' channels (each 0..255, one per 32-bit lane) as twelve bytes r g b r g b ...
-    // at c.
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static void storeRgb(__m128i r, __m128i g, __m128i b,
-                                                                Rgb8* c) {
-        static_assert(sizeof(Rgb8) == 3);
-        const __m128i bytes =
-            _mm_packus_epi16(_mm_packus_epi32(r, g), _mm_packus_epi32(b, _mm_setzero_si128()));
-        const __m128i rgb = _mm_shuffle_epi8(
-            bytes, _mm_setr_epi8(0, 4, 8, 1, 5, 9, 2, 6, 10, 3, 7, 11, -1, -1, -1, -1));
-        _mm_storel_epi64(reinterpret_cast<__m128i*>(c), rgb);
-        const int last = _mm_extract_epi32(rgb, 2);
-        std::memcpy(reinterpret_cast<unsigned char*>(c) + 8, &last, 4);
-    }
-    // quantizeColor() on four lanes (no haze).
-    [[gnu::always_inline]] VIG_CASTER_AVX2 static void quantizeLanes(const V4 rgb[3], Rgb8* c) {
-        __m128i q[3];
-        for (int ch = 0; ch < 3; ++ch) {
-            __m128 v = _mm256_cvtpd_ps(reinterpret_cast<__m256d>(rgb[ch]));
-            v = _mm_add_ps(v, _mm_set1_ps(0.5f));
-            v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.0f));
-            q[ch] = _mm_cvttps_epi32(v);
-        }
-        storeRgb(q[0], q[1], q[2], c);
-    }
-
-#define VIG_ROWS_N 4
-#define VIG_ROWS_V V4
-#define VIG_ROWS_M M4
-#define VIG_ROWS_TARGET VIG_CASTER_AVX2
-#include "ig/caster_rows.inc"
-#undef VIG_ROWS_N
-#undef VIG_ROWS_V
-#undef VIG_ROWS_M
-#undef VIG_ROWS_TARGET
-
-#if VIG_CASTER_WIDE
-    // The same primitives on eight lanes (AVX-512), for the row batches. (The masked forms with
-    // every lane set: GCC 12 warns of the unmasked ones' undefined source.)
-    using V8 = double __attribute__((vector_size(64)));
-    using M8 = decltype(V8{} < V8{});
-
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vsqrt(V8 v) {
-        return reinterpret_cast<V8>(_mm512_maskz_sqrt_pd(0xFF, reinterpret_cast<__m512d>(v)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 vfloor(V8 v) {
-        return reinterpret_cast<V8>(_mm512_maskz_roundscale_pd(
-            0xFF, reinterpret_cast<__m512d>(v), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static int vmask(M8 m) {
-        return static_cast<int>(_mm512_movepi64_mask(reinterpret_cast<__m512i>(m)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 toV8(__m256i v) {
-        return reinterpret_cast<V8>(_mm512_maskz_cvtepi32_pd(0xFF, v));
-    }
-    // Whether the eight 32-bit lanes of v are equal.
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static bool sameInAllLanes(__m256i v) {
-        const __m256i first = _mm256_broadcastd_epi32(_mm256_castsi256_si128(v));
-        return _mm256_movemask_epi8(_mm256_cmpeq_epi32(v, first)) == -1;
-    }
-    // The 32 bits at byte offset scale * idx from base, eight lanes (as gather32).
-    template <int kScale>
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static __m256i gather32(const void* base, V8 idx) {
-        const __m256i i = _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(idx));
-        const auto* b = static_cast<const unsigned char*>(base);
-        auto at = [&](int l) {
-            int v;
-            std::memcpy(&v, b + static_cast<std::ptrdiff_t>(l) * kScale, 4);
-            return v;
-        };
-        const __m128i lo = _mm256_castsi256_si128(i), hi = _mm256_extracti128_si256(i, 1);
-        __m128i a = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(lo)));
-        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 1)), 1);
-        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 2)), 2);
-        a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 3)), 3);
-        __m128i c = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(hi)));
-        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 1)), 1);
-        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 2)), 2);
-        c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 3)), 3);
-        return _mm256_inserti128_si256(_mm256_castsi128_si256(a), c, 1);
-    }
-
-    // The eight 16-bit heights h[o[l] + add] in one register.
-    template <int... kLane>
-    [[gnu::always_inline]] static __m128i heights16(const std::uint16_t* h, const int* o, int add,
-                                                    std::integer_sequence<int, kLane...>) {
-        __m128i v = _mm_setzero_si128();
-        ((v = _mm_insert_epi16(v, h[o[kLane] + add], kLane)), ...);
-        return v;
-    }
-
-    // sampleLine on eight lanes.
-    template <bool kMajorX>
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static LineN<V8> sampleLine(const MapView& mv,
-                                                                         long line, V8 n,
-                                                                         double lastN) {
-        const V8 i = vmin(vfloor(n), V8{} + (lastN - 1.0));
-        const V8 f = n - i;
-        const __m256i ii = _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(i));
-        const std::uint16_t* h = mv.heights;
-        const int w = mv.width;
-        __m256i a, b;
-        if (kMajorX) {
-            // Minor along y: the two samples are a row apart (32-bit offsets, as sampleLine).
-            const __m256i off = _mm256_add_epi32(_mm256_mullo_epi32(ii, _mm256_set1_epi32(w)),
-                                                 _mm256_set1_epi32(static_cast<int>(line)));
-            if (sameInAllLanes(ii)) {
-                const int o0 = _mm256_cvtsi256_si32(off);
-                const V8 h0 = V8{} + static_cast<double>(h[o0]);
-                const V8 h1 = V8{} + static_cast<double>(h[o0 + w]);
-                return {h0 + f * (h1 - h0), h0, h1, i};
-            }
-            const __m128i offLo = _mm256_castsi256_si128(off);
-            const __m128i offHi = _mm256_extracti128_si256(off, 1);
-            const int o[8] = {_mm_cvtsi128_si32(offLo),    _mm_extract_epi32(offLo, 1),
-                              _mm_extract_epi32(offLo, 2), _mm_extract_epi32(offLo, 3),
-                              _mm_cvtsi128_si32(offHi),    _mm_extract_epi32(offHi, 1),
-                              _mm_extract_epi32(offHi, 2), _mm_extract_epi32(offHi, 3)};
-            const auto lanes = std::make_integer_sequence<int, 8>{};
-            a = _mm256_cvtepu16_epi32(heights16(h, o, 0, lanes));
-            b = _mm256_cvtepu16_epi32(heights16(h, o, w, lanes));
-        } else {
-            // Minor along x: the two samples are adjacent, one 32-bit load.
-            const auto* row = reinterpret_cast<const unsigned char*>(h + line * w);
-            if (sameInAllLanes(ii)) {
-                std::uint32_t v0;
-                std::memcpy(&v0, row + 2 * static_cast<std::ptrdiff_t>(_mm256_cvtsi256_si32(ii)),
-                            4);
-                const V8 h0 = V8{} + static_cast<double>(v0 & 0xFFFFu);
-                const V8 h1 = V8{} + static_cast<double>(v0 >> 16);
-                return {h0 + f * (h1 - h0), h0, h1, i};
-            }
-            const __m256i g = gather32<2>(row, i);
-            a = _mm256_and_si256(g, _mm256_set1_epi32(0xFFFF));
-            b = _mm256_srli_epi32(g, 16);
-        }
-        const V8 h0 = toV8(a), h1 = toV8(b);
-        return {h0 + f * (h1 - h0), h0, h1, i};
-    }
-
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static V8 texelChannel(__m256i texels, int k) {
-        return toV8(_mm256_and_si256(_mm256_srl_epi32(texels, _mm_cvtsi32_si128(8 * k)),
-                                     _mm256_set1_epi32(0xFF)));
-    }
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static __m256i texelsFromEarlier(__m256i texels) {
-        return _mm256_srli_epi32(texels, 8);
-    }
-
-    // quantizeLanes on eight lanes.
-    [[gnu::always_inline]] VIG_CASTER_AVX512 static void quantizeLanes(const V8 rgb[3], Rgb8* c) {
-        __m256i q[3];
-        for (int ch = 0; ch < 3; ++ch) {
-            __m256 v = _mm512_maskz_cvtpd_ps(0xFF, reinterpret_cast<__m512d>(rgb[ch]));
-            v = _mm256_add_ps(v, _mm256_set1_ps(0.5f));
-            v = _mm256_min_ps(_mm256_max_ps(v, _mm256_setzero_ps()), _mm256_set1_ps(255.0f));
-            q[ch] = _mm256_cvttps_epi32(v);
-        }
-        storeRgb(_mm256_castsi256_si128(q[0]), _mm256_castsi256_si128(q[1]),
-                 _mm256_castsi256_si128(q[2]), c);
-        storeRgb(_mm256_extracti128_si256(q[0], 1), _mm256_extracti128_si256(q[1], 1),
-                 _mm256_extracti128_si256(q[2], 1), c + 4);
-    }
-
-#define VIG_ROWS_N 8
-#define VIG_ROWS_V V8
-#define VIG_ROWS_M M8
-#define VIG_ROWS_TARGET VIG_CASTER_AVX512
-#include "ig/caster_rows.inc"
-#undef VIG_ROWS_N
-#undef VIG_ROWS_V
-#undef VIG_ROWS_M
-#undef VIG_ROWS_TARGET
-#endif  // VIG_CASTER_WIDE
-
     VIG_CASTER_AVX2 void renderPacket(const MapView& mv, const Camera& camera, double d0, int x0,
                                       RenderedFrame& frame, UnitCounters& counters) const {
         const int w = camera.intrinsics().width, h = camera.intrinsics().height;
@@ -2040,6 +1420,9 @@ class FastCaster final : public Caster {
     std::shared_ptr<const TerrainPyramid> pyramid_;
     std::unique_ptr<SlopeBlocks> slopes_;
     int topLevel_ = 0;
+    std::optional<FarMarch> far_;      // the multiresolution march past the level-0 distance
+    RowsCaster rows_{};                // what the row batches read of this caster
+    RowKernel rowsNarrow_, rowsWide_;  // four and eight lanes (chooseKernel)
 };
 
 }  // namespace
