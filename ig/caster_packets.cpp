@@ -1,6 +1,19 @@
-// The fast caster's four-column packets (caster_fast.hpp): four adjacent columns cast
-// together, row by row, with AVX2 (per-function target attributes: this object is compiled
-// for the baseline, and its AVX2 code runs only where chooseKernel found AVX2).
+// The fast caster's four-column packets (the single level's avx2 kernel, caster_fast.hpp).
+//
+// Four adjacent columns cast together, row by row, with AVX2: the rays' set-up, the
+// coherent march's set-up, the exact solve of the steps they reach and the colour run on
+// four lanes; each lane's bound scan is its own scalar loop. A row is cast this way when all
+// four rays are coherent on the same major axis and direction. A lane that ends without a
+// hit (past the map's far edge, over its highest point) ends here too, one that reaches
+// the level-0 distance goes on into the multiresolution march; one that leaves through a
+// minor side of the map is cast again from its unchanged state by castRay, as are the rows
+// where some ray is not coherent (bottom ray, restart, sky above the map's top). Every
+// operation is the scalar path's, in the same order and precision (no fused multiply-add),
+// so the image is bit for bit the one column at a time gives.
+//
+// The AVX2 code carries per-function target attributes: this object is compiled for the
+// baseline (its inline helpers stay baseline code), and its AVX2 functions run only where
+// chooseKernel found AVX2.
 #include "ig/caster_fast.hpp"
 #include "ig/coherence.hpp"
 
@@ -15,16 +28,6 @@ namespace ig::fast {
 
 namespace {
 
-// Four adjacent columns cast together, row by row, with AVX2: the rays' set-up, the
-// coherent march's set-up, the exact solve of the steps they reach and the colour run on
-// four lanes; each lane's bound scan is its own scalar loop. A row is cast this way when all
-// four rays are coherent on the same major axis and direction. A lane that ends without a
-// hit (past the map's far edge, over its highest point) ends here too, one that reaches
-// the level-0 distance goes on into the multiresolution march; one that leaves through a
-// minor side of the map is cast again from its unchanged state by castRay, as are the rows
-// where some ray is not coherent (bottom ray, restart, sky above the map's top). Every
-// operation is the scalar path's, in the same order and precision (no fused multiply-add),
-// so the image is bit for bit the one column at a time gives.
 // One lane's bound scan (marchCoherent's inner loop) from step k on, and how it ended.
 struct LaneScan {
     std::int64_t n, dn;  // minor coordinate at the step's start (32.32) and per step
