@@ -59,15 +59,9 @@ int parseLevels(std::string_view text) {
 
 namespace fast {
 
-// (fast_column.hpp)
+// (fast_column.hpp) Out of line, for the row batches; the caster's own paths inline it.
 bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn, double rz) {
-    const double sMajor = majorX ? cc.spacingX : cc.spacingY;
-    const double sMinor = majorX ? cc.spacingY : cc.spacingX;
-    const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
-    if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
-    // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
-    const double reach = st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
-    return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
+    return FastCaster::climbsClear(cc, st, majorX, rn, rz);
 }
 
 namespace {
@@ -212,8 +206,8 @@ void FastCaster::chooseKernel() {
 #endif
 }
 
-inline FastCaster::FreshCast FastCaster::castFresh(const TerrainRay& ray, double horiz, double d0,
-                                                   bool bottom, std::uint64_t& steps) const {
+[[gnu::always_inline]] inline FastCaster::FreshCast FastCaster::castFresh(
+    const TerrainRay& ray, double horiz, double d0, bool bottom, std::uint64_t& steps) const {
     FreshCast r;
     double t0, t1;
     if (!clipToMapBox(map_, ray, t0, t1)) return r;

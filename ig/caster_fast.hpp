@@ -8,6 +8,7 @@
 #include "base/check.hpp"
 #include "ig/caster.hpp"
 #include "ig/caster_lanes.hpp"
+#include "ig/coherence.hpp"
 #include "ig/far_march.hpp"
 #include "ig/fast_column.hpp"
 #include "ig/level0_march.hpp"
@@ -19,6 +20,8 @@
 
 #include <glm/vec3.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -35,6 +38,20 @@ class FastCaster final : public Caster {
     CasterKind kind() const override { return CasterKind::Fast; }
 
     std::string_view kernelName() const override { return casterKernelName(kernel_); }
+
+    // The coherence test (fast_column.hpp, climbsClear): inline in the caster's own paths
+    // (columns, packets); the row batches call the out-of-line climbsClear, which is this.
+    static bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn,
+                            double rz) {
+        const double sMajor = majorX ? cc.spacingX : cc.spacingY;
+        const double sMinor = majorX ? cc.spacingY : cc.spacingX;
+        const double gap = std::abs(rn - st.prevRn), climb = rz - st.prevRz;
+        if (climbsClearOf(climb, cc.maxSlope, sMinor, gap)) return true;
+        // Both rays' tracks stay within this horizontal distance of the eye up to prevU.
+        const double reach =
+            st.prevU * (sMajor + std::max(std::abs(rn), std::abs(st.prevRn)) * sMinor);
+        return climbsClearOf(climb, st.wedge.upTo(reach), sMinor, gap);
+    }
 
     void render(const Camera& camera, RenderedFrame& frame) const override;
 
@@ -75,8 +92,8 @@ class FastCaster final : public Caster {
     // level-0 march out to tNear, multiresolution march beyond.
     // The bottom ray always descends the max-height pyramid (hierarchical first hit); a restart
     // only when its way through the map box is long (near the nadir a march is cheaper).
-    FreshCast castFresh(const TerrainRay& ray, double horiz, double d0, bool bottom,
-                        std::uint64_t& steps) const;
+    [[gnu::always_inline]] FreshCast castFresh(const TerrainRay& ray, double horiz, double d0,
+                                               bool bottom, std::uint64_t& steps) const;
 
     // The hit from tStart on: exact on level 0 out to tNear, the multiresolution march beyond.
     std::optional<LevelHit> castFrom(const TerrainRay& ray, double horiz, double d0, double tStart,
@@ -224,8 +241,9 @@ class FastCaster final : public Caster {
     // Casts row y of the four columns where it can; `done[l]` tells which lanes it cast. The
     // state of the other lanes is untouched.
     template <bool kMajorX>
-    VIG_CASTER_AVX2 void packetRow(const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy, V4 dz,
-                                   V4 len, int sgnI, Rgb8* c, double* tHit, bool* done) const;
+    [[gnu::always_inline]] VIG_CASTER_AVX2 void packetRow(const ColumnContext* cc, ColumnState* st,
+                                                          V4 dx, V4 dy, V4 dz, V4 len, int sgnI,
+                                                          Rgb8* c, double* tHit, bool* done) const;
 #endif
 
     const TerrainMap& map_;

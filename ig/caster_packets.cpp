@@ -186,9 +186,9 @@ void FastCaster::renderPacketUnit(const MapView& mv, const Camera& camera, doubl
 }
 
 template <bool kMajorX>
-VIG_CASTER_AVX2 void FastCaster::packetRow(const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy,
-                                           V4 dz, V4 len, int sgnI, Rgb8* c, double* tHit,
-                                           bool* done) const {
+[[gnu::always_inline]] inline VIG_CASTER_AVX2 void FastCaster::packetRow(
+    const ColumnContext* cc, ColumnState* st, V4 dx, V4 dy, V4 dz, V4 len, int sgnI, Rgb8* c,
+    double* tHit, bool* done) const {
     const MapView& mv = *cc[0].mv;
     const EyeGrid& eg = cc[0].eg;
     const V4 zero = V4{} + 0.0, one = V4{} + 1.0;
