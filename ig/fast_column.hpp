@@ -73,7 +73,8 @@ struct ColumnState {
 // must rise more than the steepest terrain within that distance of the eye, in the column's
 // wedge, rises across the gap between them. Tested with the map's global bound first (no
 // local bound exceeds it, so a pass there is a pass); the same arithmetic in every path
-// (the images are compared bit for bit).
+// (the images are compared bit for bit). Out of line (FastCaster::climbsClear, which the
+// caster's own paths inline): the row batches call it.
 bool climbsClear(const ColumnContext& cc, ColumnState& st, bool majorX, double rn, double rz);
 
 // N consecutive rays of one column (bottom to top) cast together by the multiresolution
