@@ -6,10 +6,12 @@
 // Included only by the row-batch objects, one per instruction set (caster_rows_avx2.cpp,
 // caster_rows_avx512.cpp, each compiled with its instruction set's flags), after the lane
 // primitives for V (caster_lanes.hpp and the object's own). The template lives in an anonymous
-// namespace: its instances have internal linkage, so no other object can be handed them, and
-// it calls nothing that a baseline object could share with it but always-inlined helpers and
-// out-of-line functions compiled for the baseline (climbsClear, FarMarch::linearFar). See
-// docs/design/multires.md, "One object per instruction set"; scripts/isa-symbols.sh checks it.
+// namespace: its instances have internal linkage, so no other object can be handed them. What
+// it calls from the rest of the caster is out of line, compiled for the baseline (climbsClear,
+// FarMarch::linearFar); the shared inline code it uses (skipNodes, applyHaze, skyColor,
+// std::min ...) is inlined, never emitted here (the objects are compiled at -O1 at least, and
+// scripts/isa-symbols.sh checks that they define no weak symbol). See docs/design/multires.md,
+// "One object per instruction set".
 #pragma once
 
 #include "ig/caster_lanes.hpp"
