@@ -2,7 +2,7 @@
 // below it stopped, grid line by grid line along the major axis, the minor coordinate in 32.32
 // fixed point, each step tested against the cells' maxima and the reachable step solved exactly
 // on the bilinear surface. What the scalar column kernel, the four-column packets and the
-// clearance chain march with. Internal to ig/caster_fast.cpp: it is compiled with that file's
+// clearance chain march with. Internal to the fast caster: it is compiled with its files'
 // floating-point flags (no contraction), which the kernels' bit-for-bit equality needs.
 #pragma once
 

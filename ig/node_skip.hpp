@@ -1,6 +1,6 @@
 // Node skipping for the fast caster's multiresolution marches: how many major grid lines a
 // fan of rays may pass over the max-height pyramid's nodes without sampling the surface.
-// Internal to ig/caster_fast.cpp (compiled with its floating-point flags).
+// Internal to the fast caster (compiled with its floating-point flags).
 #pragma once
 
 #include "ig/pyramid.hpp"
@@ -8,6 +8,14 @@
 #include <algorithm>
 
 namespace ig::fast {
+
+// A march on major lines tries to pass max-height nodes (skipNodes) once it has sampled
+// kSkipAfter lines without ending, starting with nodes of 2^kSkipFirstLevel cells, and again
+// kSkipRetry lines after a try that passed none, twice as many after each further one (rays
+// grazing far over the terrain would otherwise sample every line up to the level-0
+// distance; rays close over it would try in vain).
+constexpr long kSkipAfter = 16, kSkipRetry = 8;
+constexpr int kSkipFirstLevel = 4;
 
 // A fan of rays from the eye, in major-axis form: at major distance u >= 0 from the eye (grid
 // units) each ray is at height eyeRaw + dzr * u (raw height units) with dzr >= dzrLow, and at

@@ -9,6 +9,8 @@
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -57,9 +59,14 @@ int main(int argc, char** argv) {
     // --kernel-diffs: instead of hashes, the pixels where each vector kernel's image differs
     // from the scalar kernel's, for every fast-caster configuration where any does.
     bool kernelDiffs = false;
+    // --march-diffs: per map, how far the two level-0 marches' images are apart: the naive
+    // caster (grid_march.hpp: the ray parameter t, heights in metres) against the fast caster's
+    // single level, scalar kernel (level0_march.hpp: major grid units, raw heights), 320x240.
+    bool marchDiffs = false;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--poses") && i + 1 < argc) poses = std::atoi(argv[++i]);
         if (!std::strcmp(argv[i], "--kernel-diffs")) kernelDiffs = true;
+        if (!std::strcmp(argv[i], "--march-diffs")) marchDiffs = true;
     }
     struct Named {
         const char* name;
@@ -70,6 +77,46 @@ int main(int argc, char** argv) {
     maps.push_back({"goleta", ig::loadGoleta()});
     maps.push_back({"synthetic", ig::makeSyntheticTerrain(512, 7, 10.0)});
     const ig::Intrinsics in = ig::Intrinsics::fromFov(w, h, ig::degToRad(60.0), 4);
+    if (marchDiffs) {
+        const ig::Intrinsics big = ig::Intrinsics::fromFov(320, 240, ig::degToRad(60.0), 4);
+        for (const Named& m : maps) {
+            ig::RenderOptions o;
+            o.levels = 0;
+            o.threads = 1;
+            o.kernel = ig::CasterKernel::Scalar;
+            const auto naive = ig::makeCaster(ig::CasterKind::Naive, m.map);
+            const auto fast = ig::makeCaster(ig::CasterKind::Fast, m.map, o);
+            long pixels = 0, colour = 0, hitOnlyOne = 0, bothHit = 0, depthBits = 0;
+            int maxChannel = 0;
+            double maxRel = 0.0;
+            for (const ig::Pose& pose : ig::sweepPoses(m.map, poses)) {
+                const auto a = ig::renderFrame(*naive, m.map, pose, big);
+                const auto b = ig::renderFrame(*fast, m.map, pose, big);
+                for (std::size_t i = 0; i < a.color.size(); ++i) {
+                    ++pixels;
+                    const int d = std::max({std::abs(a.color[i].r - b.color[i].r),
+                                            std::abs(a.color[i].g - b.color[i].g),
+                                            std::abs(a.color[i].b - b.color[i].b)});
+                    colour += d > 0;
+                    maxChannel = std::max(maxChannel, d);
+                    const bool ha = std::isfinite(a.depth[i]), hb = std::isfinite(b.depth[i]);
+                    if (ha != hb) ++hitOnlyOne;
+                    if (!ha || !hb) continue;
+                    ++bothHit;
+                    depthBits += std::memcmp(&a.depth[i], &b.depth[i], sizeof(float)) != 0;
+                    maxRel =
+                        std::max(maxRel, std::abs(static_cast<double>(a.depth[i]) - b.depth[i]) /
+                                             a.depth[i]);
+                }
+            }
+            std::printf(
+                "%s: %ld pixels over %d poses; colour differs in %ld (at most %d of 255); hit by "
+                "one caster only: %ld; of %ld hit by both, depth differs in %ld, by at most "
+                "%.2e relative\n",
+                m.name, pixels, poses, colour, maxChannel, hitOnlyOne, bothHit, depthBits, maxRel);
+        }
+        return 0;
+    }
     int images = 0;
     for (const Named& m : maps) {
         const std::vector<ig::Pose> sweep = ig::sweepPoses(m.map, poses);

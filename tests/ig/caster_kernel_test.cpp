@@ -5,6 +5,7 @@
 #include "base/cpu_features.hpp"
 #include "ig/caster.hpp"
 #include "ig/error.hpp"
+#include "ig/fast_column.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
@@ -187,3 +188,25 @@ TEST(CasterKernel, MultiresVectorKernelsAgreeWithTheScalarKernel) {
 }
 
 }  // namespace
+
+// The row batches' objects, one per instruction set, each give their kernel (of their width,
+// both entries set) in an x86-64 build, and an empty one elsewhere; asking for a kernel runs
+// none of its code, so this holds on any processor.
+TEST(CasterKernel, EachInstructionSetObjectGivesItsRowKernel) {
+    const ig::fast::RowKernel narrow = ig::rows_avx2::kernel();
+    const ig::fast::RowKernel wide = ig::rows_avx512::kernel();
+#if VIG_CASTER_PACKETS
+    EXPECT_EQ(narrow.lanes, 4);
+    EXPECT_EQ(wide.lanes, 8);
+#else
+    EXPECT_EQ(narrow.lanes, 0);
+    EXPECT_EQ(wide.lanes, 0);
+#endif
+    for (const ig::fast::RowKernel& k : {narrow, wide}) {
+        EXPECT_EQ(k.run != nullptr, k.lanes > 0);
+        EXPECT_EQ(k.cast != nullptr, k.lanes > 0);
+    }
+    if (narrow.lanes > 0 && wide.lanes > 0) {
+        EXPECT_NE(reinterpret_cast<void*>(narrow.run), reinterpret_cast<void*>(wide.run));
+    }
+}
