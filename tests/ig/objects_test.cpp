@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 namespace {
 
 using namespace ig;
@@ -305,7 +307,8 @@ TEST(ObjectCaster, VisiblePixelCountsEqualTheIdImage) {
 // ---------------------------------------------------------------------------------
 
 std::string tmpDir() {
-    const std::filesystem::path dir = std::filesystem::path(VIG_TEST_TMP) / "scene";
+    const std::filesystem::path dir =
+        std::filesystem::path(VIG_TEST_TMP) / ("scene-" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     return dir.string();
 }

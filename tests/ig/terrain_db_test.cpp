@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "ig/error.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/synthetic.hpp"
@@ -29,7 +31,8 @@ namespace ig {
 namespace {
 
 std::string tmpPath(const std::string& name) {
-    const std::filesystem::path dir = std::filesystem::path(VIG_TEST_TMP) / "terrain_db";
+    const std::filesystem::path dir =
+        std::filesystem::path(VIG_TEST_TMP) / ("terrain_db-" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     return (dir / name).string();
 }

@@ -18,6 +18,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+
+#include <unistd.h>
 #include <fstream>
 #include <map>
 #include <string>
@@ -25,8 +27,9 @@
 
 namespace {
 
+// One folder per test process: ctest runs the tests of this file side by side.
 std::string tmpDir() {
-    const std::string dir = std::string(VIG_TEST_TMP) + "/truth";
+    const std::string dir = std::string(VIG_TEST_TMP) + "/truth-" + std::to_string(::getpid());
     std::filesystem::create_directories(dir);
     return dir;
 }
