@@ -187,8 +187,7 @@ void FrameRing::publishBack(const ig::RenderedFrame& frame, std::uint64_t pixels
             std::memcpy(color(back, e), eye.color.data(), m.pixels * sizeof(ig::Rgb8));
             std::memcpy(depth(back, e), eye.depth.data(), m.pixels * sizeof(float));
             if (m.idPixels != 0) {
-                std::memcpy(ids(back, e), eye.objectId.data(),
-                            m.pixels * sizeof(std::uint16_t));
+                std::memcpy(ids(back, e), eye.objectId.data(), m.pixels * sizeof(std::uint16_t));
             }
         }
     }
@@ -207,8 +206,7 @@ bool FrameRing::publish(const ig::RenderedFrame& frame, std::int64_t clockNs) {
         if (!frame.right) return false;
         const std::size_t r = frame.right->color.size();
         if (r > maxPixels_ || frame.right->depth.size() != r) return false;
-        if (!frame.right->objectId.empty() &&
-            (!objectIds_ || frame.right->objectId.size() != r)) {
+        if (!frame.right->objectId.empty() && (!objectIds_ || frame.right->objectId.size() != r)) {
             return false;
         }
     }

@@ -58,8 +58,9 @@ class FrameRing {
     // Field side: when a frame newer than the last fetched was published, copies it into
     // `into` (reusing its buffers: no allocation once they have grown to the slot size; a
     // stereo ring's right eye into `into.right`, reused when nothing else holds it) and
-    // returns New (`into.objectId` empty when the frame has none); Bad (and `why`) when the slot does not hold a usable frame; None otherwise
-    // (also for a frame whose sequence is not above the last one fetched).
+    // returns New (`into.objectId` empty when the frame has none); Bad (and `why`) when the slot
+    // does not hold a usable frame; None otherwise (also for a frame whose sequence is not above
+    // the last one fetched).
     Fetch fetch(ig::RenderedFrame& into, std::string* why);
 
     // Field side: the next writer (a restarted renderer) writes the slot that is neither the
