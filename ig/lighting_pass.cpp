@@ -14,11 +14,8 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cmath>
-#include <cstdint>
 #include <numbers>
-#include <vector>
 
 namespace ig {
 
@@ -44,32 +41,6 @@ inline void levelNormal(const float* samples, int width, int height, double gx, 
     const float w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
     for (int i = 0; i < 3; ++i)
         n[i] = w00 * a[i] + w10 * b[i] + w01 * c[i] + w11 * d[i];
-}
-
-// Sample (ix, iy)'s place in a level's tiled copy (in samples of four int16).
-inline std::size_t packedIndex(int tilesX, int ix, int iy) {
-    constexpr int t = TerrainNormals::kTile;
-    return (static_cast<std::size_t>(iy / t) * tilesX + ix / t) * (t * t) + (iy % t) * t + ix % t;
-}
-
-// Bilinear normal of a level's tiled int16 copy at its grid coordinates (clamped), in units of
-// 1 / kPackedScale.
-inline void packedNormal(const std::int16_t* packed, int tilesX, int width, int height, float gx,
-                         float gy, float n[3]) {
-    gx = std::clamp(gx, 0.0f, static_cast<float>(width - 1));
-    gy = std::clamp(gy, 0.0f, static_cast<float>(height - 1));
-    const int ix = std::min(static_cast<int>(gx), std::max(width - 2, 0));
-    const int iy = std::min(static_cast<int>(gy), std::max(height - 2, 0));
-    const int ix1 = std::min(ix + 1, width - 1), iy1 = std::min(iy + 1, height - 1);
-    const float fx = gx - static_cast<float>(ix), fy = gy - static_cast<float>(iy);
-    const std::int16_t* a = packed + 4 * packedIndex(tilesX, ix, iy);
-    const std::int16_t* b = packed + 4 * packedIndex(tilesX, ix1, iy);
-    const std::int16_t* c = packed + 4 * packedIndex(tilesX, ix, iy1);
-    const std::int16_t* d = packed + 4 * packedIndex(tilesX, ix1, iy1);
-    for (int i = 0; i < 3; ++i) {
-        const float lo = a[i] + (b[i] - a[i]) * fx, hi = c[i] + (d[i] - c[i]) * fx;
-        n[i] = lo + (hi - lo) * fy;
-    }
 }
 
 // The level the caster drew at horizontal distance `horizontal` and the weight of the next.
@@ -144,6 +115,13 @@ inline std::uint8_t toByte(float v) {
     return static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.0f, 255.0f));
 }
 
+// Recomposes one pixel: h f + L (c - h f).
+inline void relightPixel(Rgb8& c, const SkyModel& sky, float haze, float light) {
+    const float hr = sky.horizon.r * haze, hg = sky.horizon.g * haze, hb = sky.horizon.b * haze;
+    c = Rgb8{toByte(hr + light * (c.r - hr)), toByte(hg + light * (c.g - hg)),
+             toByte(hb + light * (c.b - hb))};
+}
+
 inline bool litPixel(const RenderedFrame& frame, std::size_t i) {
     const float d = frame.depth[i];
     if (!(d >= 0.0f && d < kSkyDepth)) return false;  // sky, NaN, negative
@@ -157,27 +135,6 @@ void checkFrame(const SunLighting& lighting, const Camera& camera, const Rendere
     CHECK(frame.color.size() == n && frame.depth.size() == n)
         << "lighting a frame whose buffers do not match the camera";
     CHECK(frame.objectId.empty() || frame.objectId.size() == n);
-}
-
-// The tiled int16 copy of every level (TerrainNormals::packed).
-template <class Levels>
-void packLevels(Levels& levels) {
-    constexpr int t = TerrainNormals::kTile;
-    for (auto& level : levels) {
-        level.tilesX = (level.width + t - 1) / t;
-        const int tilesY = (level.height + t - 1) / t;
-        level.packed.assign(static_cast<std::size_t>(level.tilesX) * tilesY * t * t * 4, 0);
-        for (int iy = 0; iy < level.height; ++iy) {
-            for (int ix = 0; ix < level.width; ++ix) {
-                const float* n =
-                    &level.normals[3 * (static_cast<std::size_t>(iy) * level.width + ix)];
-                std::int16_t* p = &level.packed[4 * packedIndex(level.tilesX, ix, iy)];
-                for (int c = 0; c < 3; ++c)
-                    p[c] = static_cast<std::int16_t>(
-                        std::lround(std::clamp(n[c], -1.0f, 1.0f) * TerrainNormals::kPackedScale));
-            }
-        }
-    }
 }
 
 }  // namespace
@@ -207,10 +164,7 @@ TerrainNormals::TerrainNormals(const TerrainMap& map)
         }
     });
     levels_.push_back(std::move(base));
-    if (w < 2 || h < 2) {
-        packLevels(levels_);
-        return;
-    }
+    if (w < 2 || h < 2) return;
     // The display pyramid's levels (ig/pyramid.cpp): same sizes, same filter.
     for (;;) {
         const Level& fine = levels_.back();
@@ -246,7 +200,6 @@ TerrainNormals::TerrainNormals(const TerrainMap& map)
             });
         levels_.push_back(std::move(coarse));
     }
-    packLevels(levels_);
 }
 
 void TerrainNormals::normalAt(int k, double x, double y, float n[3]) const {
@@ -274,91 +227,38 @@ double lightFactor(const SunLighting& lighting, const LevelBands& bands, const S
 void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBands& bands,
                 const Camera& camera, RenderedFrame& frame, int threads) {
     checkFrame(lighting, camera, frame);
-    // The sun scaled to the packed normals' units.
-    LightModel model = LightModel::of(lighting, lighting.clock.at(frame.time));
-    model.sx /= TerrainNormals::kPackedScale;
-    model.sy /= TerrainNormals::kPackedScale;
-    model.sz /= TerrainNormals::kPackedScale;
+    const LightModel model = LightModel::of(lighting, lighting.clock.at(frame.time));
     const Intrinsics& in = camera.intrinsics();
     const CameraBasis& basis = camera.basis();
     const glm::dvec3 eye = camera.pose().position;
-    const TerrainNormals& normals = *lighting.normals;
-    const float invHaze =
-        sky.hazeDistance > 0.0 ? static_cast<float>(1.0 / sky.hazeDistance) : 0.0f;
+    const double invHaze = sky.hazeDistance > 0.0 ? 1.0 / sky.hazeDistance : 0.0;
     // Level 0 at every distance: no horizontal distance needed.
-    const int top = std::min(bands.topLevel, normals.levelCount() - 1);
-    const bool banded =
-        !lighting.levelZeroNormals && top > 0 && bands.d0 < std::numeric_limits<double>::infinity();
-    const float invD0 = banded ? static_cast<float>(1.0 / bands.d0) : 0.0f;
-    const double invSx = 1.0 / normals.spacingX(), invSy = 1.0 / normals.spacingY();
-    // The eye in level-0 grid units.
-    const float ex = static_cast<float>(eye.x * invSx), ey = static_cast<float>(eye.y * invSy);
-    const float hr = sky.horizon.r, hg = sky.horizon.g, hb = sky.horizon.b;
+    const bool banded = !lighting.levelZeroNormals && bands.topLevel > 0 &&
+                        bands.d0 < std::numeric_limits<double>::infinity();
+    const double invSx = 1.0 / lighting.normals->spacingX();
+    const double invSy = 1.0 / lighting.normals->spacingY();
     const int w = in.width;
     auto rows = [&](const tbb::blocked_range<int>& range) {
-        // Per row: the hit point in grid units and t = horizontal / d0 for every pixel, in one
-        // branch-free loop the compiler vectorises (sky and unusable depths give values that the
-        // second loop never reads).
-        std::vector<float> gxs(w), gys(w), ts(w);
         for (int y = range.begin(); y < range.end(); ++y) {
             // Pixel (x, y)'s ray: first + x * right (x + 0.5, y + 0.5 its centre).
             const glm::dvec3 first = in.focal * basis.forward + (0.5 - in.cx()) * basis.right -
                                      (y + 0.5 - in.cy()) * basis.up;
-            const float fx = static_cast<float>(first.x), fy = static_cast<float>(first.y),
-                        fz = static_cast<float>(first.z);
-            const float rx = static_cast<float>(basis.right.x),
-                        ry = static_cast<float>(basis.right.y),
-                        rz = static_cast<float>(basis.right.z);
-            const float sx = static_cast<float>(invSx), sy = static_cast<float>(invSy);
+            const double fx = first.x, fy = first.y, fz = first.z;
+            const double rx = basis.right.x, ry = basis.right.y, rz = basis.right.z;
             const std::size_t row = static_cast<std::size_t>(y) * w;
-            const float* __restrict depth = frame.depth.data() + row;
-            float* __restrict gx = gxs.data();
-            float* __restrict gy = gys.data();
-            float* __restrict tt = ts.data();
-            for (int x = 0; x < w; ++x) {
-                const float xf = static_cast<float>(x);
-                const float dx = fx + xf * rx, dy = fy + xf * ry, dz = fz + xf * rz;
-                const float dxy2 = dx * dx + dy * dy;
-                const float invLen = 1.0f / std::sqrt(dxy2 + dz * dz);
-                const float scale = depth[x] * invLen;
-                gx[x] = ex + dx * scale * sx;
-                gy[x] = ey + dy * scale * sy;
-                tt[x] = scale * std::sqrt(dxy2) * invD0;
-            }
             Rgb8* __restrict color = frame.color.data() + row;
             for (int x = 0; x < w; ++x) {
                 if (!litPixel(frame, row + x)) continue;
-                // Band k = floor(log2 t) (0 below 1), weight t / 2^k - 1 toward k + 1: from the
-                // float's exponent, no division, no loop (t finite and >= 0 here).
-                int k = 0;
-                float wk = 0.0f;
-                if (banded) {
-                    const float t = tt[x];
-                    const int e = static_cast<int>(std::bit_cast<std::uint32_t>(t) >> 23) - 127;
-                    k = std::clamp(e, 0, top);
-                    if (k < top)
-                        wk = std::clamp(
-                            t * std::bit_cast<float>(static_cast<std::uint32_t>(127 - k) << 23) -
-                                1.0f,
-                            0.0f, 1.0f);
-                }
-                const float inv = std::bit_cast<float>(static_cast<std::uint32_t>(127 - k) << 23);
+                const double depth = frame.depth[row + x];
+                const double dx = fx + x * rx, dy = fy + x * ry, dz = fz + x * rz;
+                const double scale = depth / std::sqrt(dx * dx + dy * dy + dz * dz);
+                const double horizontal = banded ? scale * std::sqrt(dx * dx + dy * dy) : 0.0;
                 float n[3];
-                packedNormal(normals.packed(k), normals.tilesX(k), normals.width(k),
-                             normals.height(k), gx[x] * inv, gy[x] * inv, n);
-                if (wk > 0.0f) {
-                    float m[3];
-                    packedNormal(normals.packed(k + 1), normals.tilesX(k + 1), normals.width(k + 1),
-                                 normals.height(k + 1), 0.5f * inv * gx[x], 0.5f * inv * gy[x], m);
-                    for (int i = 0; i < 3; ++i)
-                        n[i] += (m[i] - n[i]) * wk;
-                }
-                const float haze = invHaze > 0.0f ? 1.0f - std::exp(-depth[x] * invHaze) : 0.0f;
-                const float light = model(n);
-                Rgb8& c = color[x];
-                const float fr = hr * haze, fg = hg * haze, fb = hb * haze;
-                c = Rgb8{toByte(fr + light * (c.r - fr)), toByte(fg + light * (c.g - fg)),
-                         toByte(fb + light * (c.b - fb))};
+                bandNormal(lighting, bands, (eye.x + dx * scale) * invSx,
+                           (eye.y + dy * scale) * invSy, horizontal, n);
+                const float haze =
+                    invHaze > 0.0 ? 1.0f - std::exp(static_cast<float>(-depth * invHaze)) : 0.0f;
+                relightPixel(color[x], sky, haze, model(n));
             }
         }
     };

@@ -7,7 +7,6 @@
 #include "ig/caster.hpp"
 #include "ig/frame.hpp"
 
-#include <cstdint>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -32,21 +31,10 @@ class TerrainNormals {
     // Bilinear normal of level k at world (x, y) (clamped to the map).
     void normalAt(int k, double x, double y, float n[3]) const;
 
-    // The pass's copy of level k: components as int16 (value / kPackedScale; x, y, z and a zero
-    // pad, 8 bytes) in tiles of kTile x kTile samples (128 bytes, two cache lines), tiles
-    // row-major: a bilinear lookup's four samples share a tile three times in four, and a row
-    // of pixels' samples stay in cache for the next row.
-    static constexpr int kTile = 4;
-    static constexpr float kPackedScale = 32767.0f;
-    const std::int16_t* packed(int k) const { return levels_[k].packed.data(); }
-    int tilesX(int k) const { return levels_[k].tilesX; }
-
   private:
     struct Level {
         int width = 0, height = 0;
         LargeVector<float> normals;
-        LargeVector<std::int16_t> packed;
-        int tilesX = 0;
     };
     std::vector<Level> levels_;
     double spacingX_ = 1.0, spacingY_ = 1.0;
