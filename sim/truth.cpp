@@ -2,6 +2,8 @@
 
 #include "base/check.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -125,15 +127,47 @@ std::array<glm::dvec3, 8> objectCorners(const TruthObject& o) {
     return out;
 }
 
+namespace {
+
+// The world -> model voxel map of one placed object (ObjectLayer::place's, z from the base):
+// worked out once per object and field, then applied to every ray.
+struct ModelFrame {
+    double s, c, inv, hx, hy;
+    explicit ModelFrame(const TruthObject& o)
+        : s(std::sin(o.heading)),
+          c(std::cos(o.heading)),
+          inv(1.0 / o.scale),
+          hx(0.5 * o.model->grid.sizeX),
+          hy(0.5 * o.model->grid.sizeY) {}
+    void point(const TruthObject& o, const glm::dvec3& q, double p[3]) const {
+        const double dx = q.x - o.x, dy = q.y - o.y;
+        p[0] = (dx * c - dy * s) * inv + hx;
+        p[1] = (dx * s + dy * c) * inv + hy;
+        p[2] = (q.z - o.z) * inv;
+    }
+    void direction(const glm::dvec3& dir, double d[3]) const {
+        d[0] = (dir.x * c - dir.y * s) * inv;
+        d[1] = (dir.x * s + dir.y * c) * inv;
+        d[2] = dir.z * inv;
+    }
+};
+
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]);
+
+}  // namespace
+
 bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir) {
-    // Into model voxels: (x, y) as ObjectLayer::place maps them, z from the base.
-    const ig::VoxModel& g = o.model->grid;
-    const double s = std::sin(o.heading), c = std::cos(o.heading);
-    const double inv = 1.0 / o.scale;
-    const double dx = origin.x - o.x, dy = origin.y - o.y;
-    const double p[3] = {(dx * c - dy * s) * inv + 0.5 * g.sizeX,
-                         (dx * s + dy * c) * inv + 0.5 * g.sizeY, (origin.z - o.z) * inv};
-    const double d[3] = {(dir.x * c - dir.y * s) * inv, (dir.x * s + dir.y * c) * inv, dir.z * inv};
+    const ModelFrame f(o);
+    double p[3], d[3];
+    f.point(o, origin, p);
+    f.direction(dir, d);
+    return rayMeetsModel(o, p, d);
+}
+
+namespace {
+
+// Whether the ray p + t d (t > 0, model voxels) meets a voxel of o's model of non-zero opacity.
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
     // The filled box's slab interval.
     double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
@@ -180,7 +214,16 @@ bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::d
     }
 }
 
-TruthComputer::TruthComputer() : acc_(kIds), objectOf_(kIds, -1) {}
+}  // namespace
+
+TruthComputer::TruthComputer(int workers) : acc_(kIds), objectOf_(kIds, -1) {
+    if (workers != 1) {
+        arena_ = std::make_unique<tbb::task_arena>(workers > 1 ? workers
+                                                               : int{tbb::task_arena::automatic});
+    }
+}
+
+TruthComputer::~TruthComputer() = default;
 
 void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                             const std::uint16_t* ids, int width, int lines, int firstLine,
@@ -219,10 +262,12 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
     const ig::Camera cam(pose, camera.window);
     const double kx = static_cast<double>(camera.outWidth) / camera.window.width;
     const double ky = static_cast<double>(camera.outHeight) / camera.window.height;
-    for (std::size_t i = 0; i < objects_.size(); ++i) {
-        const TruthObject& o = objects_[i];
+    // Each object's truth depends on that object alone (the warped ids' tallies are read only):
+    // spread over the workers, each writing its own entry, merged in placement order below, so
+    // the lines are the same whatever the worker count.
+    const auto one = [&](const TruthObject& o, ObjectTruth& t) -> bool {
         const std::array<glm::dvec3, 8> corners = objectCorners(o);
-        ObjectTruth t;
+        t = ObjectTruth{};
         t.id = o.id;
         t.moving = o.moving;
         glm::dvec3 centre{0.0};
@@ -264,7 +309,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
             }
         }
         const bool shown = acc_[o.id].n > 0;
-        if (!front && !shown) continue;
+        if (!front && !shown) return false;
         if (!front) {
             // Shown although its box is behind the eye (a warp's shift): no pixel to trace.
             bx0 = by0 = 0.0;
@@ -279,7 +324,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
         const bool inFrustum =
             front && bx1 > 0.0 && by1 > 0.0 && bx0 < camera.outWidth && by0 < camera.outHeight;
-        if (!inFrustum && !shown) continue;
+        if (!inFrustum && !shown) return false;
         // Unoccluded: the field's pixels inside the box whose centre ray meets the model.
         if (inFrustum) {
             const int x0 = std::max(0, static_cast<int>(std::floor(bx0)));
@@ -295,13 +340,19 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                                 static_cast<double>(std::max(0, last - first + 1));
             const int step =
                 area > kExactRays ? static_cast<int>(std::ceil(std::sqrt(area / kExactRays))) : 1;
+            // The model frame and the eye in it once per object (rayMeetsObject's arithmetic,
+            // so the same answer ray for ray).
+            const ModelFrame frame(o);
+            double p[3], d[3];
+            frame.point(o, pose.position, p);
             std::uint64_t met = 0;
             for (int line = first; line <= last; line += step) {
                 const int y = firstLine + 2 * line;
                 for (int x = x0; x <= x1; x += step) {
                     const glm::dvec3 dir =
                         glm::normalize(cam.rayDirection((x + 0.5) / kx, (y + 0.5) / ky));
-                    met += rayMeetsObject(o, pose.position, dir) ? 1 : 0;
+                    frame.direction(dir, d);
+                    met += rayMeetsModel(o, p, d) ? 1 : 0;
                 }
             }
             t.unoccludedPx =
@@ -319,13 +370,29 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
         // Listed when the field shows it, or when its exact shape covers a pixel centre of the
         // field (it would show unless hidden); sub-pixel objects that show nothing are not.
-        if (a.n == 0 && t.unoccludedPx == 0) continue;
+        if (a.n == 0 && t.unoccludedPx == 0) return false;
         if (t.unoccludedPx > 0) {
             t.occluded = std::clamp(
                 1.0 - static_cast<double>(t.visiblePx) / static_cast<double>(t.unoccludedPx), 0.0,
                 1.0);
         }
-        out.objects.push_back(t);
+        return true;
+    };
+    const std::size_t n = objects_.size();
+    results_.resize(n);
+    listed_.assign(n, 0);
+    const auto range = [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            listed_[i] = one(objects_[i], results_[i]) ? 1 : 0;
+    };
+    if (arena_) {
+        arena_->execute(
+            [&] { tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), range); });
+    } else {
+        range(tbb::blocked_range<std::size_t>(0, n));
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        if (listed_[i]) out.objects.push_back(results_[i]);
     }
     for (const std::uint16_t id : seen_)
         acc_[id].n = 0;
