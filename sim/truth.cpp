@@ -2,6 +2,8 @@
 
 #include "base/check.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -125,15 +127,47 @@ std::array<glm::dvec3, 8> objectCorners(const TruthObject& o) {
     return out;
 }
 
+namespace {
+
+// The world -> model voxel map of one placed object (ObjectLayer::place's, z from the base):
+// worked out once per object and field, then applied to every ray.
+struct ModelFrame {
+    double s, c, inv, hx, hy;
+    explicit ModelFrame(const TruthObject& o)
+        : s(std::sin(o.heading)),
+          c(std::cos(o.heading)),
+          inv(1.0 / o.scale),
+          hx(0.5 * o.model->grid.sizeX),
+          hy(0.5 * o.model->grid.sizeY) {}
+    void point(const TruthObject& o, const glm::dvec3& q, double p[3]) const {
+        const double dx = q.x - o.x, dy = q.y - o.y;
+        p[0] = (dx * c - dy * s) * inv + hx;
+        p[1] = (dx * s + dy * c) * inv + hy;
+        p[2] = (q.z - o.z) * inv;
+    }
+    void direction(const glm::dvec3& dir, double d[3]) const {
+        d[0] = (dir.x * c - dir.y * s) * inv;
+        d[1] = (dir.x * s + dir.y * c) * inv;
+        d[2] = dir.z * inv;
+    }
+};
+
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]);
+
+}  // namespace
+
 bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir) {
-    // Into model voxels: (x, y) as ObjectLayer::place maps them, z from the base.
-    const ig::VoxModel& g = o.model->grid;
-    const double s = std::sin(o.heading), c = std::cos(o.heading);
-    const double inv = 1.0 / o.scale;
-    const double dx = origin.x - o.x, dy = origin.y - o.y;
-    const double p[3] = {(dx * c - dy * s) * inv + 0.5 * g.sizeX,
-                         (dx * s + dy * c) * inv + 0.5 * g.sizeY, (origin.z - o.z) * inv};
-    const double d[3] = {(dir.x * c - dir.y * s) * inv, (dir.x * s + dir.y * c) * inv, dir.z * inv};
+    const ModelFrame f(o);
+    double p[3], d[3];
+    f.point(o, origin, p);
+    f.direction(dir, d);
+    return rayMeetsModel(o, p, d);
+}
+
+namespace {
+
+// Whether the ray p + t d (t > 0, model voxels) meets a voxel of o's model of non-zero opacity.
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
     // The filled box's slab interval.
     double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
@@ -180,7 +214,16 @@ bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::d
     }
 }
 
-TruthComputer::TruthComputer() : acc_(kIds), objectOf_(kIds, -1) {}
+}  // namespace
+
+TruthComputer::TruthComputer(int workers) : acc_(kIds), objectOf_(kIds, -1) {
+    if (workers != 1) {
+        arena_ = std::make_unique<tbb::task_arena>(workers > 1 ? workers
+                                                               : int{tbb::task_arena::automatic});
+    }
+}
+
+TruthComputer::~TruthComputer() = default;
 
 void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                             const std::uint16_t* ids, int width, int lines, int firstLine,
@@ -219,10 +262,44 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
     const ig::Camera cam(pose, camera.window);
     const double kx = static_cast<double>(camera.outWidth) / camera.window.width;
     const double ky = static_cast<double>(camera.outHeight) / camera.window.height;
-    for (std::size_t i = 0; i < objects_.size(); ++i) {
-        const TruthObject& o = objects_[i];
+    // Each object's truth depends on that object alone (the warped ids' tallies are read only):
+    // spread over the workers, each writing its own entry, merged in placement order below, so
+    // the lines are the same whatever the worker count.
+    // The field's frustum: a plane through the eye and each edge of the window, normal inward.
+    constexpr double kNearM = 0.05;
+    const double ww = camera.window.width, wh = camera.window.height;
+    const glm::dvec3 edge[4] = {cam.rayDirection(0.0, 0.0), cam.rayDirection(ww, 0.0),
+                                cam.rayDirection(ww, wh), cam.rayDirection(0.0, wh)};
+    const glm::dvec3 inward = cam.rayDirection(0.5 * ww, 0.5 * wh);
+    glm::dvec3 side[4];
+    for (int k = 0; k < 4; ++k) {
+        side[k] = glm::normalize(glm::cross(edge[k], edge[(k + 1) % 4]));
+        if (glm::dot(side[k], inward) < 0.0) side[k] = -side[k];
+    }
+    // Whether an object that the field does not show lies wholly outside the frustum (or wholly
+    // behind the clipping plane), tested on a sphere holding its box at any heading: then its
+    // projected box misses the field and it is not listed, so its corners need not be worked out.
+    // Conservative (a margin of a micrometre and a part in 1e9): the same lines as without it.
+    const auto outside = [&](const TruthObject& o) {
+        const ig::VoxModel& g = o.model->grid;
+        const double u =
+            std::max(std::abs(o.lo[0] - 0.5 * g.sizeX), std::abs(o.hi[0] - 0.5 * g.sizeX));
+        const double v =
+            std::max(std::abs(o.lo[1] - 0.5 * g.sizeY), std::abs(o.hi[1] - 0.5 * g.sizeY));
+        const double h = 0.5 * (o.hi[2] - o.lo[2]);
+        const double r = o.scale * std::sqrt(u * u + v * v + h * h) * (1.0 + 1e-9) + 1e-6;
+        const glm::dvec3 q{o.x, o.y, o.z + o.scale * 0.5 * (o.lo[2] + o.hi[2])};
+        if (cam.forwardDepth(q) + r < kNearM) return true;
+        const glm::dvec3 d = q - pose.position;
+        for (const glm::dvec3& n : side) {
+            if (glm::dot(n, d) < -r) return true;
+        }
+        return false;
+    };
+    const auto one = [&](const TruthObject& o, ObjectTruth& t) -> bool {
+        if (acc_[o.id].n == 0 && outside(o)) return false;
         const std::array<glm::dvec3, 8> corners = objectCorners(o);
-        ObjectTruth t;
+        t = ObjectTruth{};
         t.id = o.id;
         t.moving = o.moving;
         glm::dvec3 centre{0.0};
@@ -231,7 +308,6 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         t.rangeM = glm::length(centre - pose.position);
         // The box clipped to the space kNearM in front of the eye, projected: its corners there,
         // and where its edges cross that plane.
-        constexpr double kNearM = 0.05;
         double bx0 = std::numeric_limits<double>::infinity(), by0 = bx0, bx1 = -bx0, by1 = -bx0;
         bool behind = false, front = false;
         const auto extend = [&](const glm::dvec3& q) {
@@ -264,7 +340,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
             }
         }
         const bool shown = acc_[o.id].n > 0;
-        if (!front && !shown) continue;
+        if (!front && !shown) return false;
         if (!front) {
             // Shown although its box is behind the eye (a warp's shift): no pixel to trace.
             bx0 = by0 = 0.0;
@@ -279,7 +355,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
         const bool inFrustum =
             front && bx1 > 0.0 && by1 > 0.0 && bx0 < camera.outWidth && by0 < camera.outHeight;
-        if (!inFrustum && !shown) continue;
+        if (!inFrustum && !shown) return false;
         // Unoccluded: the field's pixels inside the box whose centre ray meets the model.
         if (inFrustum) {
             const int x0 = std::max(0, static_cast<int>(std::floor(bx0)));
@@ -295,13 +371,19 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                                 static_cast<double>(std::max(0, last - first + 1));
             const int step =
                 area > kExactRays ? static_cast<int>(std::ceil(std::sqrt(area / kExactRays))) : 1;
+            // The model frame and the eye in it once per object (rayMeetsObject's arithmetic,
+            // so the same answer ray for ray).
+            const ModelFrame frame(o);
+            double p[3], d[3];
+            frame.point(o, pose.position, p);
             std::uint64_t met = 0;
             for (int line = first; line <= last; line += step) {
                 const int y = firstLine + 2 * line;
                 for (int x = x0; x <= x1; x += step) {
                     const glm::dvec3 dir =
                         glm::normalize(cam.rayDirection((x + 0.5) / kx, (y + 0.5) / ky));
-                    met += rayMeetsObject(o, pose.position, dir) ? 1 : 0;
+                    frame.direction(dir, d);
+                    met += rayMeetsModel(o, p, d) ? 1 : 0;
                 }
             }
             t.unoccludedPx =
@@ -319,18 +401,36 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
         // Listed when the field shows it, or when its exact shape covers a pixel centre of the
         // field (it would show unless hidden); sub-pixel objects that show nothing are not.
-        if (a.n == 0 && t.unoccludedPx == 0) continue;
+        if (a.n == 0 && t.unoccludedPx == 0) return false;
         if (t.unoccludedPx > 0) {
             t.occluded = std::clamp(
                 1.0 - static_cast<double>(t.visiblePx) / static_cast<double>(t.unoccludedPx), 0.0,
                 1.0);
         }
-        out.objects.push_back(t);
+        return true;
+    };
+    const std::size_t n = objects_.size();
+    results_.resize(n);
+    listed_.assign(n, 0);
+    const auto range = [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            listed_[i] = one(objects_[i], results_[i]) ? 1 : 0;
+    };
+    if (arena_) {
+        arena_->execute(
+            [&] { tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), range); });
+    } else {
+        range(tbb::blocked_range<std::size_t>(0, n));
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        if (listed_[i]) out.objects.push_back(results_[i]);
     }
     for (const std::uint16_t id : seen_)
         acc_[id].n = 0;
-    std::sort(out.objects.begin(), out.objects.end(),
-              [](const ObjectTruth& a, const ObjectTruth& b) { return a.id < b.id; });
+    const auto byId = [](const ObjectTruth& a, const ObjectTruth& b) { return a.id < b.id; };
+    if (!std::is_sorted(out.objects.begin(), out.objects.end(), byId)) {
+        std::sort(out.objects.begin(), out.objects.end(), byId);
+    }
 }
 
 namespace {

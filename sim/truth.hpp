@@ -7,6 +7,8 @@
 #include "prp/field.hpp"
 #include "sim/scene_motion.hpp"
 
+#include <tbb/task_arena.h>
+
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
@@ -86,7 +88,12 @@ struct FieldTruth {
 // while its tables grow).
 class TruthComputer {
   public:
-    TruthComputer();
+    // `workers`: threads the per-object work is spread over (1: the calling thread alone; 0:
+    // TBB's default). The result is the same whatever the count.
+    explicit TruthComputer(int workers = 0);
+    ~TruthComputer();
+    TruthComputer(const TruthComputer&) = delete;
+    TruthComputer& operator=(const TruthComputer&) = delete;
     // `ids`: the field's lines (width * lines), line L being frame line firstLine + 2 L.
     void compute(const TruthScene& scene, const TruthCamera& camera, const std::uint16_t* ids,
                  int width, int lines, int firstLine, const ig::Pose& pose, double time,
@@ -102,6 +109,9 @@ class TruthComputer {
     std::vector<std::int32_t> objectOf_;  // id -> index into objects_, -1
     std::vector<std::uint16_t> seen_;
     std::vector<TruthObject> objects_;
+    std::vector<ObjectTruth> results_;        // per object of objects_
+    std::vector<std::uint8_t> listed_;        // per object: its results_ entry is listed
+    std::unique_ptr<tbb::task_arena> arena_;  // null: one worker
 };
 
 // One JSON line (no newline): {"field", "time", "objects": [{"id", "visible_px", "bbox",

@@ -139,7 +139,8 @@ int main(int argc, char** argv) {
         const auto caster = ig::makeCaster(ig::CasterKind::Naive, map, options);
         const sim::TruthScene truthScene(scene, motion, map);
         sim::TruthCamera truthCamera{window, width, height};
-        sim::TruthComputer warpedTruth, trueTruth;
+        sim::TruthComputer warpedTruth(1),
+            trueTruth(1);  // one worker: its processor time is the cost
 
         struct PerK {
             std::vector<Stat> target, statics;  // per model

@@ -365,4 +365,59 @@ TEST(Truth, RayMeetsTheRotatedModel) {
     EXPECT_NEAR(maxY, 101.0, 1e-9);
 }
 
+// The per-object work spread over workers: the same line with one worker and with two, over a
+// field listing a few hundred objects (many more than one worker's share of the work).
+TEST(Truth, SameLineWithOneAndTwoWorkers) {
+    const std::string dir = tmpDir();
+    ig::TerrainMap map = ridgeMap();
+    ig::VoxFile vox;
+    vox.palette = ig::defaultVoxPalette();
+    vox.models.push_back(ig::VoxModel(4, 4, 6));
+    for (auto& v : vox.models[0].voxels)
+        v = 7;
+    ig::writeVox(dir + "/box-many.vox", vox);
+    std::string objects;
+    int id = 0;
+    for (int iy = 0; iy < 16; ++iy) {
+        for (int ix = 0; ix < 24; ++ix) {
+            ++id;
+            if (!objects.empty()) objects += ',';
+            objects += "{\"id\": " + std::to_string(id) +
+                       ", \"model\": \"box\", \"x\": " + std::to_string(70 + 20 * ix) +
+                       ", \"y\": " + std::to_string(120 + 10 * iy) +
+                       ", \"heading\": " + std::to_string((17 * id) % 360) + ", \"scale\": 2}";
+        }
+    }
+    const ig::Scene scene = ig::parseScene(
+        "{\"cell_m\": 2, \"models\": {\"box\": {\"vox\": \"box-many.vox\"}}, "
+        "\"objects\": [" +
+            objects + "]}",
+        dir + "/scene-many.json", map);
+    const sim::SceneMotion motion(scene);
+    const sim::TruthScene truthScene(scene, motion, map);
+    const int width = 160, height = 120, lines = height / 2;
+    const ig::Intrinsics window = ig::Intrinsics::fromFov(width, height, 1.2);
+    const sim::TruthCamera camera{window, width, height};
+    ig::Pose pose;
+    pose.position = {310.0, 20.0, 160.0};
+    pose.pitch = -0.25;
+    pose.roll = 0.05;
+    // Ids in stripes: every object of the scene shows some pixels of the field.
+    std::vector<std::uint16_t> ids(static_cast<std::size_t>(width) * lines);
+    for (std::size_t k = 0; k < ids.size(); ++k)
+        ids[k] = static_cast<std::uint16_t>((k / 3) % (id + 40));
+    sim::TruthComputer one(1), two(2);
+    sim::FieldTruth a, b;
+    for (const int firstLine : {0, 1}) {
+        one.compute(truthScene, camera, ids.data(), width, lines, firstLine, pose, 0.5, 7, a);
+        two.compute(truthScene, camera, ids.data(), width, lines, firstLine, pose, 0.5, 7, b);
+        std::uint64_t withRays = 0;
+        for (const sim::ObjectTruth& o : a.objects)
+            withRays += o.unoccludedPx > 0 ? 1 : 0;
+        EXPECT_GT(a.objects.size(), 300u);
+        EXPECT_GT(withRays, 50u);
+        EXPECT_EQ(sim::truthLine(a), sim::truthLine(b));
+    }
+}
+
 }  // namespace
