@@ -73,9 +73,9 @@ the first field sets the field of view, overriding --fov). A host silent for --c
 reported lost; the ownship dead-reckons for --cigi-extrapolate S after its last message, then
 holds. Several image generators (one per channel, each on its own port) can share one host.
 
-Objects: --scene FILE draws a scene's voxel objects (the reference and naive casters draw them
-for now), the moving ones stamped at each frame's instant; every field carries the object ids
-warped with its colour. --truth FILE writes one JSON line per field: each object in view or in
+Objects: --scene FILE draws a scene's voxel objects (every caster, over its terrain), the moving
+ones stamped at each frame's instant; every field carries the object ids warped with its
+colour. --truth FILE writes one JSON line per field: each object in view or in
 the frustum with its visible pixels, box and centroid in the field (output pixels, y the frame
 line), its range, the box of its exact 3-D placement projected at the field's pose, and the
 fraction hidden (docs/design/objects.md, "Ground truth").
