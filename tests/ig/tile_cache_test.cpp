@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "common/small_terrain_db.hpp"
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_db_build.hpp"
@@ -23,29 +24,13 @@ namespace ig {
 namespace {
 
 std::string tmpPath(const std::string& name) {
-    const std::filesystem::path dir = std::filesystem::path(VIG_TEST_TMP) / "tile_cache";
-    std::filesystem::create_directories(dir);
-    return (dir / name).string();
+    return vig_test::testTmpPath("tile_cache", name);
 }
 
-// A 257 x 257 synthetic map (10 m) and its database in tiles of 16.
-struct Fixture {
-    TerrainMap map;
-    std::string path;
-    // A file of its own per process: the tests may run in parallel processes.
-    Fixture()
-        : map(makeSyntheticTerrain(256, 6)),
-          path(tmpPath("map_" + std::to_string(::getpid()) + ".db")) {
-        auto source = mapRowSource(map);
-        DbBuildOptions o;
-        o.tileSize = 16;
-        buildTerrainDb(*source, path, o);
-    }
-    ~Fixture() { std::filesystem::remove(path); }
-};
+using Fixture = vig_test::SmallTerrainDb;
 
 const Fixture& fixture() {
-    static const Fixture f;
+    static const Fixture f("tile_cache");
     return f;
 }
 
