@@ -4,6 +4,7 @@
 #include "ig/cli.hpp"
 #include "ig/synthetic.hpp"
 #include "io/field_clock.hpp"
+#include "io/file_sinks.hpp"
 #include "io/frame_sink.hpp"
 #include "io/video_format.hpp"
 #include "sim/pipeline.hpp"
@@ -17,20 +18,6 @@
 #include <vector>
 
 namespace {
-
-class NullSink final : public io::FrameSink {
-  public:
-    int open(const io::VideoFormat& format, std::string*) override {
-        format_ = format;
-        return 0;
-    }
-    int writeField(const io::FieldBuffer&) override { return 0; }
-    int close(std::string*) override { return 0; }
-    const io::VideoFormat& format() const override { return format_; }
-
-  private:
-    io::VideoFormat format_;
-};
 
 // A map lit and hazed as a program does it from its flags (each program loads its own).
 struct Lit {
@@ -80,7 +67,7 @@ TEST(AppearancePipeline, FlythroughFramesEqualIgRenderAtTheSamePose) {
         frames.push_back(f);
         return f;
     };
-    NullSink sink;
+    io::NullSink sink;
     std::string error;
     sink.open({128, 96, io::PixelFormat::Uyvy}, &error);
     auto clock = io::makeSimulatedClock();

@@ -4,6 +4,7 @@
 #include "ig/scene.hpp"
 #include "ig/vox.hpp"
 #include "io/field_clock.hpp"
+#include "io/file_sinks.hpp"
 #include "io/frame_sink.hpp"
 #include "sim/frame_ring.hpp"
 #include "sim/pipeline.hpp"
@@ -90,20 +91,6 @@ sim::Trajectory cameraPath() {
     return sim::Trajectory::fromSamples(s, "camera");
 }
 
-class NullSink final : public io::FrameSink {
-  public:
-    int open(const io::VideoFormat& format, std::string*) override {
-        format_ = format;
-        return 0;
-    }
-    int writeField(const io::FieldBuffer&) override { return 0; }
-    int close(std::string*) override { return 0; }
-    const io::VideoFormat& format() const override { return format_; }
-
-  private:
-    io::VideoFormat format_;
-};
-
 struct TruthRun {
     std::vector<std::string> lines;
     // Per field: visible pixels of each id counted in the field's own warped ids.
@@ -133,7 +120,7 @@ TruthRun runWithTruth(World& world, prp::WarpModel warp, sim::RendererMode mode,
         run.models.push_back(field.warp.model);
     };
     sim::TrajectoryPoses poses(cameraPath());
-    NullSink sink;
+    io::NullSink sink;
     std::string error;
     sink.open({128, 96, io::PixelFormat::Rgb8}, &error);
     auto clock = io::makeSimulatedClock();
