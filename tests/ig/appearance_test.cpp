@@ -1,6 +1,7 @@
 // Appearance: distance haze in every caster, sun lighting (Lambert on a cone), the sun's
 // position, supersampling chosen from the pitch, and the shared flags.
 #include "ig/appearance.hpp"
+#include "common/cone_map.hpp"
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
@@ -93,21 +94,8 @@ TEST(Haze, AtTheHazeDistanceTheBlendIs63Percent) {
     EXPECT_EQ(ig::renderFrame(*caster, map, pose, in).color[4 * 8 + 4], (ig::Rgb8{0, 0, 0}));
 }
 
-// A cone of slope `slope` standing on a plane, apex at the centre.
 TerrainMap cone(int n, double slope, double peak) {
-    TerrainMap map(n, n, 1.0, 1.0, 0.001, 0.0);
-    const double c = 0.5 * (n - 1);
-    for (int iy = 0; iy < n; ++iy) {
-        for (int ix = 0; ix < n; ++ix) {
-            const double r = std::hypot(ix - c, iy - c);
-            map.setRaw(
-                ix, iy,
-                static_cast<std::uint16_t>(std::lround(std::max(0.0, peak - slope * r) / 0.001)));
-            map.setColor(ix, iy, ig::Rgb8{100, 100, 100});
-        }
-    }
-    map.updateRange();
-    return map;
+    return vig_test::coneMap(n, slope, peak);
 }
 
 TEST(Sun, ConeMatchesLambertWithinOnePercent) {

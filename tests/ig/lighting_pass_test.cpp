@@ -1,6 +1,7 @@
 // The deferred sun lighting pass: Lambert on a cone, a moving sun against fresh renders, thread
 // count, sky and bad depths, the slow twin, the haze recomposed, per-level mean normals.
 #include "ig/lighting_pass.hpp"
+#include "common/cone_map.hpp"
 #include "ig/appearance.hpp"
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
@@ -22,21 +23,8 @@ namespace {
 
 using ig::TerrainMap;
 
-// A cone of slope `slope` standing on a plane, apex at the centre, one colour.
 TerrainMap cone(int n, double slope, double peak, ig::Rgb8 color) {
-    TerrainMap map(n, n, 1.0, 1.0, 0.001, 0.0);
-    const double c = 0.5 * (n - 1);
-    for (int iy = 0; iy < n; ++iy) {
-        for (int ix = 0; ix < n; ++ix) {
-            const double r = std::hypot(ix - c, iy - c);
-            map.setRaw(
-                ix, iy,
-                static_cast<std::uint16_t>(std::lround(std::max(0.0, peak - slope * r) / 0.001)));
-            map.setColor(ix, iy, color);
-        }
-    }
-    map.updateRange();
-    return map;
+    return vig_test::coneMap(n, slope, peak, color);
 }
 
 std::shared_ptr<ig::SunLighting> lightingOf(const TerrainMap& map, const ig::Sun& sun,
