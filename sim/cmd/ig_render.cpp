@@ -56,10 +56,13 @@ constexpr const char* kConventions = R"(Conventions:
   The fast and span casters render roll = 0 (the post-rendering processor applies roll as a 2D
   rotation); the naive and reference casters honour any roll. The span caster hands steep frames
   to the fast caster (its JSON "path" says which drew the frame).
-  Objects (--scene, every caster; not with --stereo or --poses): --objects-out writes each pixel's object id
+  Objects (--scene, every caster; not with --stereo): --objects-out writes each pixel's object id
   as a 16-bit grey PNG (0: terrain or sky); --json lists each visible object's pixel count and
   box [x0, y0, x1, y1] (inclusive). Moving objects are placed at --time (default: the earliest
   trajectory start).
+  Batch times (--poses): frame k of a pose list is at --time + k * --time-step (k from 0, the
+  k-th pose, comments not counted; --time defaults as above, --time-step to 0); a trajectory
+  CSV's frames are at its own sample times. Each frame's moving objects and sun are at its time.
   A path of '-' writes to standard output.)";
 
 // ---- Stereo (--stereo): left eye by the fast caster, right eye reprojected or cast. ----------
@@ -221,7 +224,8 @@ void checkPattern(const std::string& pattern, const std::string& flag) {
 // Poses of a --poses file: pose lines, or a trajectory CSV sampled every `every` seconds.
 // `where` receives what names each pose in a message ("FILE line N", "FILE at t = T s").
 std::vector<ig::Pose> batchPoses(const std::string& path, std::optional<double> every,
-                                 const ig::TerrainMap& map, std::vector<std::string>& where) {
+                                 const ig::TerrainMap& map, std::vector<std::string>& where,
+                                 std::vector<double>& times) {
     if (every) {
         if (!(std::isfinite(*every) && *every > 0.0)) {
             throw ig::InputError("--every: must be a positive number of seconds");
@@ -237,6 +241,7 @@ std::vector<ig::Pose> batchPoses(const std::string& path, std::optional<double> 
             const double t = trajectory.startTime() + k * *every;
             if (t > trajectory.endTime() + 1e-9 * std::max(1.0, span)) break;
             poses.push_back(trajectory.poseAt(t));
+            times.push_back(t);
             where.push_back(path + " at t = " + base::number(t) + " s");
         }
         return poses;
@@ -255,17 +260,43 @@ std::vector<ig::Pose> batchPoses(const std::string& path, std::optional<double> 
 struct BatchFlags {
     std::string posesPath;
     std::optional<double> every;
+    std::optional<double> timeStep;
 };
+
+// The scene of a batch: the static layer, and the moving objects the caster draws, which the
+// batch stamps at each frame's time before rendering it (the caster holds their address).
+struct BatchScene {
+    const sim::SceneMotion* motion = nullptr;
+    ig::ObjectLayer* moving = nullptr;
+    std::string idPattern;  // --objects-out, numbered
+
+    bool enabled() const { return motion != nullptr; }
+};
+
+// A frame's visible objects as --json lists them.
+nlohmann::json objectsJson(const ig::RenderedFrame& frame) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const ig::ObjectPixels& o : ig::objectPixelStats(frame)) {
+        list.push_back({{"id", o.id}, {"pixels", o.pixels}, {"box", {o.x0, o.y0, o.x1, o.y1}}});
+    }
+    return list;
+}
 
 // Renders every pose of the batch (frames spread over the threads, each frame's image the
 // same whatever the thread count), writes the numbered images and one JSON.
 int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::TerrainMap& map,
-                const ig::Intrinsics& intr, int threads, const std::string& outPattern,
-                const std::string& depthPattern, const std::string& jsonPath,
-                const nlohmann::json& common) {
+                const ig::Intrinsics& intr, int threads, double startTime, const BatchScene& scene,
+                const std::string& outPattern, const std::string& depthPattern,
+                const std::string& jsonPath, const nlohmann::json& common) {
     std::vector<std::string> where;
-    const std::vector<ig::Pose> poses = batchPoses(batch.posesPath, batch.every, map, where);
+    std::vector<double> times;
+    const std::vector<ig::Pose> poses = batchPoses(batch.posesPath, batch.every, map, where, times);
     const int n = static_cast<int>(poses.size());
+    if (!batch.every) {
+        const double step = batch.timeStep.value_or(0.0);
+        for (int i = 0; i < n; ++i)
+            times.push_back(startTime + i * step);
+    }
     for (int i = 0; i < n; ++i) {
         const std::string& what = where[static_cast<std::size_t>(i)];
         if (caster.kind() == ig::CasterKind::Fast && poses[i].roll != 0.0) {
@@ -289,8 +320,10 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
     auto renderOne = [&](int i) {
         if (failed.load() || io::stopRequested()) return;
         try {
+            const double time = times[static_cast<std::size_t>(i)];
+            if (scene.enabled()) *scene.moving = scene.motion->stamp(time);
             const ig::RenderedFrame frame =
-                ig::renderFrame(caster, map, poses[i], intr, 0.0, static_cast<std::uint64_t>(i));
+                ig::renderFrame(caster, map, poses[i], intr, time, static_cast<std::uint64_t>(i));
             std::string error;
             const std::string colorPath = numberedPath(outPattern, i);
             const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
@@ -303,9 +336,15 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
                 io::writePfm(depthPath, frame.width(), frame.height(), frame.depth, &error) != 0) {
                 throw ig::InputError("--depth " + error);
             }
+            const std::string idPath = numberedPath(scene.idPattern, i);
+            if (!idPath.empty() && io::writePng16(idPath, frame.width(), frame.height(),
+                                                  frame.objectId, &error) != 0) {
+                throw ig::InputError("--objects-out " + error);
+            }
             const double pixels = static_cast<double>(frame.width()) * frame.height();
             nlohmann::json r;
             r["index"] = i;
+            r["time"] = time;
             r["pose"] = poseJson(poses[i]);
             r["render_ms"] = frame.stats.renderMs;
             r["rays_per_pixel"] = static_cast<double>(frame.stats.rays) / pixels;
@@ -313,6 +352,8 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
             r["coherence_restarts"] = frame.stats.restarts;
             r["out"] = colorPath;
             if (!depthPath.empty()) r["depth"] = depthPath;
+            if (!idPath.empty()) r["objects_out"] = idPath;
+            if (scene.enabled()) r["objects"] = objectsJson(frame);
             records[static_cast<std::size_t>(i)] = std::move(r);
         } catch (const std::exception& e) {
             const std::lock_guard lock(progressMutex);
@@ -328,11 +369,21 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
             if (finished == n) std::fprintf(stderr, "\n");
         }
     };
+    // With a scene the moving layer is the caster's one copy, stamped per frame: frames go one
+    // after another, each frame's columns over the workers.
+    auto all = [&] {
+        if (scene.enabled()) {
+            for (int i = 0; i < n; ++i)
+                renderOne(i);
+        } else {
+            tbb::parallel_for(0, n, renderOne);
+        }
+    };
     if (threads > 0) {
         tbb::task_arena arena(threads);
-        arena.execute([&] { tbb::parallel_for(0, n, renderOne); });
+        arena.execute(all);
     } else {
-        tbb::parallel_for(0, n, renderOne);
+        all();
     }
     if (failed) throw ig::InputError(failure);
     if (io::stopRequested()) return 130;
@@ -379,7 +430,11 @@ int main(int argc, char** argv) {
                    "Batch: a file of x,y,z,yaw,pitch,roll lines (as --pose), or with --every a "
                    "trajectory CSV; --out and --depth then name numbered files (a run of #)");
     app.add_option("--every", batch.every,
-                   "Batch: --poses is a trajectory CSV, sampled every this many seconds");
+                   "Batch: --poses is a trajectory CSV, sampled every this many seconds (each "
+                   "frame at its sample time)");
+    app.add_option("--time-step", batch.timeStep,
+                   "Batch of pose lines: frame k is at --time + k * this many seconds (default "
+                   "0: every frame at --time)");
     app.add_option("--fov", fovDeg, "Horizontal field of view of the window, degrees")
         ->capture_default_str();
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
@@ -409,7 +464,8 @@ int main(int argc, char** argv) {
                    "Scene file (JSON): voxel objects placed and scattered over the terrain; drawn "
                    "by every caster over its terrain");
     app.add_option("--objects-out", objectsOut,
-                   "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene)");
+                   "Object-id image: 16-bit grey PNG, 0 for terrain or sky (needs --scene; with "
+                   "--poses numbered as --out)");
     app.add_option("--time", sceneTime,
                    "Scene time, seconds, for the moving objects (default: the earliest start of "
                    "their trajectories) and a sun moved by --sun-rate (default 0)");
@@ -428,8 +484,19 @@ int main(int argc, char** argv) {
                 throw ig::InputError("--poses: give --pose or --poses, not both");
             checkPattern(outPath, "--out");
             checkPattern(depthPath, "--depth");
+            checkPattern(objectsOut, "--objects-out");
+            if (batch.every && (sceneTime || batch.timeStep)) {
+                throw ig::InputError(std::string(sceneTime ? "--time" : "--time-step") +
+                                     ": a trajectory's frames (--every) are at its own times");
+            }
+            if (batch.timeStep && !(std::isfinite(*batch.timeStep) && *batch.timeStep >= 0.0 &&
+                                    *batch.timeStep <= 1e7)) {
+                throw ig::InputError("--time-step: must be 0..1e7 seconds");
+            }
         } else if (batch.every) {
             throw ig::InputError("--every: needs --poses (a trajectory CSV)");
+        } else if (batch.timeStep) {
+            throw ig::InputError("--time-step: needs --poses (a file of pose lines)");
         }
         // Every path, checked before the terrain is loaded and the frame rendered: no output
         // on an input or on another output, standard output for one at most. (--out is not
@@ -463,9 +530,8 @@ int main(int argc, char** argv) {
         }
         if (sceneTime && !std::isfinite(*sceneTime))
             throw ig::InputError("--time: not a finite number");
-        if (!scenePath.empty() && (stereo.enabled() || batchMode)) {
-            throw ig::InputError("--scene: objects are drawn in single frames; drop " +
-                                 std::string(stereo.enabled() ? "--stereo" : "--poses"));
+        if (!scenePath.empty() && stereo.enabled()) {
+            throw ig::InputError("--scene: objects are drawn in single frames; drop --stereo");
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
@@ -520,8 +586,17 @@ int main(int argc, char** argv) {
             common["kernel"] = std::string(caster->kernelName());
             common["threads"] = threads;
             common["terrain"] = ig::describeTerrain(map);
-            return renderBatch(batch, *caster, map, intr, threads, outPath, depthPath, jsonPath,
-                               common);
+            BatchScene batchScene;
+            if (scene) {
+                batchScene.motion = &*motion;
+                batchScene.moving = &*moving;
+                batchScene.idPattern = objectsOut;
+                common["scene"] = {{"file", scenePath},
+                                   {"static_objects", scene->staticLayer->objects().size()},
+                                   {"moving_objects", scene->moving.size()}};
+            }
+            return renderBatch(batch, *caster, map, intr, threads, time, batchScene, outPath,
+                               depthPath, jsonPath, common);
         }
         const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr, time);
         if (!objectsOut.empty()) {
