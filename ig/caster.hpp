@@ -29,6 +29,10 @@ struct SkyModel {
     // Distance haze: colour blends toward `horizon` by 1 - exp(-distance / hazeDistance);
     // 0 disables haze.
     double hazeDistance = 0.0;
+    // Height fall-off (scale height, metres; 0 off): the haze's density is exp(-z / hazeFalloff)
+    // / hazeDistance at height z, so hazeDistance holds at z = 0. When on, the casters draw
+    // without haze and a pass over the finished frame applies it (ig/haze_pass.hpp).
+    double hazeFalloff = 0.0;
 };
 
 inline constexpr int kLevelsAuto = -1;

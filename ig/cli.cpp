@@ -160,6 +160,10 @@ void addAppearanceOptions(CLI::App& app, AppearanceOptions& o) {
                    "Distance haze: metres for a 63% blend to the horizon colour (0: off; auto: a "
                    "quarter of the map's larger extent)")
         ->capture_default_str();
+    app.add_option("--haze-falloff", o.hazeFalloff,
+                   "Haze height fall-off: scale height in metres (density exp(-z / H), --haze "
+                   "holding at z = 0: denser haze in valleys); 0: off")
+        ->capture_default_str();
     app.add_option("--supersample", o.supersample,
                    "Fast caster: vertical rays per pixel, N (1..8) or auto[:MAX] (per frame from "
                    "the pitch, at most MAX, default 4)")
@@ -198,6 +202,14 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
             throw InputError("--haze: " + base::quoted(o.haze) +
                              " must be auto or 0..1e7 metres (0: off)");
         }
+    }
+    a.hazeFalloff = parseNumber(o.hazeFalloff, "--haze-falloff");
+    if (!(a.hazeFalloff >= 0.0 && a.hazeFalloff <= 1e6)) {
+        throw InputError("--haze-falloff: " + base::quoted(o.hazeFalloff) +
+                         " must be 0..1e6 metres (0: off)");
+    }
+    if (a.hazeFalloff > 0.0 && !(a.hazeDistance > 0.0)) {
+        throw InputError("--haze-falloff: shapes the haze of --haze; give a haze distance");
     }
     if (o.supersample.rfind("auto", 0) == 0) {
         a.supersample = kSupersampleAuto;
@@ -303,6 +315,7 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
 
 void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render) {
     render.sky.hazeDistance = a.hazeDistance;
+    render.sky.hazeFalloff = a.hazeFalloff;
     render.supersample = a.supersample;
     render.supersampleMax = a.supersampleMax;
     render.lighting = nullptr;

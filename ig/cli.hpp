@@ -57,6 +57,8 @@ std::string describeTerrain(const TerrainMap& map);
 // Appearance flags every rendering program shares (docs/design/appearance.md):
 //   --haze METRES|auto         distance for a 63 % blend to the horizon colour (0: off; auto: a
 //                              quarter of the map's larger extent)
+//   --haze-falloff METRES      height fall-off of the haze: density exp(-z / H), the haze
+//                              distance holding at z = 0 (0: off, the plain distance haze)
 //   --supersample N|auto[:MAX] vertical rays per pixel, fixed or chosen per frame from the pitch
 //   --colors image|ramp|auto   the colour image (or, without one, the heights shaded at load by
 //                              a fixed sun), or the elevation colour ramp lit by --sun (auto:
@@ -75,6 +77,7 @@ std::string describeTerrain(const TerrainMap& map);
 // The defaults are the program's: `defaults` as given before parsing.
 struct AppearanceOptions {
     std::string haze = "0";
+    std::string hazeFalloff = "0";
     std::string supersample = "1";
     std::string colors = "image";
     std::string sun;
@@ -86,7 +89,8 @@ void addAppearanceOptions(CLI::App& app, AppearanceOptions& options);
 // What the flags asked for, parsed and checked (InputError naming the flag).
 struct Appearance {
     double hazeDistance = 0.0;
-    int supersample = 1;  // kSupersampleAuto: per frame
+    double hazeFalloff = 0.0;  // scale height, metres (0: off)
+    int supersample = 1;       // kSupersampleAuto: per frame
     int supersampleMax = 4;
     bool ramp = false;       // colour by the elevation ramp
     std::optional<Sun> sun;  // lighting on when set: the sun at time 0

@@ -231,7 +231,9 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
     const Intrinsics& in = camera.intrinsics();
     const CameraBasis& basis = camera.basis();
     const glm::dvec3 eye = camera.pose().position;
-    const double invHaze = sky.hazeDistance > 0.0 ? 1.0 / sky.hazeDistance : 0.0;
+    // With a height fall-off the caster drew no haze (hazeFrame adds it after the light).
+    const double invHaze =
+        sky.hazeDistance > 0.0 && !deferredHaze(sky) ? 1.0 / sky.hazeDistance : 0.0;
     // Level 0 at every distance: no horizontal distance needed.
     const bool banded = !lighting.levelZeroNormals && bands.topLevel > 0 &&
                         bands.d0 < std::numeric_limits<double>::infinity();
@@ -280,8 +282,9 @@ void lightFrameReference(const SunLighting& lighting, const SkyModel& sky, const
             const glm::dvec3 hit = camera.pose().position + depth * dir;
             const double horizontal = depth * std::hypot(dir.x, dir.y);
             const double light = lightFactor(lighting, bands, sun, hit.x, hit.y, horizontal);
-            const double f =
-                sky.hazeDistance > 0.0 ? 1.0 - std::exp(-depth / sky.hazeDistance) : 0.0;
+            const double f = sky.hazeDistance > 0.0 && !deferredHaze(sky)
+                                 ? 1.0 - std::exp(-depth / sky.hazeDistance)
+                                 : 0.0;
             Rgb8& c = frame.color[i];
             auto mix = [&](std::uint8_t v, std::uint8_t h) {
                 const double hf = h * f;

@@ -6,6 +6,7 @@
 #include "ig/appearance.hpp"
 #include "ig/caster.hpp"
 #include "ig/frame.hpp"
+#include "ig/haze_pass.hpp"
 
 #include <limits>
 #include <memory>
@@ -73,7 +74,8 @@ struct LevelBands {
 };
 
 // Lights a finished frame in place. The caster wrote colour = a (1 - f) + h f (a the albedo,
-// h the horizon colour, f = 1 - exp(-depth / hazeDistance), 0 without haze); each terrain pixel
+// h the horizon colour, f = 1 - exp(-depth / hazeDistance), 0 without haze or with a height
+// fall-off, which hazeFrame applies after the light); each terrain pixel
 // becomes h f + L (colour - h f), L the light at its hit point (pixel centre ray at its depth)
 // under lighting.clock.at(frame.time). Sky (depth +inf), pixels with NaN, negative or infinite
 // depth and pixels of voxel objects (objectId != 0) are left as they are. Rows go to the
@@ -90,11 +92,17 @@ void lightFrameReference(const SunLighting& lighting, const SkyModel& sky, const
 double lightFactor(const SunLighting& lighting, const LevelBands& bands, const Sun& sun, double x,
                    double y, double horizontal);
 
-// A caster's pass over the finished frame: lights it when options.lighting is set.
+// A caster's passes over the finished frame: lights it when options.lighting is set, then
+// hazes it when the haze has a height fall-off (the casters drew it without haze).
 inline void finishLighting(const RenderOptions& options, const LevelBands& bands,
                            const Camera& camera, RenderedFrame& frame) {
     if (options.lighting)
         lightFrame(*options.lighting, options.sky, bands, camera, frame, options.threads);
+    hazeFrame(options.sky, camera, frame, options.threads);
+}
+// Whether finishLighting changes a frame.
+inline bool finishPassesOn(const RenderOptions& options) {
+    return options.lighting != nullptr || deferredHaze(options.sky);
 }
 
 }  // namespace ig

@@ -1090,15 +1090,14 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
             },
             tbb::simple_partitioner());
     });
-    if (renderOptions.lighting) {
-        // The reprojected pixels carry the left eye's light; the cast ones get theirs as the
-        // caster lights a frame (its levels), through a copy.
+    if (finishPassesOn(renderOptions)) {
+        // The reprojected pixels carry the left eye's light (and height-dependent haze); the
+        // cast ones get theirs as the caster finishes a frame (its levels), through a copy.
         RenderedFrame lit = right;
         if (caster != nullptr) {
             caster->finishFrame(camera, lit);
         } else {
-            lightFrame(*renderOptions.lighting, renderOptions.sky, LevelBands{}, camera, lit,
-                       renderOptions.threads);
+            finishLighting(renderOptions, LevelBands{}, camera, lit);
         }
         for (std::size_t i = 0; i < n; ++i) {
             if (source[i] == RightPixelSource::RayCast) right.color[i] = lit.color[i];

@@ -30,12 +30,9 @@ struct Lit {
     }
 };
 
-TEST(AppearancePipeline, FlythroughFramesEqualIgRenderAtTheSamePose) {
-    ig::AppearanceOptions look;
-    look.haze = "auto";
-    look.colors = "auto";
-    look.sun = "120,25";
-    look.supersample = "auto";
+// Runs the pipeline on the simulated clock with `look`'s flags and renders each of its frames
+// again as ig-render does: equal to the byte.
+void expectFlythroughEqualsIgRender(const ig::AppearanceOptions& look) {
     Lit flythrough(look), igRender(look);
     ASSERT_GT(flythrough.options.sky.hazeDistance, 0.0);
 
@@ -89,11 +86,39 @@ TEST(AppearancePipeline, FlythroughFramesEqualIgRenderAtTheSamePose) {
         EXPECT_GT(f.stats.rays, static_cast<std::uint64_t>(f.color.size()));  // supersampled
     }
     // And the flags did change the image: without them the frame differs.
+    if (look.hazeFalloff != "0") {
+        ig::AppearanceOptions noFalloff = look;
+        noFalloff.hazeFalloff = "0";
+        Lit flat(noFalloff);
+        const auto flatCaster = ig::makeCaster(ig::CasterKind::Fast, flat.map, flat.options);
+        EXPECT_NE(
+            ig::renderFrame(*flatCaster, flat.map, frames[0].pose, frames[0].intrinsics).color,
+            frames[0].color);
+    }
     ig::AppearanceOptions plain;
     Lit bare(plain);
     const auto bareCaster = ig::makeCaster(ig::CasterKind::Fast, bare.map, bare.options);
     EXPECT_NE(ig::renderFrame(*bareCaster, bare.map, frames[0].pose, frames[0].intrinsics).color,
               frames[0].color);
+}
+
+TEST(AppearancePipeline, FlythroughFramesEqualIgRenderAtTheSamePose) {
+    ig::AppearanceOptions look;
+    look.haze = "auto";
+    look.colors = "auto";
+    look.sun = "120,25";
+    look.supersample = "auto";
+    expectFlythroughEqualsIgRender(look);
+}
+
+TEST(AppearancePipeline, HazeFalloffIsTheSameInFlythroughAndIgRender) {
+    ig::AppearanceOptions look;
+    look.haze = "auto";
+    look.hazeFalloff = "150";
+    look.colors = "auto";
+    look.sun = "120,25";
+    look.supersample = "auto";
+    expectFlythroughEqualsIgRender(look);
 }
 
 }  // namespace
