@@ -53,7 +53,8 @@ void hazeFrame(const SkyModel& sky, const Camera& camera, RenderedFrame& frame, 
     checkFrame(camera, frame);
     const Intrinsics& in = camera.intrinsics();
     const CameraBasis& basis = camera.basis();
-    const double eyeZ = camera.pose().position.z;
+    const double eyeDensity = hazeEyeDensity(sky, camera.pose().position.z);
+    const double invFalloff = 1.0 / sky.hazeFalloff;
     const int w = in.width;
     auto rows = [&](const tbb::blocked_range<int>& range) {
         for (int y = range.begin(); y < range.end(); ++y) {
@@ -69,7 +70,8 @@ void hazeFrame(const SkyModel& sky, const Camera& camera, RenderedFrame& frame, 
                              dz = first.z + x * basis.right.z;
                 const double d = depth[x];
                 const double rise = d * dz / std::sqrt(dx * dx + dy * dy + dz * dz);
-                hazePixel(color[x], sky, hazeFraction(sky, d, eyeZ, rise));
+                const double tau = hazeOpticalDepth(eyeDensity, invFalloff, d, rise);
+                hazePixel(color[x], sky, -std::expm1(-tau));
             }
         }
     };

@@ -29,11 +29,16 @@ inline double hazeRiseFactor(double u) {
 // (distance / D) exp(-eyeZ / H) (1 - exp(-rise / H)) / (rise / H). H = sky.hazeFalloff > 0,
 // D = sky.hazeDistance > 0. Exponents are clamped to +-600: an absurd height gives an absurd
 // but finite (or +inf) depth, never NaN.
+// The per-frame part: exp(-eyeZ / H) / D (the density at the eye).
+inline double hazeEyeDensity(const SkyModel& sky, double eyeZ) {
+    return std::exp(-std::clamp(eyeZ / sky.hazeFalloff, -600.0, 600.0)) / sky.hazeDistance;
+}
+// The per-pixel part, given the eye's density and 1 / H.
+inline double hazeOpticalDepth(double eyeDensity, double invFalloff, double distance, double rise) {
+    return distance * eyeDensity * hazeRiseFactor(std::clamp(rise * invFalloff, -1200.0, 1200.0));
+}
 inline double hazeOpticalDepth(const SkyModel& sky, double distance, double eyeZ, double rise) {
-    const double invH = 1.0 / sky.hazeFalloff;
-    const double eye = std::exp(-std::clamp(eyeZ * invH, -600.0, 600.0));
-    return distance / sky.hazeDistance * eye *
-           hazeRiseFactor(std::clamp(rise * invH, -1200.0, 1200.0));
+    return hazeOpticalDepth(hazeEyeDensity(sky, eyeZ), 1.0 / sky.hazeFalloff, distance, rise);
 }
 
 // The blend toward the horizon colour: 1 - exp(-optical depth); without a fall-off the plain
