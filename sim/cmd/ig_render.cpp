@@ -583,6 +583,7 @@ int main(int argc, char** argv) {
             common["levels"] = levelsText;
             common["supersample"] = look.supersample;
             common["haze_m"] = appearance.hazeDistance;
+            common["haze_falloff_m"] = appearance.hazeFalloff;
             common["kernel"] = std::string(caster->kernelName());
             common["threads"] = threads;
             common["terrain"] = ig::describeTerrain(map);
@@ -632,6 +633,7 @@ int main(int argc, char** argv) {
         j["supersample"] = look.supersample;
         j["rays_per_pixel"] = static_cast<double>(frame.stats.rays) / pixels;
         j["haze_m"] = appearance.hazeDistance;
+        j["haze_falloff_m"] = appearance.hazeFalloff;
         j["kernel"] = std::string(frame.stats.kernel);
         if (!frame.stats.path.empty()) j["path"] = std::string(frame.stats.path);
         j["pose"] = poseJson(pose);
