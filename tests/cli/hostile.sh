@@ -29,13 +29,19 @@ wait_for_bytes() {
     done
     fail "$file: still under $bytes bytes after 60 s"
 }
-# Waits (up to 30 s) until process PID catches SIGINT and SIGTERM (its SigCgt mask in
+# Waits (up to 30 s) until process PID, running PROGRAM, catches SIGINT and SIGTERM (its SigCgt mask in
 # /proc): a signal sent after this is the program's to handle, not the default death of a
 # process still starting.
+# The shell's forked child shows the shell's own handlers until it has run the program (and a
+# background child of a script ignores SIGINT until then), so the mask counts only once the
+# process is the program itself.
 wait_for_handlers() {
-    local pid="$1" i mask
+    local pid="$1" program i mask
+    program=$(readlink -f "$2")
     for i in $(seq 1 600); do
-        mask=$(awk '/^SigCgt:/ {print $2}' "/proc/$pid/status" 2>/dev/null) || true
+        mask=""
+        [ "$(readlink -f "/proc/$pid/exe" 2>/dev/null)" = "$program" ] &&
+            mask=$(awk '/^SigCgt:/ {print $2}' "/proc/$pid/status" 2>/dev/null) || true
         [ -n "$mask" ] && [ $((0x$mask & 0x4002)) -eq $((0x4002)) ] && return 0
         sleep 0.05
     done
@@ -257,7 +263,7 @@ signals_at_random_instants)
         pid=$!
         # Once the program has installed its handlers (however loaded the machine), at a
         # random instant from then to 1.7 s later: loading, the first frame, the fields.
-        wait_for_handlers "$pid"
+        wait_for_handlers "$pid" "$fly"
         sleep "$((RANDOM % 2)).$((RANDOM % 7))$((RANDOM % 10))"
         kill -s "$sig" "$pid"
         wait "$pid"; rc=$?
