@@ -96,15 +96,18 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
 
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
-                                const ig::Scene& scene, const SceneMotion& motion) {
+                                const ig::Scene& scene, const SceneMotion& motion,
+                                ExtraObjects extra) {
     // The moving layer is replaced before each render; the caster holds its address.
     auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime()));
     ig::RenderOptions withObjects = options;
     withObjects.objects = {scene.staticLayer.get(), moving.get()};
     std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, withObjects);
-    return [caster, moving, &map, &motion, geometry](const ig::Pose& pose, double time,
-                                                     std::uint64_t sequence) {
-        *moving = motion.stamp(time);
+    auto objects = std::make_shared<std::vector<ExtraObject>>();
+    return [caster, moving, objects, extra, &map, &motion, geometry](
+               const ig::Pose& pose, double time, std::uint64_t sequence) {
+        if (extra) extra(time, *objects);
+        *moving = motion.stamp(time, *objects);
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         return ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time,

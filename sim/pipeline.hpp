@@ -58,9 +58,13 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
 // objects stamped at each frame's instant into a layer of their own, which is all that changes
 // from frame to frame (the caster is built once). Renders one frame at a time. The map, scene
 // and motion must outlive the renderer; the caster must draw objects (reference or naive).
+// `extra`, when given, is asked on the renderer's thread for more objects at each frame's
+// instant (a CIGI host's entities) and stamped into the same layer.
+using ExtraObjects = std::function<void(double t, std::vector<ExtraObject>& out)>;
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
-                                const ig::Scene& scene, const SceneMotion& motion);
+                                const ig::Scene& scene, const SceneMotion& motion,
+                                ExtraObjects extra = {});
 
 struct PipelineOptions {
     double duration = 10.0;  // simulated seconds; fields = round(duration / field period)

@@ -72,6 +72,9 @@ Control places the eye on the ownship every field; a symmetric View Definition r
 the first field sets the field of view, overriding --fov). A host silent for --cigi-timeout S is
 reported lost; the ownship dead-reckons for --cigi-extrapolate S after its last message, then
 holds. Several image generators (one per channel, each on its own port) can share one host.
+--cigi-entity TYPE=MODEL[:SCALE] draws the host's other entities of that CIGI entity type as a
+model of --scene (renderer thread), each at its dead-reckoned pose at the frame's instant with
+its entity id as its object id.
 
 Objects: --scene FILE draws a scene's voxel objects (every caster, over its terrain), the moving
 ones stamped at each frame's instant; every field carries the object ids warped with its
@@ -239,6 +242,7 @@ int main(int argc, char** argv) {
     std::string cigiBind, cigiHost, cigiOrigin;
     double cigiWait = 0.0, cigiTimeout = 0.5, cigiExtrapolate = 2.0;
     int cigiView = 0;
+    std::vector<std::string> cigiEntities;
     std::string scenePath, truthPath;
 
     auto* trajectoryOpt =
@@ -265,6 +269,9 @@ int main(int argc, char** argv) {
                    "CIGI: seconds after the host's last message the ownship keeps moving at its "
                    "last rates before it holds")
         ->capture_default_str();
+    app.add_option("--cigi-entity", cigiEntities,
+                   "CIGI: draw host entities of TYPE as the scene's MODEL (TYPE=MODEL[:SCALE], "
+                   "repeatable; needs --scene and --renderer thread)");
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
                    "metres)");
@@ -562,6 +569,22 @@ int main(int argc, char** argv) {
             cigiOptions.startPose.position = start.position;
             cigiOptions.startPose.yaw = start.heading;
             cigiOptions.startTime = 0.0;
+            if (!cigiEntities.empty()) {
+                if (!scene) throw ig::InputError("--cigi-entity: needs a --scene with the models");
+                if (rendererText != "thread") {
+                    throw ig::InputError(
+                        "--cigi-entity: needs --renderer thread (the renderer process is not "
+                        "told about host entities)");
+                }
+                for (const std::string& text : cigiEntities) {
+                    cigiOptions.entityTypes.push_back(
+                        sim::parseEntityTypeModel(text, "--cigi-entity", scene->modelNames));
+                }
+                for (const ig::MovingObject& m : scene->moving)
+                    cigiOptions.reservedIds.push_back(m.id);
+                for (const ig::PlacedObject& o : scene->staticLayer->objects())
+                    cigiOptions.reservedIds.push_back(o.id);
+            }
             auto source = std::make_unique<sim::CigiPoseSource>(map, cigiOptions);
             if (source->open(&error) != 0) throw ig::InputError("--cigi " + error);
             std::fprintf(stderr, "flythrough: CIGI on %s, Start of Frame to %s\n",
@@ -713,10 +736,16 @@ int main(int argc, char** argv) {
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene
-                ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene, *motion)
-                : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            stereo  ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+            : scene ? sim::makeSceneRenderer(
+                          map, geometry, casterKind, renderOptions, *scene, *motion,
+                          cigiSource && !cigiEntities.empty()
+                              ? sim::ExtraObjects(
+                                    [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
+                                        cigiSource->objectsAt(t, out);
+                                    })
+                              : sim::ExtraObjects{})
+                    : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.
