@@ -68,6 +68,27 @@ TEST(UdpSocket, SendsAndReceivesOverLoopbackWithoutWaiting) {
     EXPECT_EQ(b.receive(buffer), -EAGAIN);
 }
 
+TEST(UdpSocket, StampsArrivalsOnTheRealtimeClock) {
+    io::UdpSocket a, b;
+    ASSERT_EQ(a.open({kLoopback, 0}), 0);
+    ASSERT_EQ(b.open({kLoopback, 0}), 0);
+    std::vector<std::uint8_t> buffer(16);
+    EXPECT_EQ(b.arrivalRealtimeNs(), 0);
+    ASSERT_EQ(b.stampArrivals(), 0);
+    const auto ns = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(
+                   std::chrono::system_clock::now().time_since_epoch())
+            .count();
+    };
+    const std::int64_t before = ns();
+    ASSERT_EQ(a.sendTo(std::vector<std::uint8_t>{1, 2, 3}, b.localEndpoint()), 0);
+    const std::int64_t sent = ns();
+    ASSERT_EQ(b.receive(buffer), 3);
+    // Loopback queues the datagram before sendto returns: stamped between the two readings.
+    EXPECT_GE(b.arrivalRealtimeNs(), before);
+    EXPECT_LE(b.arrivalRealtimeNs(), sent);
+}
+
 TEST(UdpSocket, ReportsTheLengthOfACutDatagram) {
     io::UdpSocket a, b;
     ASSERT_EQ(a.open({kLoopback, 0}), 0);
