@@ -454,6 +454,8 @@ int main(int argc, char** argv) {
                 throw ig::InputError("--cigi-wait " + base::number(cigiWait) +
                                      ": must be 0 .. 3600 seconds");
             }
+        } else if (!cigiEntities.empty()) {
+            throw ig::InputError("--cigi-entity: only with --cigi [ADDR:]PORT");
         } else if (!cigiHost.empty() || !cigiOrigin.empty()) {
             throw ig::InputError(std::string(cigiHost.empty() ? "--cigi-origin" : "--cigi-host") +
                                  ": only with --cigi [ADDR:]PORT");
