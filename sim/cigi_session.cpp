@@ -559,27 +559,53 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ++stats_.ignoredPackets;
             return;
         }
-        if (!(vd->leftEnable && vd->rightEnable)) {
-            ++stats_.ignoredPackets;  // nothing this image generator takes
-            return;
-        }
-        const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
         const auto refuse = [&](const std::string& why) {
             ++stats_.viewDefinitionsNotApplied;
             noteError("View Definition for view " + std::to_string(vd->viewId) + ": " + why);
         };
-        if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
-            !(hfov < 179.0 * kDeg)) {
-            refuse("left " + base::number(vd->leftDeg) + ", right " + base::number(vd->rightDeg) +
-                   " degrees: only a frustum symmetric about the view axis, narrower than 179 "
-                   "degrees, is rendered");
-        } else if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
-            refuse("a field of view of " + base::number(hfov / kDeg) +
-                   " degrees arrived during the run: the renderer keeps " +
-                   base::number(frozenHfov_ / kDeg));
-        } else {
-            ++stats_.viewDefinitions;
+        bool taken = false;
+        if (vd->farEnable) {
+            // The far plane is the draw distance (what lies beyond is sky); like the field of
+            // view it is the renderer's for the run.
+            if (!(vd->farM > 0.0f) || !std::isfinite(vd->farM) ||
+                (vd->nearEnable && !(vd->farM > vd->nearM))) {
+                refuse("far plane " + base::number(vd->farM) +
+                       " m: must be positive and beyond the near plane");
+                return;
+            }
+            if (farFrozen_ && vd->farM != frozenFar_) {
+                refuse("a far plane of " + base::number(vd->farM) +
+                       " m arrived during the run: the renderer keeps " +
+                       (std::isfinite(frozenFar_) ? base::number(frozenFar_) + " m"
+                                                  : std::string("no far plane")));
+                return;
+            }
+            viewFar_ = vd->farM;
+            taken = true;
+        }
+        if (vd->leftEnable && vd->rightEnable) {
+            const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
+            if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
+                !(hfov < 179.0 * kDeg)) {
+                refuse("left " + base::number(vd->leftDeg) + ", right " +
+                       base::number(vd->rightDeg) +
+                       " degrees: only a frustum symmetric about the view axis, narrower than "
+                       "179 degrees, is rendered");
+                return;
+            }
+            if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
+                refuse("a field of view of " + base::number(hfov / kDeg) +
+                       " degrees arrived during the run: the renderer keeps " +
+                       base::number(frozenHfov_ / kDeg));
+                return;
+            }
             viewHfov_ = hfov;
+            taken = true;
+        }
+        if (taken) {
+            ++stats_.viewDefinitions;
+        } else {
+            ++stats_.ignoredPackets;  // nothing this image generator takes
         }
     } else {
         ++stats_.ignoredPackets;

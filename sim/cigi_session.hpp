@@ -230,6 +230,15 @@ class CigiSession {
     // From now on (the run has started) the renderer's field of view is `hfov`: a View
     // Definition asking for another is counted and reported, not applied.
     void freezeFieldOfView(double hfov) { frozenHfov_ = hfov; }
+    // This view's far plane (metres) from its last View Definition that enabled one, or
+    // +infinity when none did: the renderer's draw distance.
+    double viewFar() const { return viewFar_; }
+    // From now on the renderer's draw distance is `farM` (infinite: none): a View Definition
+    // asking for another far plane is counted and reported, not applied.
+    void freezeFar(double farM) {
+        frozenFar_ = farM;
+        farFrozen_ = true;
+    }
     io::cigi::IgMode igMode() const { return igMode_; }
     std::uint32_t igFrame() const { return igFrame_; }
     const CigiStats& stats() const { return stats_; }
@@ -281,6 +290,8 @@ class CigiSession {
     ViewOffset view_;
     io::cigi::ViewControl viewControl_;  // enabled fields as last set
     double viewHfov_ = 0.0, frozenHfov_ = 0.0;
+    double viewFar_ = std::numeric_limits<double>::infinity(), frozenFar_ = 0.0;
+    bool farFrozen_ = false;
     double lastHeard_ = 0.0;  // simulation time of the last good datagram
     bool silent_ = false;     // an outage is open
     CigiStats stats_;

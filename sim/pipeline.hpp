@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -39,7 +40,15 @@ struct RenderGeometry {
     // Widen the margin with |roll| so the rolled window stays inside the frame.
     bool coverRoll = true;
     double rollAllowance = 0.05;  // radians of roll change a frame should still cover
+    // Draw distance (a CIGI View Definition's far plane, metres): what lies farther is drawn
+    // as sky (sim::clipBeyondFar). Infinite: everything the caster hits.
+    double farM = std::numeric_limits<double>::infinity();
 };
+
+// Draws what lies farther than `farM` from the eye as sky: its pixels get the sky's colour
+// along their ray, sky depth and object id 0; control points beyond it become directions.
+// Nothing changes when farM is infinite. A per-frame pass over the pixels, no allocation.
+void clipBeyondFar(ig::RenderedFrame& frame, double farM, const ig::SkyModel& sky);
 
 // Margin that keeps a window rolled by up to |roll| + allowance inside the rendered frame, plus
 // `margin` (rounded up to a multiple of 8; never more than covering every roll needs).

@@ -732,6 +732,13 @@ int main(int argc, char** argv) {
                              cigiView, ig::radToDeg(geometry.hfov));
             }
             cigiSource->session().freezeFieldOfView(geometry.hfov);
+            // Its far plane is the draw distance.
+            geometry.farM = cigiSource->session().viewFar();
+            if (std::isfinite(geometry.farM)) {
+                std::fprintf(stderr, "flythrough: view %d: drawn to %.1f m (View Definition)\n",
+                             cigiView, geometry.farM);
+            }
+            cigiSource->session().freezeFar(geometry.farM);
         }
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;

@@ -5,6 +5,7 @@
 #include "base/error.hpp"
 #include "ig/caster.hpp"
 #include "ig/scene.hpp"
+#include "ig/shading.hpp"
 #include "ig/vox.hpp"
 #include "io/cigi.hpp"
 #include "io/udp_socket.hpp"
@@ -12,6 +13,7 @@
 #include "sim/scene_motion.hpp"
 
 #include <gtest/gtest.h>
+#include <glm/geometric.hpp>
 
 #include <unistd.h>
 
@@ -396,6 +398,88 @@ TEST(CigiEntities, DrawnWhereTheReferenceCasterPutsTheModel) {
     source.advanceTo(kPeriod);
     const ig::RenderedFrame c = hostDriven(source.predict(kPeriod), kPeriod, 2);
     EXPECT_EQ(std::count(c.objectId.begin(), c.objectId.end(), std::uint16_t{42}), 0);
+}
+
+// A View Definition's far plane is the draw distance: taken before the run, refused when it
+// changes during it; the renderer draws what lies beyond it as sky and leaves the rest alone.
+TEST(CigiView, FarPlaneIsTheDrawDistance) {
+    ig::TerrainMap map = flatMap();
+    Host host;
+    sim::CigiSession session(map, optionsFor(host));
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    EXPECT_TRUE(std::isinf(session.viewFar()));
+    cigi::ViewDefinition vd;
+    vd.farEnable = true;
+    vd.farM = 300.0f;
+    host.send({vd});
+    session.poll(0.0);
+    EXPECT_EQ(session.viewFar(), 300.0);
+    EXPECT_EQ(session.stats().viewDefinitions, 1u);
+    session.freezeFar(300.0);
+    vd.farM = 500.0f;
+    host.send({vd});
+    vd.nearEnable = true;
+    vd.nearM = 400.0f;
+    vd.farM = 300.0f;
+    host.send({vd});  // far before near
+    session.poll(kPeriod);
+    EXPECT_EQ(session.viewFar(), 300.0);
+    EXPECT_EQ(session.stats().viewDefinitionsNotApplied, 2u);
+    ASSERT_EQ(session.stats().firstErrors.size(), 2u);
+    EXPECT_NE(session.stats().firstErrors[0].find("during the run"), std::string::npos);
+    EXPECT_NE(session.stats().firstErrors[1].find("beyond the near plane"), std::string::npos);
+
+    // Rendered with and without it: pixels nearer than the far plane identical, the others sky
+    // along their own ray; control points beyond it become directions.
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 96;
+    geometry.windowHeight = 64;
+    geometry.margin = 8;
+    ig::Pose pose;
+    pose.position = {320.0, 20.0, 130.0};
+    pose.pitch = -4.0 * kDeg;
+    ig::RenderOptions options;
+    const ig::RenderedFrame all =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Reference, options)(pose, 0.0, 1);
+    geometry.farM = 300.0;
+    const ig::RenderedFrame near =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Reference, options)(pose, 0.0, 1);
+    ASSERT_EQ(all.depth.size(), near.depth.size());
+    const ig::Camera camera(all.pose, all.intrinsics);
+    std::size_t kept = 0, clipped = 0;
+    for (int y = 0; y < all.intrinsics.height; ++y) {
+        for (int x = 0; x < all.intrinsics.width; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * all.intrinsics.width + x;
+            if (all.depth[i] <= 300.0f) {
+                ++kept;
+                ASSERT_EQ(near.depth[i], all.depth[i]);
+                ASSERT_EQ(near.color[i], all.color[i]);
+            } else {
+                clipped += all.depth[i] != ig::kSkyDepth;
+                ASSERT_EQ(near.depth[i], ig::kSkyDepth);
+                const glm::dvec3 d = glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
+                ASSERT_EQ(near.color[i], ig::skyColor(options.sky, d.z)) << x << "," << y;
+            }
+        }
+    }
+    EXPECT_GT(kept, 500u);
+    EXPECT_GT(clipped, 500u);
+    int directions = 0;
+    for (int k = 0; k < ig::kControlPointCount; ++k) {
+        const ig::ControlPoint& a = all.controlPoints[k];
+        const ig::ControlPoint& b = near.controlPoints[k];
+        const glm::dvec3 d = glm::dvec3(a.world) - pose.position;
+        if (a.world.w == 1.0 && glm::length(d) > 300.0) {
+            ++directions;
+            EXPECT_EQ(b.world.w, 0.0);
+            EXPECT_NEAR(glm::length(glm::dvec3(b.world) - glm::normalize(d)), 0.0, 1e-12);
+        } else {
+            EXPECT_EQ(b.world, a.world);
+        }
+    }
+    EXPECT_GT(directions, 0);
 }
 
 }  // namespace
