@@ -118,6 +118,13 @@ int UdpSocket::open(const UdpEndpoint& local, int receiveBufferBytes) {
     return 0;
 }
 
+int UdpSocket::stampArrivals() {
+    if (fd_ < 0) return -EBADF;
+    const int one = 1;
+    if (::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one) != 0) return -errno;
+    return 0;
+}
+
 void UdpSocket::close() {
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
@@ -150,7 +157,8 @@ long UdpSocket::receive(std::span<std::uint8_t> buffer, UdpEndpoint* from) {
     if (fd_ < 0) return -EBADF;
     sockaddr_in a{};
     iovec iov{buffer.data(), buffer.size()};
-    alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(std::uint32_t))];
+    alignas(cmsghdr) unsigned char
+        control[CMSG_SPACE(sizeof(std::uint32_t)) + CMSG_SPACE(sizeof(timespec))];
     msghdr msg{};
     msg.msg_name = &a;
     msg.msg_namelen = sizeof a;
@@ -167,6 +175,11 @@ long UdpSocket::receive(std::span<std::uint8_t> buffer, UdpEndpoint* from) {
             std::uint32_t total = 0;
             std::memcpy(&total, CMSG_DATA(c), sizeof total);
             dropped_ = total;
+        } else if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS &&
+                   c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+            timespec ts{};
+            std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+            arrivalNs_ = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
         }
     }
     if (from) *from = fromSockaddr(a);

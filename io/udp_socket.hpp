@@ -56,10 +56,15 @@ class UdpSocket {
     std::uint64_t droppedByKernel() const { return dropped_; }
     // The receive buffer the system granted, in bytes (0 when closed).
     int receiveBufferBytes() const;
+    // Asks the kernel to stamp each datagram's arrival (SO_TIMESTAMPNS, CLOCK_REALTIME): 0 or
+    // -errno. The stamp of the last datagram received is then arrivalRealtimeNs() (0 without).
+    int stampArrivals();
+    std::int64_t arrivalRealtimeNs() const { return arrivalNs_; }
 
   private:
     int fd_ = -1;
     std::uint64_t dropped_ = 0;
+    std::int64_t arrivalNs_ = 0;
 };
 
 }  // namespace io

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # CIGI over loopback, on the wall clock: (1) the delay from a host's Entity Control change to the
 # first field that applies it: cigi-host (60 Hz, Entity + Rate Control) moves the ownship 50 m
-# every 6th host frame and times, on CLOCK_MONOTONIC, the step's send to the first Start of
-# Frame naming its host frame (sent by the field that applied it, before that field is warped);
+# every 6th host frame and times the step's send to the kernel's arrival stamp (SO_TIMESTAMPNS)
+# of the first Start of Frame naming its host frame (sent by the field that applied it, before
+# that field is warped), and to when cigi-host read it (its own wake-ups added);
 # the field's hand-off follows by the field loop's lateness (slot start to hand-off), taken
 # from the same run's stats; (2) the same run with a flood of 10,000 more host messages a
 # second; (3) bench-cigi: packets decoded a second and datagrams a session takes a second.
@@ -68,7 +69,9 @@ os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
 json.dump(doc, open(out, "w"), indent=1)
 for name, r in runs.items():
     d = r["host"]["step_to_field_ms"]
+    rd = r["host"].get("step_to_field_read_ms", {})
     print(f"{name:7} step to field p50 {d['p50']:.2f} p99 {d['p99']:.2f} max {d['max']:.2f} ms "
+          f"(read p50 {rd.get('p50', float('nan')):.2f} p99 {rd.get('p99', float('nan')):.2f}) "
           f"({r['host']['steps_seen']} steps); lateness {r['lateness_ms']}; "
           f"missed {r['missed_deadlines']} of {r['fields']}; datagrams {r['cigi']['datagrams']}, "
           f"longest poll {r['cigi']['max_poll_ms']:.2f} ms")

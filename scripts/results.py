@@ -975,13 +975,20 @@ def cigi(p):
         if not r:
             continue
         d, late, c = r["host"]["step_to_field_ms"], r["lateness_ms"], r["cigi"]
-        p.row(f"CIGI over loopback, {label}: an Entity Control change to the Start of Frame of "
-              "the first field that applies it, p50 / p99 / max (the field's hand-off follows "
-              "by its lateness, p50 / p99); fields missed",
+        stamped = r["host"].get("kernel_arrival_stamps", False)
+        read = r["host"].get("step_to_field_read_ms")
+        arrival = ("the kernel's arrival stamp of the Start of Frame of the first field that "
+                   "applies it" if stamped else
+                   "the Start of Frame of the first field that applies it")
+        read_text = (f"; the host program read it at {fmt(read['p50'], 2)} / "
+                     f"{fmt(read['p99'], 2)} ms" if stamped and read else "")
+        p.row(f"CIGI over loopback, {label}: an Entity Control change to {arrival}, "
+              "p50 / p99 / max (the field's hand-off follows by its lateness, p50 / p99); "
+              "fields missed",
               f"≤ 1 field period ({fmt(period, 2)} ms); 0 missed",
               f"{fmt(d['p50'], 2)} / {fmt(d['p99'], 2)} / {fmt(d['max'], 2)} ms over "
               f"{r['host']['steps_seen']} changes (+ {fmt(late['p50'], 2)} / "
-              f"{fmt(late['p99'], 2)} ms); {r['missed_deadlines']} of {r['fields']} missed; "
+              f"{fmt(late['p99'], 2)} ms){read_text}; {r['missed_deadlines']} of {r['fields']} missed; "
               f"{c['datagrams']} datagrams, longest poll {fmt(c['max_poll_ms'], 2)} ms, "
               f"{c['capped_polls']} fields at the 256-datagram cap",
               status(d["p99"] <= period and r["missed_deadlines"] == 0), cmd)

@@ -27,6 +27,8 @@ namespace cigi = io::cigi;
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
+// Levels of attached entities, the top one included (deeper chains are refused).
+constexpr std::size_t kMaxChain = 64;
 // WGS 84.
 constexpr double kEarthA = 6378137.0;
 constexpr double kEarthF = 1.0 / 298.257223563;
@@ -225,6 +227,13 @@ void CigiSession::heard(double t) {
         ownship_.time = t;
     }
     ownship_.holdAfter = t + options_.extrapolateLimit;
+    for (HostEntity& e : entities_) {
+        if (t > e.motion.holdAfter) {
+            e.motion.pose = e.motion.at(t);
+            e.motion.time = t;
+        }
+        e.motion.holdAfter = ownship_.holdAfter;
+    }
     lastHeard_ = t;
     if (silent_) {
         silent_ = false;
@@ -257,33 +266,175 @@ void CigiSession::watch(double t) {
     }
 }
 
-void CigiSession::setRates(double t) {
-    // Re-based at t: the pose reached with the old rates, the new rates from here.
-    ownship_.pose = ownship_.at(t);
-    ownship_.time = t;
-    const cigi::RateControl& r = rates_;
+namespace {
+
+// Re-based at t: the pose reached with the old rates, the new rates from here. World rates are
+// CIGI's axes (x north, y east, z down) for a top-level entity; `inParentAxes` (an attached
+// entity) takes them as they come, in the parent's axes like the offset they move.
+void rebaseRates(DeadReckoning& dr, const cigi::RateControl& r, double t, bool inParentAxes) {
+    dr.pose = dr.at(t);
+    dr.time = t;
     const double x = r.xRate, y = r.yRate, z = r.zRate;
     const double rollRate = r.rollRateDeg * kDeg, pitchRate = r.pitchRateDeg * kDeg,
                  yawRate = r.yawRateDeg * kDeg;
     if (!r.localCoordinates) {
-        // World rates of a top-level entity: x north, y east, z down (CIGI's axes).
-        ownship_.velocity = {y, x, -z};
-        ownship_.rollRate = rollRate;
-        ownship_.pitchRate = pitchRate;
-        ownship_.yawRate = yawRate;
+        dr.velocity = inParentAxes ? glm::dvec3{x, y, z} : glm::dvec3{y, x, -z};
+        dr.rollRate = rollRate;
+        dr.pitchRate = pitchRate;
+        dr.yawRate = yawRate;
         return;
     }
     // Body rates: x forward, y right, z down, turned into world axes at the pose of time t (the
     // velocity is then held until the next update: linear dead reckoning).
-    ownship_.velocity = worldFromBody(ownship_.pose, {x, y, z});
-    const double cp = std::cos(ownship_.pose.pitch);
-    const double cr = std::cos(ownship_.pose.roll), sr = std::sin(ownship_.pose.roll);
+    dr.velocity = worldFromBody(dr.pose, {x, y, z});
+    const double cp = std::cos(dr.pose.pitch);
+    const double cr = std::cos(dr.pose.roll), sr = std::sin(dr.pose.roll);
     // Body angular rates (p roll, q pitch, r yaw) to Euler angle rates.
-    const double tp = std::tan(ownship_.pose.pitch);
+    const double tp = std::tan(dr.pose.pitch);
     const double safeCp = std::max(std::abs(cp), 1e-6);
-    ownship_.rollRate = rollRate + (pitchRate * sr + yawRate * cr) * tp;
-    ownship_.pitchRate = pitchRate * cr - yawRate * sr;
-    ownship_.yawRate = (pitchRate * sr + yawRate * cr) / safeCp;
+    dr.rollRate = rollRate + (pitchRate * sr + yawRate * cr) * tp;
+    dr.pitchRate = pitchRate * cr - yawRate * sr;
+    dr.yawRate = (pitchRate * sr + yawRate * cr) / safeCp;
+}
+
+}  // namespace
+
+void CigiSession::setRates(double t) {
+    rebaseRates(ownship_, rates_, t, false);
+}
+
+HostEntity* CigiSession::findEntity(std::uint16_t id) {
+    for (HostEntity& e : entities_) {
+        if (e.id == id) return &e;
+    }
+    return nullptr;
+}
+
+void CigiSession::applyEntity(const cigi::EntityControl& e, double t) {
+    const std::string who = "Entity Control for entity " + std::to_string(e.entityId);
+    const auto refuse = [&](const std::string& why) {
+        ++stats_.entitiesRefused;
+        noteError(who + ": " + why);
+    };
+    HostEntity* entity = findEntity(e.entityId);
+    if (e.entityState == cigi::EntityState::Destroyed) {
+        if (!entity) {
+            ++stats_.ignoredPackets;  // already gone (a host repeats its destroy messages)
+            return;
+        }
+        ++stats_.entityControls;
+        // Its children go with it, and theirs.
+        std::vector<std::uint16_t> gone{e.entityId};
+        for (std::size_t k = 0; k < gone.size(); ++k) {
+            for (const HostEntity& c : entities_) {
+                if (c.attached && c.parent == gone[k]) gone.push_back(c.id);
+            }
+        }
+        std::erase_if(entities_, [&](const HostEntity& c) {
+            return std::find(gone.begin(), gone.end(), c.id) != gone.end();
+        });
+        stats_.entitiesDestroyed += gone.size();
+        return;
+    }
+    const auto type =
+        std::find_if(options_.entityTypes.begin(), options_.entityTypes.end(),
+                     [&](const EntityTypeModel& m) { return m.type == e.entityType; });
+    if (type == options_.entityTypes.end()) {
+        refuse("entity type " + std::to_string(e.entityType) +
+               " maps to no model of the scene (--cigi-entity TYPE=MODEL)");
+        return;
+    }
+    if (!entity && std::find(options_.reservedIds.begin(), options_.reservedIds.end(),
+                             e.entityId) != options_.reservedIds.end()) {
+        refuse("the id is taken by an object of the scene");
+        return;
+    }
+    if (e.attached) {
+        if (e.parentId == e.entityId) {
+            refuse("attached to itself");
+            return;
+        }
+        // Up the parent's chain: it must end at the ownship or a top-level entity, without
+        // coming back to this one.
+        std::uint16_t up = e.parentId;
+        for (std::size_t steps = 0; up != 0; ++steps) {
+            const HostEntity* p = findEntity(up);
+            if (!p) {
+                refuse("parent " + std::to_string(up) + " does not exist");
+                return;
+            }
+            if (!p->attached) break;
+            if (p->parent == e.entityId || steps > entities_.size()) {
+                refuse("attaching it to " + std::to_string(e.parentId) +
+                       " would make a loop of parents");
+                return;
+            }
+            if (steps + 2 >= kMaxChain) {
+                refuse("more than " + std::to_string(kMaxChain) + " levels of parents");
+                return;
+            }
+            up = p->parent;
+        }
+    }
+    if (!entity) {
+        if (entities_.size() >= options_.maxEntities) {
+            refuse("more than " + std::to_string(options_.maxEntities) + " entities");
+            return;
+        }
+        entity = &entities_.emplace_back();
+        entity->id = e.entityId;
+        entity->motion.holdAfter = ownship_.holdAfter;
+        ++stats_.entitiesCreated;
+    }
+    ++stats_.entityControls;
+    const bool wasAttached = entity->attached;
+    entity->type = e.entityType;
+    entity->model = type->model;
+    entity->scale = type->scale;
+    entity->active = e.entityState == cigi::EntityState::Active;
+    entity->attached = e.attached;
+    entity->parent = e.attached ? e.parentId : 0;
+    entity->onGround = e.groundClamp != cigi::GroundClamp::None;
+    DeadReckoning& m = entity->motion;
+    m.time = t;
+    if (e.attached) {
+        m.pose.position = {e.latOrX, e.lonOrY, e.altOrZ};
+        const double yaw = e.yawDeg > 180.0f ? e.yawDeg - 360.0 : e.yawDeg;
+        m.pose.yaw = yaw * kDeg;
+    } else {
+        m.pose.position = geo_.worldFromGeodetic(e.latOrX, e.lonOrY, e.altOrZ);
+        m.pose.yaw = e.yawDeg * kDeg;
+    }
+    m.pose.pitch = e.pitchDeg * kDeg;
+    m.pose.roll = e.rollDeg * kDeg;
+    if (wasAttached != e.attached) {
+        // Rates given in the old frame of reference mean nothing in the new one.
+        m.velocity = glm::dvec3(0.0);
+        m.yawRate = m.pitchRate = m.rollRate = 0.0;
+        entity->rates = {};
+    } else if (entity->rates.localCoordinates) {
+        rebaseRates(m, entity->rates, t, false);
+    }
+}
+
+void CigiSession::applyEntityRates(const cigi::RateControl& r, double t) {
+    HostEntity* entity = findEntity(r.entityId);
+    if (!entity) {
+        ++stats_.entitiesRefused;
+        noteError("Rate Control for entity " + std::to_string(r.entityId) +
+                  ": no such entity (an Entity Control creates it)");
+        return;
+    }
+    if (entity->attached && r.localCoordinates) {
+        ++stats_.entitiesRefused;
+        noteError("Rate Control for entity " + std::to_string(r.entityId) +
+                  ": rates in its own axes for an attached entity are not taken (give them in "
+                  "its parent's)");
+        return;
+    }
+    ++stats_.rateUpdates;
+    entity->rates = r;
+    rebaseRates(entity->motion, r, t, entity->attached);
 }
 
 void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn) {
@@ -306,10 +457,16 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             rates_ = {};
             pending_.clear();
             repeating_.clear();
+            stats_.entitiesDestroyed += entities_.size();
+            entities_.clear();
         }
         igMode_ = ig->igMode;
     } else if (const auto* e = std::get_if<cigi::EntityControl>(&packet)) {
-        if (!operating || e->entityId != 0 || e->attached) {
+        if (operating && e->entityId != 0) {
+            applyEntity(*e, t);
+            return;
+        }
+        if (!operating || e->attached) {
             ++stats_.ignoredPackets;
             return;
         }
@@ -322,6 +479,10 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
         // Rates given in the entity's own axes turn with it.
         if (rates_.localCoordinates) setRates(t);
     } else if (const auto* r = std::get_if<cigi::RateControl>(&packet)) {
+        if (operating && r->entityId != 0 && !r->applyToPart) {
+            applyEntityRates(*r, t);
+            return;
+        }
         if (!operating || r->entityId != 0 || r->applyToPart) {
             ++stats_.ignoredPackets;
             return;
@@ -398,27 +559,53 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ++stats_.ignoredPackets;
             return;
         }
-        if (!(vd->leftEnable && vd->rightEnable)) {
-            ++stats_.ignoredPackets;  // nothing this image generator takes
-            return;
-        }
-        const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
         const auto refuse = [&](const std::string& why) {
             ++stats_.viewDefinitionsNotApplied;
             noteError("View Definition for view " + std::to_string(vd->viewId) + ": " + why);
         };
-        if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
-            !(hfov < 179.0 * kDeg)) {
-            refuse("left " + base::number(vd->leftDeg) + ", right " + base::number(vd->rightDeg) +
-                   " degrees: only a frustum symmetric about the view axis, narrower than 179 "
-                   "degrees, is rendered");
-        } else if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
-            refuse("a field of view of " + base::number(hfov / kDeg) +
-                   " degrees arrived during the run: the renderer keeps " +
-                   base::number(frozenHfov_ / kDeg));
-        } else {
-            ++stats_.viewDefinitions;
+        bool taken = false;
+        if (vd->farEnable) {
+            // The far plane is the draw distance (what lies beyond is sky); like the field of
+            // view it is the renderer's for the run.
+            if (!(vd->farM > 0.0f) || !std::isfinite(vd->farM) ||
+                (vd->nearEnable && !(vd->farM > vd->nearM))) {
+                refuse("far plane " + base::number(vd->farM) +
+                       " m: must be positive and beyond the near plane");
+                return;
+            }
+            if (farFrozen_ && vd->farM != frozenFar_) {
+                refuse("a far plane of " + base::number(vd->farM) +
+                       " m arrived during the run: the renderer keeps " +
+                       (std::isfinite(frozenFar_) ? base::number(frozenFar_) + " m"
+                                                  : std::string("no far plane")));
+                return;
+            }
+            viewFar_ = vd->farM;
+            taken = true;
+        }
+        if (vd->leftEnable && vd->rightEnable) {
+            const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
+            if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
+                !(hfov < 179.0 * kDeg)) {
+                refuse("left " + base::number(vd->leftDeg) + ", right " +
+                       base::number(vd->rightDeg) +
+                       " degrees: only a frustum symmetric about the view axis, narrower than "
+                       "179 degrees, is rendered");
+                return;
+            }
+            if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
+                refuse("a field of view of " + base::number(hfov / kDeg) +
+                       " degrees arrived during the run: the renderer keeps " +
+                       base::number(frozenHfov_ / kDeg));
+                return;
+            }
             viewHfov_ = hfov;
+            taken = true;
+        }
+        if (taken) {
+            ++stats_.viewDefinitions;
+        } else {
+            ++stats_.ignoredPackets;  // nothing this image generator takes
         }
     } else {
         ++stats_.ignoredPackets;
@@ -619,6 +806,82 @@ void CigiSession::poll(double t) {
     }
 }
 
+EntityTypeModel parseEntityTypeModel(std::string_view text, std::string_view flag,
+                                     const std::vector<std::string>& modelNames) {
+    const auto bad = [&](const std::string& why) {
+        throw base::InputError(std::string(flag) + " " + base::quoted(text) + ": " + why);
+    };
+    const std::size_t eq = text.find('=');
+    if (eq == std::string_view::npos) bad("expected TYPE=MODEL[:SCALE]");
+    EntityTypeModel m;
+    double type = 0.0;
+    if (!parseDouble(text.substr(0, eq), type) || type != std::floor(type) || type < 0.0 ||
+        type > 65535.0) {
+        bad("the entity type must be an integer 0..65535");
+    }
+    m.type = static_cast<std::uint16_t>(type);
+    std::string_view model = text.substr(eq + 1);
+    const std::size_t colon = model.find(':');
+    if (colon != std::string_view::npos) {
+        if (!parseDouble(model.substr(colon + 1), m.scale) || !(m.scale > 0.0) || m.scale > 1e4) {
+            bad("the scale must be a number in (0, 10000]");
+        }
+        model = model.substr(0, colon);
+    }
+    const auto it = std::find(modelNames.begin(), modelNames.end(), model);
+    if (it == modelNames.end()) {
+        std::string known;
+        for (const std::string& n : modelNames)
+            known += (known.empty() ? "" : ", ") + n;
+        bad("the scene has no model " + base::quoted(model) +
+            " (it has: " + (known.empty() ? "none" : known) + ")");
+    }
+    m.model = static_cast<int>(it - modelNames.begin());
+    return m;
+}
+
+void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
+                   std::vector<EntityPose>& out) {
+    out.clear();
+    // Each entity's world pose by walking up its chain of parents (the session refuses loops;
+    // the walk is bounded all the same).
+    const auto find = [&](std::uint16_t id) -> const HostEntity* {
+        for (const HostEntity& e : entities) {
+            if (e.id == id) return &e;
+        }
+        return nullptr;
+    };
+    // World pose of `e` at t, and whether it and all its parents are active.
+    const auto world = [&](const HostEntity& e, ig::Pose& pose) {
+        // The chain, child to top (at most the entity count: the session refuses loops).
+        const HostEntity* chain[kMaxChain];
+        std::size_t n = 0;
+        const HostEntity* at = &e;
+        bool drawn = true;
+        while (true) {
+            if (n == kMaxChain) return false;
+            chain[n++] = at;
+            drawn = drawn && at->active;
+            if (!at->attached || at->parent == 0) break;
+            at = find(at->parent);
+            if (!at) return false;
+        }
+        const HostEntity& top = *chain[n - 1];
+        pose = top.attached ? ownship.at(t) : top.motion.at(t);
+        for (std::size_t k = n; k-- > 0;) {
+            if (!chain[k]->attached) continue;
+            const ig::Pose o = chain[k]->motion.at(t);
+            pose = eyePose(pose, ViewOffset{o.position, o.yaw, o.pitch, o.roll});
+        }
+        return drawn;
+    };
+    for (const HostEntity& e : entities) {
+        ig::Pose pose;
+        if (!e.active || !world(e, pose)) continue;
+        out.push_back({e.id, e.model, e.scale, e.onGround, pose});
+    }
+}
+
 nlohmann::json toJson(const CigiStats& c) {
     nlohmann::json outages = nlohmann::json::array();
     for (const HostOutage& o : c.outages) {
@@ -638,6 +901,10 @@ nlohmann::json toJson(const CigiStats& c) {
             {"skipped_packets", c.skippedPackets},
             {"ignored_packets", c.ignoredPackets},
             {"entity_updates", c.entityUpdates},
+            {"entity_controls", c.entityControls},
+            {"entities_refused", c.entitiesRefused},
+            {"entities_created", c.entitiesCreated},
+            {"entities_destroyed", c.entitiesDestroyed},
             {"rate_updates", c.rateUpdates},
             {"answers", c.answers},
             {"dropped_requests", c.droppedRequests},
@@ -655,6 +922,8 @@ CigiPoseSource::CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& opt
     : map_(map), session_(map, options), startTime_(options.startTime), clearance_(clearance) {
     latest_.back() = {session_.ownship(), session_.view()};
     latest_.publish();
+    entities_.back() = {session_.ownship(), session_.entities()};
+    entities_.publish();
 }
 
 ig::Pose CigiPoseSource::clamped(ig::Pose pose, bool count) {
@@ -672,6 +941,10 @@ ig::Pose CigiPoseSource::advanceTo(double t) {
     session_.poll(t);
     latest_.back() = {session_.ownship(), session_.view()};
     latest_.publish();
+    EntitySnapshot& snapshot = entities_.back();
+    snapshot.ownship = session_.ownship();
+    snapshot.entities = session_.entities();  // allocates only when the host adds entities
+    entities_.publish();
     return clamped(eyePose(session_.ownship().at(t), session_.view()), true);
 }
 
@@ -689,6 +962,29 @@ ig::Pose CigiPoseSource::predict(double t) {
     latest_.fetch();
     const EyeState& s = latest_.front();
     return clamped(eyePose(s.ownship.at(t), s.view), false);
+}
+
+void CigiPoseSource::entitiesAt(double t, std::vector<EntityPose>& out) {
+    entities_.fetch();
+    const EntitySnapshot& s = entities_.front();
+    entityPosesAt(s.entities, s.ownship, t, out);
+}
+
+void CigiPoseSource::objectsAt(double t, std::vector<ExtraObject>& out) {
+    entitiesAt(t, poses_);
+    out.clear();
+    for (const EntityPose& e : poses_) {
+        ExtraObject o;
+        o.model = e.model;
+        o.placement.id = e.id;
+        o.placement.x = e.pose.position.x;
+        o.placement.y = e.pose.position.y;
+        o.placement.z = e.pose.position.z;
+        o.placement.heading = e.pose.yaw;
+        o.placement.scale = e.scale;
+        o.onGround = e.onGround;
+        out.push_back(o);
+    }
 }
 
 }  // namespace sim

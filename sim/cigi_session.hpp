@@ -9,6 +9,7 @@
 #include "io/udp_socket.hpp"
 #include "sim/mailbox.hpp"
 #include "sim/pose_source.hpp"
+#include "sim/scene_motion.hpp"
 
 #include <glm/vec3.hpp>
 #include <nlohmann/json_fwd.hpp>
@@ -88,6 +89,53 @@ struct EyeState {
     ViewOffset view;
 };
 
+// --- Entities other than the ownship
+
+// How a CIGI entity type is drawn: a model of the scene file (its index in ig::Scene::models)
+// at a scale (--cigi-entity TYPE=MODEL[:SCALE]).
+struct EntityTypeModel {
+    std::uint16_t type = 0;
+    int model = 0;
+    double scale = 1.0;
+};
+
+// "TYPE=MODEL[:SCALE]" against the scene's model names; throws base::InputError naming `flag`,
+// the text and what is wrong (type out of 0..65535, unknown model, scale not positive).
+EntityTypeModel parseEntityTypeModel(std::string_view text, std::string_view flag,
+                                     const std::vector<std::string>& modelNames);
+
+// One host-driven entity. Detached, `motion` is its world pose (x east, y north, z up) and how
+// it moves; attached, `motion.pose` is its offset from the parent: position in the parent's
+// axes (x forward, y right, z down), yaw right, pitch up, roll right from the parent's attitude,
+// and `motion.velocity` the rates in those axes.
+struct HostEntity {
+    std::uint16_t id = 0, type = 0;
+    int model = 0;
+    double scale = 1.0;
+    bool active = true;  // inactive entities keep their state but are not drawn
+    bool attached = false;
+    std::uint16_t parent = 0;  // when attached; 0 is the ownship
+    bool onGround = false;     // ground clamp: the base sits on the terrain under it
+    DeadReckoning motion;
+    io::cigi::RateControl rates;  // the last Rate Control for it (persists)
+};
+
+// An entity's world pose at a frame's instant, as the renderer places it.
+struct EntityPose {
+    std::uint16_t id = 0;
+    int model = 0;
+    double scale = 1.0;
+    bool onGround = false;
+    ig::Pose pose;  // base point and attitude (the renderer draws upright models: heading only)
+};
+
+// World poses at t of the active entities, parents composed with children (an attached entity
+// is its parent's pose followed by its offset, as eyePose composes a view on its entity).
+// Inactive entities are left out, and so are the active children of inactive parents (they are
+// still placed: only drawing is off). `out` is cleared first; it allocates only when it grows.
+void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
+                   std::vector<EntityPose>& out);
+
 // --- Session
 
 struct CigiOptions {
@@ -107,6 +155,12 @@ struct CigiOptions {
     // host is reported lost; the ownship dead-reckons until extrapolateLimit, then holds.
     double hostTimeout = 0.5;
     double extrapolateLimit = 2.0;
+    // Entities other than the ownship: their types' models (an Entity Control of another type
+    // is refused and reported), at most maxEntities at a time, and ids they may not take (the
+    // scene's own objects').
+    std::vector<EntityTypeModel> entityTypes;
+    std::size_t maxEntities = 256;
+    std::vector<std::uint16_t> reservedIds;
 };
 
 // One silence of a host that had been heard: from its last good datagram to the next one (or
@@ -139,6 +193,9 @@ struct CigiStats {
     std::uint64_t resets = 0;
     std::uint64_t viewControls = 0, viewDefinitions = 0;  // for this view, applied
     std::uint64_t viewDefinitionsNotApplied = 0;  // asymmetric, or a new field of view mid-run
+    std::uint64_t entityControls = 0;             // for entities other than the ownship, applied
+    std::uint64_t entitiesRefused = 0;  // unknown type or parent, a parent loop, a reserved id
+    std::uint64_t entitiesCreated = 0, entitiesDestroyed = 0;
     bool hostSeen = false;
     std::uint32_t lastHostFrame = 0, lastHostTimestamp = 0;
     std::vector<std::string> firstErrors;  // the first kReportedErrors problems, as messages
@@ -165,12 +222,23 @@ class CigiSession {
 
     const DeadReckoning& ownship() const { return ownship_; }
     const ViewOffset& view() const { return view_; }
+    // The host's entities other than the ownship, in order of creation.
+    const std::vector<HostEntity>& entities() const { return entities_; }
     // The horizontal field of view (radians) of this view's last View Definition that gave
     // both left and right, or 0 when none did.
     double viewHfov() const { return viewHfov_; }
     // From now on (the run has started) the renderer's field of view is `hfov`: a View
     // Definition asking for another is counted and reported, not applied.
     void freezeFieldOfView(double hfov) { frozenHfov_ = hfov; }
+    // This view's far plane (metres) from its last View Definition that enabled one, or
+    // +infinity when none did: the renderer's draw distance.
+    double viewFar() const { return viewFar_; }
+    // From now on the renderer's draw distance is `farM` (infinite: none): a View Definition
+    // asking for another far plane is counted and reported, not applied.
+    void freezeFar(double farM) {
+        frozenFar_ = farM;
+        farFrozen_ = true;
+    }
     io::cigi::IgMode igMode() const { return igMode_; }
     std::uint32_t igFrame() const { return igFrame_; }
     const CigiStats& stats() const { return stats_; }
@@ -201,6 +269,9 @@ class CigiSession {
     void heard(double t);
     void watch(double t);
     void setRates(double t);
+    void applyEntity(const io::cigi::EntityControl& e, double t);
+    void applyEntityRates(const io::cigi::RateControl& r, double t);
+    HostEntity* findEntity(std::uint16_t id);
     void noteError(const std::string& message);
 
     const ig::TerrainMap& map_;
@@ -211,6 +282,7 @@ class CigiSession {
     std::vector<std::uint8_t> in_, out_;
     std::vector<Pending> pending_;
     std::vector<Repeating> repeating_;
+    std::vector<HostEntity> entities_;
     DeadReckoning ownship_;
     io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;
@@ -218,6 +290,8 @@ class CigiSession {
     ViewOffset view_;
     io::cigi::ViewControl viewControl_;  // enabled fields as last set
     double viewHfov_ = 0.0, frozenHfov_ = 0.0;
+    double viewFar_ = std::numeric_limits<double>::infinity(), frozenFar_ = 0.0;
+    bool farFrozen_ = false;
     double lastHeard_ = 0.0;  // simulation time of the last good datagram
     bool silent_ = false;     // an outage is open
     CigiStats stats_;
@@ -234,6 +308,12 @@ class CigiPoseSource final : public PoseSource {
     ig::Pose advanceTo(double t) override;
     ig::Pose predict(double t) override;
     double startTime() const override { return startTime_; }
+    // The renderer's side (one thread, the one calling predict): the host's active entities at
+    // t, from the latest state advanceTo() published.
+    void entitiesAt(double t, std::vector<EntityPose>& out);
+    // The same as objects for the scene's renderer: each entity's model at its base point and
+    // heading, its entity id as the object id.
+    void objectsAt(double t, std::vector<ExtraObject>& out);
 
     // Before a run (never during one): polls at the start time once a field period of wall
     // time, each poll sending Start of Frame (a synchronous host answers those), until the
@@ -250,6 +330,12 @@ class CigiPoseSource final : public PoseSource {
     CigiSession session_;
     double startTime_, clearance_;
     Mailbox<EyeState> latest_;  // field loop -> predict()
+    struct EntitySnapshot {
+        DeadReckoning ownship;
+        std::vector<HostEntity> entities;
+    };
+    Mailbox<EntitySnapshot> entities_;  // field loop -> entitiesAt()
+    std::vector<EntityPose> poses_;     // objectsAt()'s scratch
 };
 
 }  // namespace sim

@@ -2,6 +2,7 @@
 
 #include "base/check.hpp"
 #include "ig/error.hpp"
+#include "ig/shading.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -10,6 +11,7 @@
 #include <tbb/task_scheduler_observer.h>
 #include <time.h>
 #include <unistd.h>
+#include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cerrno>
@@ -83,32 +85,64 @@ std::size_t maxFramePixels(const RenderGeometry& geometry) {
            static_cast<std::size_t>(geometry.windowHeight + 2 * margin);
 }
 
+void clipBeyondFar(ig::RenderedFrame& frame, double farM, const ig::SkyModel& sky) {
+    if (!(farM < std::numeric_limits<double>::infinity())) return;
+    const ig::Camera camera(frame.pose, frame.intrinsics);
+    const int w = frame.intrinsics.width, h = frame.intrinsics.height;
+    const bool ids = frame.objectId.size() == frame.depth.size();
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * w + x;
+            if (!(frame.depth[i] > farM) || frame.depth[i] == ig::kSkyDepth) continue;
+            const glm::dvec3 d = glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
+            frame.color[i] = ig::skyColor(sky, d.z);
+            frame.depth[i] = ig::kSkyDepth;
+            if (ids) frame.objectId[i] = 0;
+        }
+    }
+    // A control point beyond the far plane sees the sky: its direction from the eye.
+    for (ig::ControlPoint& c : frame.controlPoints) {
+        if (c.world.w == 0.0) continue;
+        const glm::dvec3 d = glm::dvec3(c.world) - frame.pose.position;
+        if (glm::length(d) > farM) c.world = glm::dvec4(glm::normalize(d), 0.0);
+    }
+}
+
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                  ig::CasterKind kind, const ig::RenderOptions& options) {
     std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, options);
-    return [caster, &map, geometry](const ig::Pose& pose, double time, std::uint64_t sequence) {
+    const ig::SkyModel sky = options.sky;
+    return [caster, &map, geometry, sky](const ig::Pose& pose, double time,
+                                         std::uint64_t sequence) {
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
-        return ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time,
-                               sequence);
+        ig::RenderedFrame frame =
+            ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time, sequence);
+        clipBeyondFar(frame, geometry.farM, sky);
+        return frame;
     };
 }
 
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
-                                const ig::Scene& scene, const SceneMotion& motion) {
+                                const ig::Scene& scene, const SceneMotion& motion,
+                                ExtraObjects extra) {
     // The moving layer is replaced before each render; the caster holds its address.
     auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime()));
     ig::RenderOptions withObjects = options;
     withObjects.objects = {scene.staticLayer.get(), moving.get()};
     std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, withObjects);
-    return [caster, moving, &map, &motion, geometry](const ig::Pose& pose, double time,
-                                                     std::uint64_t sequence) {
-        *moving = motion.stamp(time);
+    auto objects = std::make_shared<std::vector<ExtraObject>>();
+    return [caster, moving, objects, extra, &map, &motion, geometry, withObjects](
+               const ig::Pose& pose, double time, std::uint64_t sequence) {
+        if (extra) extra(time, *objects);
+        *moving = motion.stamp(time, *objects);
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
-        return ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time,
-                               sequence);
+        ig::RenderedFrame frame =
+            ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time, sequence);
+        clipBeyondFar(frame, geometry.farM, withObjects.sky);
+        return frame;
     };
 }
 

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -39,7 +40,15 @@ struct RenderGeometry {
     // Widen the margin with |roll| so the rolled window stays inside the frame.
     bool coverRoll = true;
     double rollAllowance = 0.05;  // radians of roll change a frame should still cover
+    // Draw distance (a CIGI View Definition's far plane, metres): what lies farther is drawn
+    // as sky (sim::clipBeyondFar). Infinite: everything the caster hits.
+    double farM = std::numeric_limits<double>::infinity();
 };
+
+// Draws what lies farther than `farM` from the eye as sky: its pixels get the sky's colour
+// along their ray, sky depth and object id 0; control points beyond it become directions.
+// Nothing changes when farM is infinite. A per-frame pass over the pixels, no allocation.
+void clipBeyondFar(ig::RenderedFrame& frame, double farM, const ig::SkyModel& sky);
 
 // Margin that keeps a window rolled by up to |roll| + allowance inside the rendered frame, plus
 // `margin` (rounded up to a multiple of 8; never more than covering every roll needs).
@@ -58,9 +67,13 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
 // objects stamped at each frame's instant into a layer of their own, which is all that changes
 // from frame to frame (the caster is built once). Renders one frame at a time. The map, scene
 // and motion must outlive the renderer; the caster must draw objects (reference or naive).
+// `extra`, when given, is asked on the renderer's thread for more objects at each frame's
+// instant (a CIGI host's entities) and stamped into the same layer.
+using ExtraObjects = std::function<void(double t, std::vector<ExtraObject>& out)>;
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
-                                const ig::Scene& scene, const SceneMotion& motion);
+                                const ig::Scene& scene, const SceneMotion& motion,
+                                ExtraObjects extra = {});
 
 struct PipelineOptions {
     double duration = 10.0;  // simulated seconds; fields = round(duration / field period)

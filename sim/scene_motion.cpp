@@ -44,4 +44,33 @@ ig::ObjectLayer SceneMotion::stamp(double t) const {
     return scene_->stampMoving(where);
 }
 
+ig::ObjectLayer SceneMotion::stamp(double t, std::span<const ExtraObject> extra) const {
+    if (extra.empty()) return stamp(t);
+    // The scene's moving objects as stampMoving places them, then the extra ones.
+    const std::vector<ig::Placement> where = placementsAt(t);
+    const ig::TerrainMap& map = scene_->staticLayer->map();
+    ig::ObjectLayer layer(map, scene_->cellSize);
+    const auto onMap = [&](const ig::Placement& p) {
+        return p.x >= 0.0 && p.y >= 0.0 && p.x <= map.extentX() && p.y <= map.extentY();
+    };
+    for (std::size_t i = 0; i < where.size(); ++i) {
+        const ig::MovingObject& m = scene_->moving[i];
+        ig::Placement p = where[i];
+        if (!onMap(p)) continue;
+        p.z = m.z ? *m.z : map.surfaceHeight(p.x, p.y);
+        layer.place(*scene_->models[static_cast<std::size_t>(m.model)], p);
+    }
+    for (const ExtraObject& o : extra) {
+        ig::Placement p = o.placement;
+        if (!onMap(p) || o.model < 0 ||
+            static_cast<std::size_t>(o.model) >= scene_->models.size()) {
+            continue;
+        }
+        if (o.onGround) p.z = map.surfaceHeight(p.x, p.y);
+        layer.place(*scene_->models[static_cast<std::size_t>(o.model)], p);
+    }
+    layer.finish();
+    return layer;
+}
+
 }  // namespace sim

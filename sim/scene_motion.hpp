@@ -5,9 +5,18 @@
 #include "ig/scene.hpp"
 #include "sim/trajectory.hpp"
 
+#include <span>
 #include <vector>
 
 namespace sim {
+
+// An object placed by someone other than the scene's trajectories (a CIGI host): a model of the
+// scene at a placement whose id, scale and base height are its own (or on the ground under it).
+struct ExtraObject {
+    int model = 0;  // index into ig::Scene::models
+    ig::Placement placement;
+    bool onGround = false;
+};
 
 class SceneMotion {
   public:
@@ -24,6 +33,8 @@ class SceneMotion {
     // The moving objects at time t, on the static layer's object grid; an object whose
     // trajectory takes it off the map is left out.
     ig::ObjectLayer stamp(double t) const;
+    // The same with `extra` objects beside them; one whose base is off the map is left out.
+    ig::ObjectLayer stamp(double t, std::span<const ExtraObject> extra) const;
 
   private:
     const ig::Scene* scene_;

@@ -69,9 +69,13 @@ is the geodetic position of the map's south-west sample at height 0 (a local tan
 about it). Until the first Entity Control the ownship holds the --start pose; --cigi-wait S
 waits up to S seconds for it before the first field. --cigi-view N picks the view shown (View
 Control places the eye on the ownship every field; a symmetric View Definition received before
-the first field sets the field of view, overriding --fov). A host silent for --cigi-timeout S is
-reported lost; the ownship dead-reckons for --cigi-extrapolate S after its last message, then
-holds. Several image generators (one per channel, each on its own port) can share one host.
+the first field sets the field of view, overriding --fov, and its far plane the draw
+distance). A host silent for --cigi-timeout S is reported lost; the ownship dead-reckons
+for --cigi-extrapolate S after its last message, then holds. Several image generators (one
+per channel, each on its own port) can share one host.
+--cigi-entity TYPE=MODEL[:SCALE] draws the host's other entities of that CIGI entity type as a
+model of --scene (renderer thread), each at its dead-reckoned pose at the frame's instant with
+its entity id as its object id.
 
 Objects: --scene FILE draws a scene's voxel objects (every caster, over its terrain), the moving
 ones stamped at each frame's instant; every field carries the object ids warped with its
@@ -239,6 +243,7 @@ int main(int argc, char** argv) {
     std::string cigiBind, cigiHost, cigiOrigin;
     double cigiWait = 0.0, cigiTimeout = 0.5, cigiExtrapolate = 2.0;
     int cigiView = 0;
+    std::vector<std::string> cigiEntities;
     std::string scenePath, truthPath;
 
     auto* trajectoryOpt =
@@ -265,6 +270,9 @@ int main(int argc, char** argv) {
                    "CIGI: seconds after the host's last message the ownship keeps moving at its "
                    "last rates before it holds")
         ->capture_default_str();
+    app.add_option("--cigi-entity", cigiEntities,
+                   "CIGI: draw host entities of TYPE as the scene's MODEL (TYPE=MODEL[:SCALE], "
+                   "repeatable; needs --scene and --renderer thread)");
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
                    "metres)");
@@ -447,6 +455,8 @@ int main(int argc, char** argv) {
                 throw ig::InputError("--cigi-wait " + base::number(cigiWait) +
                                      ": must be 0 .. 3600 seconds");
             }
+        } else if (!cigiEntities.empty()) {
+            throw ig::InputError("--cigi-entity: only with --cigi [ADDR:]PORT");
         } else if (!cigiHost.empty() || !cigiOrigin.empty()) {
             throw ig::InputError(std::string(cigiHost.empty() ? "--cigi-origin" : "--cigi-host") +
                                  ": only with --cigi [ADDR:]PORT");
@@ -562,6 +572,22 @@ int main(int argc, char** argv) {
             cigiOptions.startPose.position = start.position;
             cigiOptions.startPose.yaw = start.heading;
             cigiOptions.startTime = 0.0;
+            if (!cigiEntities.empty()) {
+                if (!scene) throw ig::InputError("--cigi-entity: needs a --scene with the models");
+                if (rendererText != "thread") {
+                    throw ig::InputError(
+                        "--cigi-entity: needs --renderer thread (the renderer process is not "
+                        "told about host entities)");
+                }
+                for (const std::string& text : cigiEntities) {
+                    cigiOptions.entityTypes.push_back(
+                        sim::parseEntityTypeModel(text, "--cigi-entity", scene->modelNames));
+                }
+                for (const ig::MovingObject& m : scene->moving)
+                    cigiOptions.reservedIds.push_back(m.id);
+                for (const ig::PlacedObject& o : scene->staticLayer->objects())
+                    cigiOptions.reservedIds.push_back(o.id);
+            }
             auto source = std::make_unique<sim::CigiPoseSource>(map, cigiOptions);
             if (source->open(&error) != 0) throw ig::InputError("--cigi " + error);
             std::fprintf(stderr, "flythrough: CIGI on %s, Start of Frame to %s\n",
@@ -707,16 +733,29 @@ int main(int argc, char** argv) {
                              cigiView, ig::radToDeg(geometry.hfov));
             }
             cigiSource->session().freezeFieldOfView(geometry.hfov);
+            // Its far plane is the draw distance.
+            geometry.farM = cigiSource->session().viewFar();
+            if (std::isfinite(geometry.farM)) {
+                std::fprintf(stderr, "flythrough: view %d: drawn to %.1f m (View Definition)\n",
+                             cigiView, geometry.farM);
+            }
+            cigiSource->session().freezeFar(geometry.farM);
         }
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene
-                ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene, *motion)
-                : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            stereo  ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+            : scene ? sim::makeSceneRenderer(
+                          map, geometry, casterKind, renderOptions, *scene, *motion,
+                          cigiSource && !cigiEntities.empty()
+                              ? sim::ExtraObjects(
+                                    [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
+                                        cigiSource->objectsAt(t, out);
+                                    })
+                              : sim::ExtraObjects{})
+                    : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.

@@ -8,7 +8,9 @@
 //   --silent-from S --silent-for D   send nothing from S to S + D seconds
 //   --steps N          every N-th host frame the ownship jumps 50 m east or back; the delay
 //                      from sending it to the first Start of Frame naming that host frame (the
-//                      field that applied it) is measured on CLOCK_MONOTONIC
+//                      field that applied it): to the kernel's arrival stamp of that Start of
+//                      Frame (SO_TIMESTAMPNS, CLOCK_REALTIME, so the host's own wake-ups do not
+//                      count), and to when this program read it (CLOCK_MONOTONIC)
 //   --json FILE        what was sent and the measured delays
 // Exit status 2 on bad arguments or when no image generator announces itself within 30 s.
 #include "io/cigi.hpp"
@@ -28,6 +30,12 @@
 #include <vector>
 
 namespace {
+
+std::int64_t realtimeNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 
 namespace cigi = io::cigi;
 
@@ -115,6 +123,7 @@ int main(int argc, char** argv) {
 
     io::UdpSocket socket;
     if (socket.open({0x7f000001, 0}, 1 << 20) != 0) usage("cannot bind a loopback UDP port");
+    const bool stamped = socket.stampArrivals() == 0;
     {
         const std::string tmp = portFile + ".tmp";
         std::ofstream(tmp) << socket.localEndpoint().port << "\n";
@@ -196,7 +205,9 @@ int main(int argc, char** argv) {
     struct Step {
         std::uint32_t frame;
         std::int64_t sentNs;
-        double latencyMs = -1.0;
+        std::int64_t sentRealNs;
+        double latencyMs = -1.0;  // to the kernel's arrival stamp of the Start of Frame
+        double readMs = -1.0;     // to this program reading it
     };
     std::vector<Step> stepsSent;
     const double periodNs = 1e9 / rate;
@@ -216,8 +227,10 @@ int main(int argc, char** argv) {
             if (!silent) {
                 encode(t, hostFrame, stepped);
                 const std::int64_t sentNs = io::monotonicNs();
+                const std::int64_t sentRealNs = realtimeNs();
                 sendAll(false);
-                if (steps > 0 && hostFrame % steps == 0) stepsSent.push_back({hostFrame, sentNs});
+                if (steps > 0 && hostFrame % steps == 0)
+                    stepsSent.push_back({hostFrame, sentNs, sentRealNs});
             }
             nextFrame = start + static_cast<std::int64_t>(hostFrame * periodNs);
         }
@@ -246,8 +259,11 @@ int main(int argc, char** argv) {
             ++sofs;
             const auto& sof = std::get<cigi::StartOfFrame>(message.packets[0]);
             for (Step& s : stepsSent) {
-                if (s.latencyMs < 0.0 && sof.lastHostFrameNumber >= s.frame)
-                    s.latencyMs = (got - s.sentNs) * 1e-6;
+                if (s.readMs < 0.0 && sof.lastHostFrameNumber >= s.frame) {
+                    s.readMs = (got - s.sentNs) * 1e-6;
+                    s.latencyMs =
+                        stamped ? (socket.arrivalRealtimeNs() - s.sentRealNs) * 1e-6 : s.readMs;
+                }
             }
         }
         std::int64_t wake = std::min(nextFrame, end);
@@ -256,9 +272,11 @@ int main(int argc, char** argv) {
         sleepUntilNs(std::min(wake, io::monotonicNs() + 200'000));
     }
 
-    std::vector<double> delays;
-    for (const Step& s : stepsSent)
+    std::vector<double> delays, reads;
+    for (const Step& s : stepsSent) {
         if (s.latencyMs >= 0.0) delays.push_back(s.latencyMs);
+        if (s.readMs >= 0.0) reads.push_back(s.readMs);
+    }
     double mean = 0.0;
     for (double d : delays)
         mean += d / static_cast<double>(delays.size());
@@ -270,9 +288,12 @@ int main(int argc, char** argv) {
                  static_cast<unsigned long long>(sendErrors),
                  static_cast<unsigned long long>(sofs));
     if (steps > 0) {
-        std::fprintf(stderr, "; step to field: %zu of %zu seen, p50 %.2f p99 %.2f max %.2f ms",
+        std::fprintf(stderr,
+                     "; step to field: %zu of %zu seen, p50 %.2f p99 %.2f max %.2f ms (read "
+                     "p50 %.2f p99 %.2f ms)",
                      delays.size(), stepsSent.size(), percentile(delays, 0.5),
-                     percentile(delays, 0.99), percentile(delays, 1.0));
+                     percentile(delays, 0.99), percentile(delays, 1.0), percentile(reads, 0.5),
+                     percentile(reads, 0.99));
     }
     std::fprintf(stderr, "\n");
     if (!jsonPath.empty()) {
@@ -285,7 +306,10 @@ int main(int argc, char** argv) {
           << ", \"step_to_field_ms\": {\"mean\": " << mean
           << ", \"p50\": " << percentile(delays, 0.5) << ", \"p90\": " << percentile(delays, 0.9)
           << ", \"p99\": " << percentile(delays, 0.99) << ", \"max\": " << percentile(delays, 1.0)
-          << "}, \"samples_ms\": [";
+          << "}, \"kernel_arrival_stamps\": " << (stamped ? "true" : "false")
+          << ", \"step_to_field_read_ms\": {\"p50\": " << percentile(reads, 0.5)
+          << ", \"p90\": " << percentile(reads, 0.9) << ", \"p99\": " << percentile(reads, 0.99)
+          << ", \"max\": " << percentile(reads, 1.0) << "}, \"samples_ms\": [";
         for (std::size_t i = 0; i < delays.size(); ++i)
             j << (i ? ", " : "") << delays[i];
         j << "]}\n";

@@ -68,6 +68,31 @@ TEST(UdpSocket, SendsAndReceivesOverLoopbackWithoutWaiting) {
     EXPECT_EQ(b.receive(buffer), -EAGAIN);
 }
 
+TEST(UdpSocket, StampsArrivalsOnTheRealtimeClock) {
+    io::UdpSocket a, b;
+    ASSERT_EQ(a.open({kLoopback, 0}), 0);
+    ASSERT_EQ(b.open({kLoopback, 0}), 0);
+    std::vector<std::uint8_t> buffer(16);
+    EXPECT_EQ(b.arrivalRealtimeNs(), 0);
+    ASSERT_EQ(b.stampArrivals(), 0);
+    const auto ns = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(
+                   std::chrono::system_clock::now().time_since_epoch())
+            .count();
+    };
+    const std::int64_t before = ns();
+    ASSERT_EQ(a.sendTo(std::vector<std::uint8_t>{1, 2, 3}, b.localEndpoint()), 0);
+    // Loopback may finish the delivery (and stamp it) just after sendto returns: wait for it.
+    long n = -EAGAIN;
+    for (int tries = 0; tries < 1000 && n == -EAGAIN; ++tries)
+        n = b.receive(buffer);
+    const std::int64_t after = ns();
+    ASSERT_EQ(n, 3);
+    // Stamped between sending and receiving.
+    EXPECT_GE(b.arrivalRealtimeNs(), before);
+    EXPECT_LE(b.arrivalRealtimeNs(), after);
+}
+
 TEST(UdpSocket, ReportsTheLengthOfACutDatagram) {
     io::UdpSocket a, b;
     ASSERT_EQ(a.open({kLoopback, 0}), 0);

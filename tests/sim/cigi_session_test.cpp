@@ -351,12 +351,16 @@ TEST(CigiSession, HoldsTheStartPoseUntilTheFirstEntityControlAndAfterAReset) {
     world.host.send({e, r});
     source.advanceTo(0.15);
 
-    // Other entities, attached entities: counted, not applied.
+    // Another entity of a type mapped to no model: refused and counted, the ownship untouched.
     cigi::EntityControl other = e;
     other.entityId = 3;
+    other.latOrX += 0.01;
     world.host.send({other});
-    source.advanceTo(0.2);
-    EXPECT_EQ(source.session().stats().ignoredPackets, 1u);
+    const double xBefore = source.advanceTo(0.2).position.x;
+    EXPECT_EQ(source.session().stats().entitiesRefused, 1u);
+    EXPECT_EQ(source.session().stats().ignoredPackets, 0u);
+    EXPECT_TRUE(source.session().entities().empty());
+    EXPECT_EQ(source.predict(0.2).position.x, xBefore);
 
     // Reset: back to the start pose, still; Entity Control is ignored until Operate.
     world.host.send({e}, cigi::IgMode::Reset);

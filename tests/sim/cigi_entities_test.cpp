@@ -1,0 +1,485 @@
+// CIGI entities other than the ownship: placed, attached, dead-reckoned, destroyed, refused, and
+// drawn by the scene's renderer where the reference caster puts the same model.
+#include "sim/cigi_session.hpp"
+
+#include "base/error.hpp"
+#include "ig/caster.hpp"
+#include "ig/scene.hpp"
+#include "ig/shading.hpp"
+#include "ig/vox.hpp"
+#include "io/cigi.hpp"
+#include "io/udp_socket.hpp"
+#include "sim/pipeline.hpp"
+#include "sim/scene_motion.hpp"
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace cigi = io::cigi;
+
+constexpr std::uint32_t kLoopback = 0x7f000001;
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kPeriod = 1001.0 / 60000.0;
+
+struct Host {
+    io::UdpSocket socket;
+    io::UdpEndpoint ig;
+    std::uint32_t frame = 0;
+
+    Host() { EXPECT_EQ(socket.open({kLoopback, 0}), 0); }
+    void sendRaw(const std::vector<std::uint8_t>& bytes) { ASSERT_EQ(socket.sendTo(bytes, ig), 0); }
+    void send(std::vector<cigi::Packet> packets) {
+        cigi::IgControl control;
+        control.igMode = cigi::IgMode::Operate;
+        control.hostFrameNumber = ++frame;
+        packets.insert(packets.begin(), control);
+        sendRaw(cigi::encodeMessage(packets, cigi::ByteOrder::Big));
+    }
+};
+
+// A flat map 100 m high (65 x 65 samples, 10 m apart).
+ig::TerrainMap flatMap() {
+    ig::TerrainMap map(65, 65, 10.0, 10.0, 0.1, 0.0);
+    for (int iy = 0; iy < 65; ++iy) {
+        for (int ix = 0; ix < 65; ++ix) {
+            map.setRaw(ix, iy, 1000);
+            map.setColor(ix, iy, ig::Rgb8{90, 140, 60});
+        }
+    }
+    map.updateRange();
+    return map;
+}
+
+std::string tmpDir() {
+    const std::string dir =
+        std::string(VIG_TEST_TMP) + "/cigi-entities-" + std::to_string(::getpid());
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+// A model 4 x 2 x 3 voxels (so its heading shows), written once per test process.
+std::string boxModel() {
+    const std::string dir = tmpDir();
+    ig::VoxFile vox;
+    vox.palette = ig::defaultVoxPalette();
+    vox.models.push_back(ig::VoxModel(4, 2, 3));
+    for (auto& v : vox.models[0].voxels)
+        v = 7;
+    ig::writeVox(dir + "/box.vox", vox);
+    return dir;
+}
+
+sim::CigiOptions optionsFor(const Host& host) {
+    sim::CigiOptions o;
+    o.bind = {kLoopback, 0};
+    o.host = host.socket.localEndpoint();
+    o.origin = {47.0, -122.0, 0.0};
+    o.startPose.position = {320.0, 100.0, 300.0};
+    o.entityTypes = {{10, 0, 4.0}, {11, 0, 2.0}};
+    o.reservedIds = {900};
+    return o;
+}
+
+cigi::EntityControl entityAt(const sim::GeoFrame& geo, std::uint16_t id, std::uint16_t type,
+                             glm::dvec3 world, float yawDeg) {
+    cigi::EntityControl e;
+    e.entityId = id;
+    e.entityType = type;
+    const glm::dvec3 g = geo.geodeticFromWorld(world);
+    e.latOrX = g.x;
+    e.lonOrY = g.y;
+    e.altOrZ = g.z;
+    e.yawDeg = yawDeg;
+    return e;
+}
+
+cigi::EntityControl attached(std::uint16_t id, std::uint16_t parent, glm::dvec3 offset,
+                             float yawDeg = 0.0f) {
+    cigi::EntityControl e;
+    e.entityId = id;
+    e.entityType = 11;
+    e.attached = true;
+    e.parentId = parent;
+    e.latOrX = offset.x;
+    e.lonOrY = offset.y;
+    e.altOrZ = offset.z;
+    e.yawDeg = yawDeg;
+    return e;
+}
+
+const sim::EntityPose* poseOf(const std::vector<sim::EntityPose>& poses, std::uint16_t id) {
+    for (const sim::EntityPose& p : poses)
+        if (p.id == id) return &p;
+    return nullptr;
+}
+
+TEST(CigiEntities, PlacedAttachedDeadReckonedAndDestroyed) {
+    const ig::TerrainMap map = flatMap();
+    Host host;
+    sim::CigiSession session(map, optionsFor(host));
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    const sim::GeoFrame& geo = session.geo();
+
+    // Entity 5 heading east at 10 m/s (CIGI world rates: x north, y east); 6 on it, 20 m ahead
+    // and 3 m to its right, turned 90 degrees right; 7 on the ownship, 50 m below it.
+    cigi::RateControl rate;
+    rate.entityId = 5;
+    rate.yRate = 10.0f;
+    host.send({entityAt(geo, 5, 10, {300.0, 300.0, 100.0}, 90.0f), rate,
+               attached(6, 5, {20.0, 3.0, 0.0}, 90.0f), attached(7, 0, {0.0, 0.0, 50.0})});
+    session.poll(0.0);
+    ASSERT_EQ(session.entities().size(), 3u) << session.stats().firstErrors.front();
+    EXPECT_EQ(session.stats().entityControls, 3u);
+    EXPECT_EQ(session.stats().entitiesRefused, 0u);
+
+    std::vector<sim::EntityPose> poses;
+    for (int n = 1; n <= 30; ++n) {
+        const double t = n * kPeriod;
+        session.poll(t);
+        sim::entityPosesAt(session.entities(), session.ownship(), t, poses);
+        ASSERT_EQ(poses.size(), 3u);
+        const sim::EntityPose* e5 = poseOf(poses, 5);
+        const sim::EntityPose* e6 = poseOf(poses, 6);
+        const sim::EntityPose* e7 = poseOf(poses, 7);
+        ASSERT_TRUE(e5 && e6 && e7);
+        EXPECT_NEAR(e5->pose.position.x, 300.0 + 10.0 * t, 1e-6);
+        EXPECT_NEAR(e5->pose.position.y, 300.0, 1e-6);
+        EXPECT_NEAR(e5->pose.position.z, 100.0, 1e-6);
+        EXPECT_NEAR(e5->pose.yaw, 90.0 * kDeg, 1e-9);
+        EXPECT_EQ(e5->model, 0);
+        EXPECT_EQ(e5->scale, 4.0);
+        // Ahead of an east-facing parent is east, its right is south.
+        EXPECT_NEAR(e6->pose.position.x, 320.0 + 10.0 * t, 1e-6);
+        EXPECT_NEAR(e6->pose.position.y, 297.0, 1e-6);
+        EXPECT_NEAR(e6->pose.position.z, 100.0, 1e-6);
+        EXPECT_NEAR(std::remainder(e6->pose.yaw - 180.0 * kDeg, 2.0 * std::numbers::pi), 0.0, 1e-6);
+        EXPECT_EQ(e6->scale, 2.0);
+        // The ownship holds its start pose (no Entity Control for it): 50 m below it (z down).
+        EXPECT_NEAR(e7->pose.position.x, 320.0, 1e-9);
+        EXPECT_NEAR(e7->pose.position.y, 100.0, 1e-9);
+        EXPECT_NEAR(e7->pose.position.z, 250.0, 1e-9);
+    }
+
+    // Inactive: kept, not drawn, and neither is its child; active again, both are back.
+    cigi::EntityControl sleep = entityAt(geo, 5, 10, {300.0, 300.0, 100.0}, 90.0f);
+    sleep.entityState = cigi::EntityState::Inactive;
+    host.send({sleep});
+    session.poll(31 * kPeriod);
+    sim::entityPosesAt(session.entities(), session.ownship(), 31 * kPeriod, poses);
+    EXPECT_EQ(session.entities().size(), 3u);
+    ASSERT_EQ(poses.size(), 1u);
+    EXPECT_EQ(poses[0].id, 7);
+    sleep.entityState = cigi::EntityState::Active;
+    host.send({sleep});
+    session.poll(32 * kPeriod);
+    sim::entityPosesAt(session.entities(), session.ownship(), 32 * kPeriod, poses);
+    EXPECT_EQ(poses.size(), 3u);
+
+    // Detach 6: its offset becomes a world position.
+    cigi::EntityControl free6 = entityAt(geo, 6, 11, {100.0, 150.0, 120.0}, 45.0f);
+    host.send({free6});
+    session.poll(33 * kPeriod);
+    sim::entityPosesAt(session.entities(), session.ownship(), 34 * kPeriod, poses);
+    ASSERT_NE(poseOf(poses, 6), nullptr);
+    EXPECT_NEAR(poseOf(poses, 6)->pose.position.x, 100.0, 1e-6);
+    EXPECT_NEAR(poseOf(poses, 6)->pose.position.y, 150.0, 1e-6);
+    EXPECT_NEAR(poseOf(poses, 6)->pose.yaw, 45.0 * kDeg, 1e-9);
+
+    // Destroying 5 takes an entity attached to it along; 6, detached, stays.
+    host.send({attached(8, 5, {0.0, 10.0, 0.0})});
+    session.poll(34 * kPeriod);
+    EXPECT_EQ(session.entities().size(), 4u);
+    cigi::EntityControl destroy;
+    destroy.entityId = 5;
+    destroy.entityState = cigi::EntityState::Destroyed;
+    host.send({destroy});
+    session.poll(35 * kPeriod);
+    sim::entityPosesAt(session.entities(), session.ownship(), 35 * kPeriod, poses);
+    ASSERT_EQ(poses.size(), 2u);
+    EXPECT_NE(poseOf(poses, 6), nullptr);
+    EXPECT_NE(poseOf(poses, 7), nullptr);
+    EXPECT_EQ(session.stats().entitiesDestroyed, 2u);
+
+    // Reset forgets them all.
+    host.send({});
+    cigi::IgControl reset;
+    reset.igMode = cigi::IgMode::Reset;
+    const std::vector<cigi::Packet> resetMessage{reset};
+    host.sendRaw(cigi::encodeMessage(resetMessage, cigi::ByteOrder::Big));
+    session.poll(36 * kPeriod);
+    EXPECT_TRUE(session.entities().empty());
+}
+
+TEST(CigiEntities, BadEntityPacketsAreRefusedAndReported) {
+    const ig::TerrainMap map = flatMap();
+    Host host;
+    sim::CigiSession session(map, optionsFor(host));
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    const sim::GeoFrame& geo = session.geo();
+    host.send({entityAt(geo, 5, 10, {300.0, 300.0, 100.0}, 0.0f), attached(6, 5, {5, 0, 0})});
+    session.poll(0.0);
+    ASSERT_EQ(session.entities().size(), 2u);
+
+    const auto refusedWith = [&](std::vector<cigi::Packet> packets, double t,
+                                 const std::string& words) {
+        const std::uint64_t before = session.stats().entitiesRefused;
+        session.stats().firstErrors.clear();
+        host.send(std::move(packets));
+        session.poll(t);
+        EXPECT_EQ(session.stats().entitiesRefused, before + 1) << words;
+        ASSERT_FALSE(session.stats().firstErrors.empty()) << words;
+        EXPECT_NE(session.stats().firstErrors.back().find(words), std::string::npos)
+            << session.stats().firstErrors.back();
+    };
+    refusedWith({entityAt(geo, 9, 77, {10, 10, 10}, 0.0f)}, 1 * kPeriod, "type 77 maps to no");
+    refusedWith({attached(5, 6, {1, 0, 0})}, 2 * kPeriod, "loop of parents");
+    refusedWith({attached(9, 9, {1, 0, 0})}, 3 * kPeriod, "attached to itself");
+    refusedWith({attached(9, 44, {1, 0, 0})}, 4 * kPeriod, "parent 44 does not exist");
+    refusedWith({entityAt(geo, 900, 10, {10, 10, 10}, 0.0f)}, 5 * kPeriod, "taken by an object");
+    cigi::RateControl nobody;
+    nobody.entityId = 123;
+    refusedWith({nobody}, 6 * kPeriod, "no such entity");
+    cigi::RateControl local;
+    local.entityId = 6;
+    local.localCoordinates = true;
+    refusedWith({local}, 7 * kPeriod, "attached entity");
+    // The loop refused, 5 is still top-level and 6 still on it.
+    ASSERT_EQ(session.entities().size(), 2u);
+    EXPECT_FALSE(session.entities()[0].attached);
+    EXPECT_EQ(session.entities()[1].parent, 5);
+
+    // NaN and out-of-range positions never reach the session: the codec refuses the datagram.
+    const std::uint64_t bad = session.stats().badDatagrams;
+    {
+        // The encoder refuses to write a NaN: the x offset's bytes (after the 24-byte IG Control,
+        // 24 bytes into Entity Control) are overwritten with a big-endian quiet NaN.
+        cigi::IgControl control;
+        control.igMode = cigi::IgMode::Operate;
+        control.hostFrameNumber = ++host.frame;
+        const std::vector<cigi::Packet> packets{control, attached(6, 5, {1.0, 0, 0})};
+        std::vector<std::uint8_t> bytes = cigi::encodeMessage(packets, cigi::ByteOrder::Big);
+        ASSERT_EQ(bytes.size(), 24u + 48u);
+        const std::uint8_t nan[8] = {0x7f, 0xf8, 0, 0, 0, 0, 0, 0};
+        std::copy(nan, nan + 8, bytes.begin() + 48);
+        host.sendRaw(bytes);
+    }
+    {
+        // A latitude of 95 degrees, written over a good one the same way.
+        cigi::IgControl control;
+        control.igMode = cigi::IgMode::Operate;
+        control.hostFrameNumber = ++host.frame;
+        const std::vector<cigi::Packet> packets{control, entityAt(geo, 7, 10, {10, 10, 10}, 0.0f)};
+        std::vector<std::uint8_t> bytes = cigi::encodeMessage(packets, cigi::ByteOrder::Big);
+        const std::uint8_t lat95[8] = {0x40, 0x57, 0xc0, 0, 0, 0, 0, 0};  // 95.0
+        std::copy(lat95, lat95 + 8, bytes.begin() + 48);
+        host.sendRaw(bytes);
+    }
+    session.poll(8 * kPeriod);
+    EXPECT_EQ(session.stats().badDatagrams, bad + 2);
+    EXPECT_EQ(session.entities().size(), 2u);
+    EXPECT_EQ(session.entities()[1].motion.pose.position.x, 5.0);
+
+    // More entities than the session keeps: refused, the others unharmed.
+    sim::CigiOptions few = optionsFor(host);
+    few.maxEntities = 3;
+    sim::CigiSession small(map, few);
+    ASSERT_EQ(small.open(&error), 0) << error;
+    host.ig = small.localEndpoint();
+    for (std::uint16_t id = 1; id <= 5; ++id)
+        host.send({entityAt(geo, id, 10, {100.0 * id, 100.0, 100.0}, 0.0f)});
+    small.poll(0.0);
+    EXPECT_EQ(small.entities().size(), 3u);
+    EXPECT_EQ(small.stats().entitiesRefused, 2u);
+}
+
+TEST(CigiEntities, TypeToModelFlag) {
+    const std::vector<std::string> names{"box", "tank"};
+    const sim::EntityTypeModel m =
+        sim::parseEntityTypeModel("1201=tank:2.5", "--cigi-entity", names);
+    EXPECT_EQ(m.type, 1201);
+    EXPECT_EQ(m.model, 1);
+    EXPECT_EQ(m.scale, 2.5);
+    EXPECT_EQ(sim::parseEntityTypeModel("7=box", "--cigi-entity", names).scale, 1.0);
+    for (const char* bad : {"tank", "70000=tank", "-1=tank", "1.5=tank", "1=truck", "1=tank:0",
+                            "1=tank:nan", "=tank"}) {
+        try {
+            sim::parseEntityTypeModel(bad, "--cigi-entity", names);
+            ADD_FAILURE() << bad << " accepted";
+        } catch (const base::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("--cigi-entity"), std::string::npos) << e.what();
+        }
+    }
+}
+
+// The host places an entity of a model; the scene's renderer, asking the pose source at the
+// frame's instant, draws it exactly where the reference caster draws the same model placed as a
+// static object of a scene file at that pose: the same object-id image, pixel for pixel.
+TEST(CigiEntities, DrawnWhereTheReferenceCasterPutsTheModel) {
+    ig::TerrainMap map = flatMap();
+    const std::string dir = boxModel();
+    const ig::Scene hostScene =
+        ig::parseScene(R"({"cell_m": 2, "models": {"box": {"vox": "box.vox"}}, "objects": []})",
+                       dir + "/host.json", map);
+    const sim::SceneMotion hostMotion(hostScene);
+    const ig::Scene staticScene = ig::parseScene(
+        R"({"cell_m": 2, "models": {"box": {"vox": "box.vox"}},
+            "objects": [{"id": 42, "model": "box", "x": 312, "y": 330, "heading": 30,
+                         "scale": 4}]})",
+        dir + "/static.json", map);
+
+    Host host;
+    sim::CigiOptions options = optionsFor(host);
+    options.entityTypes = {{10, hostScene.modelIndex("box"), 4.0}};
+    sim::CigiPoseSource source(map, options);
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    host.ig = source.session().localEndpoint();
+
+    // The ownship 200 m south of the box, 60 m up, looking north and a little down.
+    cigi::EntityControl own;
+    own.entityId = 0;
+    const glm::dvec3 eye{312.0, 130.0, 160.0};
+    const glm::dvec3 g = source.session().geo().geodeticFromWorld(eye);
+    own.latOrX = g.x;
+    own.lonOrY = g.y;
+    own.altOrZ = g.z;
+    own.pitchDeg = -10.0f;
+    cigi::EntityControl box = entityAt(source.session().geo(), 42, 10, {312.0, 330.0, 0.0}, 30.0f);
+    box.groundClamp = cigi::GroundClamp::NonConformal;
+    host.send({own, box});
+    const ig::Pose pose = source.advanceTo(0.0);
+    EXPECT_NEAR(pose.position.y, 130.0, 1e-6);
+
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 96;
+    geometry.windowHeight = 64;
+    geometry.hfov = 40.0 * kDeg;
+    geometry.margin = 8;
+    const sim::FrameRenderer hostDriven = sim::makeSceneRenderer(
+        map, geometry, ig::CasterKind::Reference, {}, hostScene, hostMotion,
+        [&](double t, std::vector<sim::ExtraObject>& out) { source.objectsAt(t, out); });
+    const ig::RenderedFrame a = hostDriven(source.predict(0.0), 0.0, 1);
+
+    ig::RenderOptions withObjects;
+    ig::ObjectLayer empty(map, staticScene.cellSize);
+    empty.finish();
+    withObjects.objects = {staticScene.staticLayer.get(), &empty};
+    const auto reference = ig::makeCaster(ig::CasterKind::Reference, map, withObjects);
+    const ig::RenderedFrame b =
+        ig::renderFrame(*reference, map, pose, sim::renderIntrinsics(geometry, pose), 0.0, 1);
+    ASSERT_EQ(a.objectId.size(), b.objectId.size());
+    const auto shown = std::count(a.objectId.begin(), a.objectId.end(), std::uint16_t{42});
+    EXPECT_GT(shown, 50) << "the box should cover a patch of the frame";
+    EXPECT_EQ(a.objectId, b.objectId);
+    EXPECT_EQ(a.depth, b.depth);
+
+    // Destroyed: the next frame shows terrain only.
+    cigi::EntityControl gone;
+    gone.entityId = 42;
+    gone.entityState = cigi::EntityState::Destroyed;
+    host.send({gone});
+    source.advanceTo(kPeriod);
+    const ig::RenderedFrame c = hostDriven(source.predict(kPeriod), kPeriod, 2);
+    EXPECT_EQ(std::count(c.objectId.begin(), c.objectId.end(), std::uint16_t{42}), 0);
+}
+
+// A View Definition's far plane is the draw distance: taken before the run, refused when it
+// changes during it; the renderer draws what lies beyond it as sky and leaves the rest alone.
+TEST(CigiView, FarPlaneIsTheDrawDistance) {
+    ig::TerrainMap map = flatMap();
+    Host host;
+    sim::CigiSession session(map, optionsFor(host));
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    EXPECT_TRUE(std::isinf(session.viewFar()));
+    cigi::ViewDefinition vd;
+    vd.farEnable = true;
+    vd.farM = 300.0f;
+    host.send({vd});
+    session.poll(0.0);
+    EXPECT_EQ(session.viewFar(), 300.0);
+    EXPECT_EQ(session.stats().viewDefinitions, 1u);
+    session.freezeFar(300.0);
+    vd.farM = 500.0f;
+    host.send({vd});
+    vd.nearEnable = true;
+    vd.nearM = 400.0f;
+    vd.farM = 300.0f;
+    host.send({vd});  // far before near
+    session.poll(kPeriod);
+    EXPECT_EQ(session.viewFar(), 300.0);
+    EXPECT_EQ(session.stats().viewDefinitionsNotApplied, 2u);
+    ASSERT_EQ(session.stats().firstErrors.size(), 2u);
+    EXPECT_NE(session.stats().firstErrors[0].find("during the run"), std::string::npos);
+    EXPECT_NE(session.stats().firstErrors[1].find("beyond the near plane"), std::string::npos);
+
+    // Rendered with and without it: pixels nearer than the far plane identical, the others sky
+    // along their own ray; control points beyond it become directions.
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 96;
+    geometry.windowHeight = 64;
+    geometry.margin = 8;
+    ig::Pose pose;
+    pose.position = {320.0, 20.0, 130.0};
+    pose.pitch = -4.0 * kDeg;
+    ig::RenderOptions options;
+    const ig::RenderedFrame all =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Reference, options)(pose, 0.0, 1);
+    geometry.farM = 300.0;
+    const ig::RenderedFrame near =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Reference, options)(pose, 0.0, 1);
+    ASSERT_EQ(all.depth.size(), near.depth.size());
+    const ig::Camera camera(all.pose, all.intrinsics);
+    std::size_t kept = 0, clipped = 0;
+    for (int y = 0; y < all.intrinsics.height; ++y) {
+        for (int x = 0; x < all.intrinsics.width; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * all.intrinsics.width + x;
+            if (all.depth[i] <= 300.0f) {
+                ++kept;
+                ASSERT_EQ(near.depth[i], all.depth[i]);
+                ASSERT_EQ(near.color[i], all.color[i]);
+            } else {
+                clipped += all.depth[i] != ig::kSkyDepth;
+                ASSERT_EQ(near.depth[i], ig::kSkyDepth);
+                const glm::dvec3 d = glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
+                ASSERT_EQ(near.color[i], ig::skyColor(options.sky, d.z)) << x << "," << y;
+            }
+        }
+    }
+    EXPECT_GT(kept, 500u);
+    EXPECT_GT(clipped, 500u);
+    int directions = 0;
+    for (int k = 0; k < ig::kControlPointCount; ++k) {
+        const ig::ControlPoint& a = all.controlPoints[k];
+        const ig::ControlPoint& b = near.controlPoints[k];
+        const glm::dvec3 d = glm::dvec3(a.world) - pose.position;
+        if (a.world.w == 1.0 && glm::length(d) > 300.0) {
+            ++directions;
+            EXPECT_EQ(b.world.w, 0.0);
+            EXPECT_NEAR(glm::length(glm::dvec3(b.world) - glm::normalize(d)), 0.0, 1e-12);
+        } else {
+            EXPECT_EQ(b.world, a.world);
+        }
+    }
+    EXPECT_GT(directions, 0);
+}
+
+}  // namespace
