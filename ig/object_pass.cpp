@@ -34,7 +34,27 @@ constexpr double kMargin = 1e-3;
 struct Footprint {
     int x0, y0, x1, y1;
     std::uint32_t layer, box;
+    // A lower bound of the ray parameter (distance from the eye) at which any ray meets the
+    // box: no pixel whose terrain depth is at most this can show the object.
+    double near;
+    double lo[3], hi[3];  // the box padded as boxEntry pads it
 };
+
+// Distance from `eye` to the box padded as boxEntry pads it (its cells' columns and height
+// range), less a millimetre: at most where any ray from the eye enters it.
+double nearestRange(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& eye) {
+    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
+    const double pad = 1e-6 * std::max(layer.map().extentX(), layer.map().extentY());
+    const auto gap = [](double v, double lo, double hi) {
+        return v < lo ? lo - v : v > hi ? v - hi : 0.0;
+    };
+    const double gx = gap(eye.x, static_cast<double>(box.cx0) * csx - 2.0 * pad,
+                          static_cast<double>(box.cx1 + 1) * csx + 2.0 * pad);
+    const double gy = gap(eye.y, static_cast<double>(box.cy0) * csy - 2.0 * pad,
+                          static_cast<double>(box.cy1 + 1) * csy + 2.0 * pad);
+    const double gz = gap(eye.z, box.zLo - 4 * kBoxPad, box.zHi + 4 * kBoxPad);
+    return std::max(0.0, std::sqrt(gx * gx + gy * gy + gz * gz) * (1.0 - 1e-9) - 1e-3);
+}
 
 // The pixel rectangle of `box` within columns [cx0, cx1) and rows [0, h): the pixels whose
 // centres lie within a pixel of the projection of the box's part in front of the camera.
@@ -110,23 +130,24 @@ struct TileScratch {
     std::vector<std::pair<double, std::uint32_t>> order;  // a pixel's boxes by entry
 };
 
-// Where the ray enters box `b` of `layer` within [t0, t1] (its cells' columns and height
-// range); +inf when it misses.
-double boxEntry(const ObjectLayer& layer, std::uint32_t b, const TerrainRay& ray, double t0,
+// Where the ray (origin o, inverse direction inv: +-inf on an axis it does not move along)
+// enters footprint f's padded box within [t0, t1]; +inf when it misses. Only orders the boxes
+// and skips those beyond an opaque voxel already found: the pad (a micrometre of the map's
+// extent across, twice the walk's in height) keeps it at or before every voxel of the box.
+double boxEntry(const Footprint& f, const glm::dvec3& o, const double inv[3], double t0,
                 double t1) {
-    const ObjectBox& box = layer.boxes()[b];
-    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
-    // A cell wider than the box's grid lines by rounding only: the walk finds the exact ones.
-    const double pad = 1e-6 * std::max(layer.map().extentX(), layer.map().extentY());
-    double ta = t0, tb = t1;
-    if (!clipSlab(ray.origin.x, ray.dir.x, static_cast<double>(box.cx0) * csx - pad,
-                  static_cast<double>(box.cx1 + 1) * csx + pad, ta, tb) ||
-        !clipSlab(ray.origin.y, ray.dir.y, static_cast<double>(box.cy0) * csy - pad,
-                  static_cast<double>(box.cy1 + 1) * csy + pad, ta, tb) ||
-        !clipSlab(ray.origin.z, ray.dir.z, box.zLo - 2 * kBoxPad, box.zHi + 2 * kBoxPad, ta, tb)) {
-        return INFINITY;
+    const double oc[3] = {o.x, o.y, o.z};
+    for (int a = 0; a < 3; ++a) {
+        if (std::isinf(inv[a])) {
+            if (oc[a] < f.lo[a] || oc[a] > f.hi[a]) return INFINITY;
+            continue;
+        }
+        double ta = (f.lo[a] - oc[a]) * inv[a], tb = (f.hi[a] - oc[a]) * inv[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
     }
-    return ta;
+    return t0 <= t1 ? t0 : INFINITY;
 }
 
 }  // namespace
@@ -149,16 +170,43 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
             if (!footprint(*layers[l], boxes[b], camera, x0, x1, h, f)) continue;
             f.layer = static_cast<std::uint32_t>(l);
             f.box = static_cast<std::uint32_t>(b);
+            f.near = nearestRange(*layers[l], boxes[b], camera.pose().position);
+            const ObjectBox& box = boxes[b];
+            const ObjectLayer& layer = *layers[l];
+            const double pad = 1e-6 * std::max(map.extentX(), map.extentY());
+            f.lo[0] = static_cast<double>(box.cx0) * layer.cellSizeX() - pad;
+            f.hi[0] = static_cast<double>(box.cx1 + 1) * layer.cellSizeX() + pad;
+            f.lo[1] = static_cast<double>(box.cy0) * layer.cellSizeY() - pad;
+            f.hi[1] = static_cast<double>(box.cy1 + 1) * layer.cellSizeY() + pad;
+            f.lo[2] = box.zLo - 2 * kBoxPad;
+            f.hi[2] = box.zHi + 2 * kBoxPad;
             feet.push_back(f);
         }
     }
     if (feet.empty()) return;
     const int tilesX = (x1 - x0 + kTile - 1) / kTile, tilesY = (h + kTile - 1) / kTile;
+    // Each tile's farthest terrain depth (+inf where it sees sky): a box whose nearest range
+    // is beyond it is hidden by the terrain on every pixel of the tile.
+    std::vector<float> tileFar(static_cast<std::size_t>(tilesX) * tilesY, 0.0f);
+    for (int y = 0; y < h; ++y) {
+        const float* row = frame.depth.data() + static_cast<std::size_t>(y) * w;
+        float* far = tileFar.data() + static_cast<std::size_t>(y / kTile) * tilesX;
+        for (int tx = 0; tx < tilesX; ++tx) {
+            const int xa = x0 + tx * kTile, xb = std::min(x1, xa + kTile);
+            float m = far[tx];
+            for (int x = xa; x < xb; ++x)
+                m = std::max(m, row[x] == row[x] ? row[x] : INFINITY);  // NaN: as if sky
+            far[tx] = m;
+        }
+    }
     std::vector<std::uint32_t> tileStart(static_cast<std::size_t>(tilesX) * tilesY + 1, 0);
     const auto forTiles = [&](const Footprint& f, auto visit) {
-        for (int ty = f.y0 / kTile; ty <= f.y1 / kTile; ++ty)
-            for (int tx = (f.x0 - x0) / kTile; tx <= (f.x1 - x0) / kTile; ++tx)
-                visit(static_cast<std::size_t>(ty) * tilesX + tx);
+        for (int ty = f.y0 / kTile; ty <= f.y1 / kTile; ++ty) {
+            for (int tx = (f.x0 - x0) / kTile; tx <= (f.x1 - x0) / kTile; ++tx) {
+                const std::size_t t = static_cast<std::size_t>(ty) * tilesX + tx;
+                if (!(f.near >= tileFar[t])) visit(t);
+            }
+        }
     };
     for (const Footprint& f : feet)
         forTiles(f, [&](std::size_t t) { ++tileStart[t + 1]; });
@@ -182,12 +230,16 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
         TileScratch& s = scratches.local();
         // The footprints covering each pixel of the tile, by pixel (a count, then in place).
         s.start.assign(static_cast<std::size_t>(tw) * th + 1, 0);
+        // A pixel whose terrain lies nearer than the box's nearest range cannot show it.
         const auto forPixels = [&](const Footprint& f, auto visit) {
             const int ya = std::max(f.y0, ty0), yb = std::min(f.y1, ty0 + th - 1);
             const int xa = std::max(f.x0, tx0), xb = std::min(f.x1, tx0 + tw - 1);
-            for (int y = ya; y <= yb; ++y)
+            for (int y = ya; y <= yb; ++y) {
+                const float* depth = frame.depth.data() + static_cast<std::size_t>(y) * w;
                 for (int x = xa; x <= xb; ++x)
-                    visit(static_cast<std::size_t>(y - ty0) * tw + (x - tx0));
+                    if (!(f.near >= depth[x]))
+                        visit(static_cast<std::size_t>(y - ty0) * tw + (x - tx0));
+            }
         };
         for (std::uint32_t i = first; i < last; ++i)
             forPixels(feet[tileList[i]], [&](std::size_t p) { ++s.start[p + 1]; });
@@ -215,9 +267,10 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
                 // The boxes in the order the ray enters them, walked until one opaque voxel
                 // hides the rest.
                 s.order.clear();
+                const double inv[3] = {1.0 / ray.dir.x, 1.0 / ray.dir.y, 1.0 / ray.dir.z};
                 for (std::uint32_t i = s.start[p]; i < s.start[p + 1]; ++i) {
                     const Footprint& f = feet[s.list[i]];
-                    const double enter = boxEntry(*layers[f.layer], f.box, ray, t0, t1);
+                    const double enter = boxEntry(f, ray.origin, inv, t0, t1);
                     if (enter <= t1) s.order.push_back({enter, s.list[i]});
                 }
                 std::sort(s.order.begin(), s.order.end());

@@ -16,6 +16,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Height added above and below an object's box when the ray is clipped to it: the box's range
 // is float, its voxels' heights double.
 constexpr double kBoxPad = 1e-3;
+// Margin of a stick list's height range (float) against its runs' (double): a millimetre.
+constexpr double kListPad = 1e-3;
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -260,8 +262,17 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta) {
             const std::size_t before = hits.size();
+            // The ray's height range over the cell, widened by a millimetre: an entry whose
+            // sticks lie wholly above or below it gives collectVoxelHits nothing to collect.
+            const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
+            const double zLo = std::min(zA, zB) - kListPad, zHi = std::max(zA, zB) + kListPad;
             for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
-                if (cell.id == box.id) collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
+                if (cell.id != box.id) continue;
+                if (zHi < cell.baseZ + table.bottom(cell.stick) ||
+                    zLo > cell.baseZ + table.top(cell.stick)) {
+                    continue;
+                }
+                collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
             }
             for (std::size_t i = before; i < hits.size(); ++i)
                 if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
