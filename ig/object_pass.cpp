@@ -34,27 +34,8 @@ constexpr double kMargin = 1e-3;
 struct Footprint {
     int x0, y0, x1, y1;
     std::uint32_t layer, box;
-    // A lower bound of the ray parameter (distance from the eye) at which any ray meets the
-    // box: no pixel whose terrain depth is at most this can show the object.
-    double near;
     double lo[3], hi[3];  // the box padded as boxEntry pads it
 };
-
-// Distance from `eye` to the box padded as boxEntry pads it (its cells' columns and height
-// range), less a millimetre: at most where any ray from the eye enters it.
-double nearestRange(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& eye) {
-    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
-    const double pad = 1e-6 * std::max(layer.map().extentX(), layer.map().extentY());
-    const auto gap = [](double v, double lo, double hi) {
-        return v < lo ? lo - v : v > hi ? v - hi : 0.0;
-    };
-    const double gx = gap(eye.x, static_cast<double>(box.cx0) * csx - 2.0 * pad,
-                          static_cast<double>(box.cx1 + 1) * csx + 2.0 * pad);
-    const double gy = gap(eye.y, static_cast<double>(box.cy0) * csy - 2.0 * pad,
-                          static_cast<double>(box.cy1 + 1) * csy + 2.0 * pad);
-    const double gz = gap(eye.z, box.zLo - 4 * kBoxPad, box.zHi + 4 * kBoxPad);
-    return std::max(0.0, std::sqrt(gx * gx + gy * gy + gz * gz) * (1.0 - 1e-9) - 1e-3);
-}
 
 // The pixel rectangle of `box` within columns [cx0, cx1) and rows [0, h): the pixels whose
 // centres lie within a pixel of the projection of the box's part in front of the camera.
@@ -170,7 +151,6 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
             if (!footprint(*layers[l], boxes[b], camera, x0, x1, h, f)) continue;
             f.layer = static_cast<std::uint32_t>(l);
             f.box = static_cast<std::uint32_t>(b);
-            f.near = nearestRange(*layers[l], boxes[b], camera.pose().position);
             const ObjectBox& box = boxes[b];
             const ObjectLayer& layer = *layers[l];
             const double pad = 1e-6 * std::max(map.extentX(), map.extentY());
@@ -185,26 +165,11 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
     }
     if (feet.empty()) return;
     const int tilesX = (x1 - x0 + kTile - 1) / kTile, tilesY = (h + kTile - 1) / kTile;
-    // Each tile's farthest terrain depth (+inf where it sees sky): a box whose nearest range
-    // is beyond it is hidden by the terrain on every pixel of the tile.
-    std::vector<float> tileFar(static_cast<std::size_t>(tilesX) * tilesY, 0.0f);
-    for (int y = 0; y < h; ++y) {
-        const float* row = frame.depth.data() + static_cast<std::size_t>(y) * w;
-        float* far = tileFar.data() + static_cast<std::size_t>(y / kTile) * tilesX;
-        for (int tx = 0; tx < tilesX; ++tx) {
-            const int xa = x0 + tx * kTile, xb = std::min(x1, xa + kTile);
-            float m = far[tx];
-            for (int x = xa; x < xb; ++x)
-                m = std::max(m, row[x] == row[x] ? row[x] : INFINITY);  // NaN: as if sky
-            far[tx] = m;
-        }
-    }
     std::vector<std::uint32_t> tileStart(static_cast<std::size_t>(tilesX) * tilesY + 1, 0);
     const auto forTiles = [&](const Footprint& f, auto visit) {
         for (int ty = f.y0 / kTile; ty <= f.y1 / kTile; ++ty) {
             for (int tx = (f.x0 - x0) / kTile; tx <= (f.x1 - x0) / kTile; ++tx) {
-                const std::size_t t = static_cast<std::size_t>(ty) * tilesX + tx;
-                if (!(f.near >= tileFar[t])) visit(t);
+                visit(static_cast<std::size_t>(ty) * tilesX + tx);
             }
         }
     };
@@ -220,6 +185,8 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
     }
 
     const glm::dvec3 eye = camera.pose().position;
+    float heightLo = 0.0f, heightHi = 0.0f;
+    if (!objectHeightRange(layers, heightLo, heightHi)) return;
     tbb::enumerable_thread_specific<TileScratch> scratches;
     const auto drawTile = [&](int tile) {
         const std::uint32_t first = tileStart[static_cast<std::size_t>(tile)];
@@ -230,16 +197,12 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
         TileScratch& s = scratches.local();
         // The footprints covering each pixel of the tile, by pixel (a count, then in place).
         s.start.assign(static_cast<std::size_t>(tw) * th + 1, 0);
-        // A pixel whose terrain lies nearer than the box's nearest range cannot show it.
         const auto forPixels = [&](const Footprint& f, auto visit) {
             const int ya = std::max(f.y0, ty0), yb = std::min(f.y1, ty0 + th - 1);
             const int xa = std::max(f.x0, tx0), xb = std::min(f.x1, tx0 + tw - 1);
-            for (int y = ya; y <= yb; ++y) {
-                const float* depth = frame.depth.data() + static_cast<std::size_t>(y) * w;
+            for (int y = ya; y <= yb; ++y)
                 for (int x = xa; x <= xb; ++x)
-                    if (!(f.near >= depth[x]))
-                        visit(static_cast<std::size_t>(y - ty0) * tw + (x - tx0));
-            }
+                    visit(static_cast<std::size_t>(y - ty0) * tw + (x - tx0));
         };
         for (std::uint32_t i = first; i < last; ++i)
             forPixels(feet[tileList[i]], [&](std::size_t p) { ++s.start[p + 1]; });
@@ -263,7 +226,10 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
                 const std::size_t idx = static_cast<std::size_t>(y) * w + x;
                 const TerrainRay ray(map, eye, camera.rayDirection(x + 0.5, y + 0.5));
                 double t0, t1;
-                if (!objectRaySpan(layers, ray.origin, ray.dir, frame.depth[idx], t0, t1)) continue;
+                if (!objectRaySpan(map, heightLo, heightHi, ray.origin, ray.dir, frame.depth[idx],
+                                   t0, t1)) {
+                    continue;
+                }
                 // The boxes in the order the ray enters them, walked until one opaque voxel
                 // hides the rest.
                 s.order.clear();

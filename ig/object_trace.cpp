@@ -131,16 +131,19 @@ bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out)
     return false;
 }
 
-bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
-                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
-    if (layers.empty()) return false;
-    const TerrainMap& map = layers[0]->map();
-    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+bool objectHeightRange(std::span<const ObjectLayer* const> layers, float& lo, float& hi) {
+    lo = std::numeric_limits<float>::infinity();
+    hi = -lo;
     for (const ObjectLayer* l : layers) {
         if (l->empty()) continue;
         lo = std::min(lo, l->minBottom());
         hi = std::max(hi, l->maxTop());
     }
+    return lo <= hi;
+}
+
+bool objectRaySpan(const TerrainMap& map, float lo, float hi, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
     if (!(lo <= hi)) return false;
     // The ray inside the objects' box: the map's footprint, their height range.
     t0 = 0.0;
@@ -148,6 +151,14 @@ bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3&
     return clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) &&
            clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) &&
            clipSlab(origin.z, dir.z, lo, hi, t0, t1) && t0 < t1;
+}
+
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
+    if (layers.empty()) return false;
+    float lo = 0.0f, hi = 0.0f;
+    if (!objectHeightRange(layers, lo, hi)) return false;
+    return objectRaySpan(layers[0]->map(), lo, hi, origin, dir, tEnd, t0, t1);
 }
 
 void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
