@@ -34,6 +34,7 @@ constexpr double kMargin = 1e-3;
 struct Footprint {
     int x0, y0, x1, y1;
     std::uint32_t layer, box;
+    double lo[3], hi[3];  // the box padded as boxEntry pads it
 };
 
 // The pixel rectangle of `box` within columns [cx0, cx1) and rows [0, h): the pixels whose
@@ -110,23 +111,24 @@ struct TileScratch {
     std::vector<std::pair<double, std::uint32_t>> order;  // a pixel's boxes by entry
 };
 
-// Where the ray enters box `b` of `layer` within [t0, t1] (its cells' columns and height
-// range); +inf when it misses.
-double boxEntry(const ObjectLayer& layer, std::uint32_t b, const TerrainRay& ray, double t0,
+// Where the ray (origin o, inverse direction inv: +-inf on an axis it does not move along)
+// enters footprint f's padded box within [t0, t1]; +inf when it misses. Only orders the boxes
+// and skips those beyond an opaque voxel already found: the pad (a micrometre of the map's
+// extent across, twice the walk's in height) keeps it at or before every voxel of the box.
+double boxEntry(const Footprint& f, const glm::dvec3& o, const double inv[3], double t0,
                 double t1) {
-    const ObjectBox& box = layer.boxes()[b];
-    const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
-    // A cell wider than the box's grid lines by rounding only: the walk finds the exact ones.
-    const double pad = 1e-6 * std::max(layer.map().extentX(), layer.map().extentY());
-    double ta = t0, tb = t1;
-    if (!clipSlab(ray.origin.x, ray.dir.x, static_cast<double>(box.cx0) * csx - pad,
-                  static_cast<double>(box.cx1 + 1) * csx + pad, ta, tb) ||
-        !clipSlab(ray.origin.y, ray.dir.y, static_cast<double>(box.cy0) * csy - pad,
-                  static_cast<double>(box.cy1 + 1) * csy + pad, ta, tb) ||
-        !clipSlab(ray.origin.z, ray.dir.z, box.zLo - 2 * kBoxPad, box.zHi + 2 * kBoxPad, ta, tb)) {
-        return INFINITY;
+    const double oc[3] = {o.x, o.y, o.z};
+    for (int a = 0; a < 3; ++a) {
+        if (std::isinf(inv[a])) {
+            if (oc[a] < f.lo[a] || oc[a] > f.hi[a]) return INFINITY;
+            continue;
+        }
+        double ta = (f.lo[a] - oc[a]) * inv[a], tb = (f.hi[a] - oc[a]) * inv[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
     }
-    return ta;
+    return t0 <= t1 ? t0 : INFINITY;
 }
 
 }  // namespace
@@ -149,6 +151,15 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
             if (!footprint(*layers[l], boxes[b], camera, x0, x1, h, f)) continue;
             f.layer = static_cast<std::uint32_t>(l);
             f.box = static_cast<std::uint32_t>(b);
+            const ObjectBox& box = boxes[b];
+            const ObjectLayer& layer = *layers[l];
+            const double pad = 1e-6 * std::max(map.extentX(), map.extentY());
+            f.lo[0] = static_cast<double>(box.cx0) * layer.cellSizeX() - pad;
+            f.hi[0] = static_cast<double>(box.cx1 + 1) * layer.cellSizeX() + pad;
+            f.lo[1] = static_cast<double>(box.cy0) * layer.cellSizeY() - pad;
+            f.hi[1] = static_cast<double>(box.cy1 + 1) * layer.cellSizeY() + pad;
+            f.lo[2] = box.zLo - 2 * kBoxPad;
+            f.hi[2] = box.zHi + 2 * kBoxPad;
             feet.push_back(f);
         }
     }
@@ -156,9 +167,11 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
     const int tilesX = (x1 - x0 + kTile - 1) / kTile, tilesY = (h + kTile - 1) / kTile;
     std::vector<std::uint32_t> tileStart(static_cast<std::size_t>(tilesX) * tilesY + 1, 0);
     const auto forTiles = [&](const Footprint& f, auto visit) {
-        for (int ty = f.y0 / kTile; ty <= f.y1 / kTile; ++ty)
-            for (int tx = (f.x0 - x0) / kTile; tx <= (f.x1 - x0) / kTile; ++tx)
+        for (int ty = f.y0 / kTile; ty <= f.y1 / kTile; ++ty) {
+            for (int tx = (f.x0 - x0) / kTile; tx <= (f.x1 - x0) / kTile; ++tx) {
                 visit(static_cast<std::size_t>(ty) * tilesX + tx);
+            }
+        }
     };
     for (const Footprint& f : feet)
         forTiles(f, [&](std::size_t t) { ++tileStart[t + 1]; });
@@ -172,6 +185,8 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
     }
 
     const glm::dvec3 eye = camera.pose().position;
+    float heightLo = 0.0f, heightHi = 0.0f;
+    if (!objectHeightRange(layers, heightLo, heightHi)) return;
     tbb::enumerable_thread_specific<TileScratch> scratches;
     const auto drawTile = [&](int tile) {
         const std::uint32_t first = tileStart[static_cast<std::size_t>(tile)];
@@ -211,13 +226,17 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
                 const std::size_t idx = static_cast<std::size_t>(y) * w + x;
                 const TerrainRay ray(map, eye, camera.rayDirection(x + 0.5, y + 0.5));
                 double t0, t1;
-                if (!objectRaySpan(layers, ray.origin, ray.dir, frame.depth[idx], t0, t1)) continue;
+                if (!objectRaySpan(map, heightLo, heightHi, ray.origin, ray.dir, frame.depth[idx],
+                                   t0, t1)) {
+                    continue;
+                }
                 // The boxes in the order the ray enters them, walked until one opaque voxel
                 // hides the rest.
                 s.order.clear();
+                const double inv[3] = {1.0 / ray.dir.x, 1.0 / ray.dir.y, 1.0 / ray.dir.z};
                 for (std::uint32_t i = s.start[p]; i < s.start[p + 1]; ++i) {
                     const Footprint& f = feet[s.list[i]];
-                    const double enter = boxEntry(*layers[f.layer], f.box, ray, t0, t1);
+                    const double enter = boxEntry(f, ray.origin, inv, t0, t1);
                     if (enter <= t1) s.order.push_back({enter, s.list[i]});
                 }
                 std::sort(s.order.begin(), s.order.end());

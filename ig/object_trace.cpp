@@ -16,6 +16,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Height added above and below an object's box when the ray is clipped to it: the box's range
 // is float, its voxels' heights double.
 constexpr double kBoxPad = 1e-3;
+// Margin of a stick list's height range (float) against its runs' (double): a millimetre.
+constexpr double kListPad = 1e-3;
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -129,16 +131,19 @@ bool blendVoxelHit(const VoxelHit& hit, const SkyModel& sky, ObjectShading& out)
     return false;
 }
 
-bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
-                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
-    if (layers.empty()) return false;
-    const TerrainMap& map = layers[0]->map();
-    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+bool objectHeightRange(std::span<const ObjectLayer* const> layers, float& lo, float& hi) {
+    lo = std::numeric_limits<float>::infinity();
+    hi = -lo;
     for (const ObjectLayer* l : layers) {
         if (l->empty()) continue;
         lo = std::min(lo, l->minBottom());
         hi = std::max(hi, l->maxTop());
     }
+    return lo <= hi;
+}
+
+bool objectRaySpan(const TerrainMap& map, float lo, float hi, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
     if (!(lo <= hi)) return false;
     // The ray inside the objects' box: the map's footprint, their height range.
     t0 = 0.0;
@@ -146,6 +151,14 @@ bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3&
     return clipSlab(origin.x, dir.x, 0.0, map.extentX(), t0, t1) &&
            clipSlab(origin.y, dir.y, 0.0, map.extentY(), t0, t1) &&
            clipSlab(origin.z, dir.z, lo, hi, t0, t1) && t0 < t1;
+}
+
+bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1) {
+    if (layers.empty()) return false;
+    float lo = 0.0f, hi = 0.0f;
+    if (!objectHeightRange(layers, lo, hi)) return false;
+    return objectRaySpan(layers[0]->map(), lo, hi, origin, dir, tEnd, t0, t1);
 }
 
 void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
@@ -260,8 +273,17 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta) {
             const std::size_t before = hits.size();
+            // The ray's height range over the cell, widened by a millimetre: an entry whose
+            // sticks lie wholly above or below it gives collectVoxelHits nothing to collect.
+            const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
+            const double zLo = std::min(zA, zB) - kListPad, zHi = std::max(zA, zB) + kListPad;
             for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
-                if (cell.id == box.id) collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
+                if (cell.id != box.id) continue;
+                if (zHi < cell.baseZ + table.bottom(cell.stick) ||
+                    zLo > cell.baseZ + table.top(cell.stick)) {
+                    continue;
+                }
+                collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
             }
             for (std::size_t i = before; i < hits.size(); ++i)
                 if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);

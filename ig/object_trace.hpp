@@ -57,6 +57,11 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
 // height range, up to tEnd; false when empty (or no layer holds anything).
 bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
                    const glm::dvec3& dir, double tEnd, double& t0, double& t1);
+// The same span with the layers' height range [lo, hi] worked out once (objectHeightRange);
+// false when lo > hi.
+bool objectHeightRange(std::span<const ObjectLayer* const> layers, float& lo, float& hi);
+bool objectRaySpan(const TerrainMap& map, float lo, float hi, const glm::dvec3& origin,
+                   const glm::dvec3& dir, double tEnd, double& t0, double& t1);
 // Appends the voxels of `cell` the ray meets over [ta, tb] inside the cell's column, entered
 // across `axis` (0 x, 1 y, -1 none: the walk starts in the cell).
 void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,

@@ -31,7 +31,8 @@ std::uint32_t StickTable::addColumn(std::span<const Rgba8> colors,
                                     std::span<const std::uint8_t> present, float voxelHeight) {
     CHECK_EQ(colors.size(), present.size());
     CHECK_LE(colors.size(), std::size_t{4095});
-    std::vector<std::uint32_t> list = {0, std::bit_cast<std::uint32_t>(voxelHeight)};
+    std::vector<std::uint32_t> list = {0, std::bit_cast<std::uint32_t>(voxelHeight), 0, 0};
+    int lowest = -1, highest = 0;
     int types[3] = {0, 0, 0};
     const int n = static_cast<int>(colors.size());
     for (int z = 0; z < n;) {
@@ -60,9 +61,13 @@ std::uint32_t StickTable::addColumn(std::span<const Rgba8> colors,
         }
         ++types[static_cast<int>(type)];
         ++list[0];
+        if (lowest < 0) lowest = z;
+        highest = end;
         z = end;
     }
     if (list[0] == 0) return kNone;
+    list[2] = std::bit_cast<std::uint32_t>(static_cast<float>(lowest) * voxelHeight);
+    list[3] = std::bit_cast<std::uint32_t>(static_cast<float>(highest) * voxelHeight);
     std::string key;
     if (share_) {
         key.assign(reinterpret_cast<const char*>(list.data()), list.size() * sizeof(std::uint32_t));
@@ -79,12 +84,8 @@ std::uint32_t StickTable::addColumn(std::span<const Rgba8> colors,
     return offset;
 }
 
-float StickTable::voxelHeight(std::uint32_t offset) const {
-    return std::bit_cast<float>(words_[offset + 1]);
-}
-
 StickRun StickTable::run(std::uint32_t offset, int r) const {
-    std::size_t pos = offset + 2;
+    std::size_t pos = offset + kHeaderWords;
     for (int i = 0;; ++i) {
         const std::uint32_t h = words_[pos];
         StickRun run;
@@ -95,15 +96,6 @@ StickRun StickTable::run(std::uint32_t offset, int r) const {
         if (i == r) return run;
         pos += 1 + (run.type == StickType::Uniform ? 1 : static_cast<std::size_t>(run.count));
     }
-}
-
-float StickTable::top(std::uint32_t offset) const {
-    const StickRun last = run(offset, runCount(offset) - 1);
-    return static_cast<float>(last.first + last.count) * voxelHeight(offset);
-}
-
-float StickTable::bottom(std::uint32_t offset) const {
-    return static_cast<float>(run(offset, 0).first) * voxelHeight(offset);
 }
 
 // ---- ObjectLayer -------------------------------------------------------------------------------

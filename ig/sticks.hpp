@@ -7,6 +7,7 @@
 #include "ig/vox.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -41,7 +42,9 @@ struct Placement {
 
 // ---- The stick table ---------------------------------------------------------------------------
 // One flat array of 32-bit words. A cell's stick list starts at an offset into it:
-//   word 0: number of runs; word 1: voxel height in metres (float bits);
+//   word 0: number of runs; word 1: voxel height in metres (float bits); words 2 and 3: the
+//   bottom of the lowest run and the top of the highest above the base, metres (float bits: a
+//   ray's height range tested against them before any run is decoded);
 //   per run, bottom to top: a header (bits 0-1 type, bits 8-19 first voxel above the base,
 //   bits 20-31 voxel count), then its values: one RGBA (uniform), one RGBA per voxel
 //   (textured: all opaque; complex: any opacity, alpha 0 a cavity).
@@ -77,19 +80,24 @@ class StickTable {
                             float voxelHeight);
 
     int runCount(std::uint32_t offset) const { return static_cast<int>(words_[offset]); }
-    float voxelHeight(std::uint32_t offset) const;
+    float voxelHeight(std::uint32_t offset) const {
+        return std::bit_cast<float>(words_[offset + 1]);
+    }
     // Run r of the list at `offset` (runs are visited in order, so this walks from the start).
     StickRun run(std::uint32_t offset, int r) const;
     // The runs bottom to top without walking from the start each time: firstRun, then nextRun
     // runCount - 1 times.
-    StickRun firstRun(std::uint32_t offset) const { return decodeRun(&words_[offset + 2]); }
+    StickRun firstRun(std::uint32_t offset) const {
+        return decodeRun(&words_[offset + kHeaderWords]);
+    }
     static StickRun nextRun(const StickRun& r) {
         return decodeRun(r.values + (r.type == StickType::Uniform ? 1 : r.count));
     }
-    // Height of the list's top above its base, metres.
-    float top(std::uint32_t offset) const;
+    // Height of the list's top above its base, metres (its highest run's first + count voxels).
+    float top(std::uint32_t offset) const { return std::bit_cast<float>(words_[offset + 3]); }
     // Bottom of the lowest run above its base, metres.
-    float bottom(std::uint32_t offset) const;
+    float bottom(std::uint32_t offset) const { return std::bit_cast<float>(words_[offset + 2]); }
+    static constexpr std::uint32_t kHeaderWords = 4;
 
     bool sharing() const { return share_; }
     std::size_t words() const { return words_.size(); }

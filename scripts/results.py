@@ -1062,6 +1062,17 @@ def objects(p):
               f"{spread(ratios(pv['per_pixel_ms'], pv['pass_ms']), 1, '×')} faster "
               f"({spread(pv['pass_ms'], 1, ' ms')} vs {fmt(statistics.median(pv['per_pixel_ms']), 0)} "
               f"ms); images {'identical' if pv['identical'] else 'differ'}", NO_TARGET, cmd)
+    fly = p.load("flythrough_truth.json")
+    if fly and "truth" in fly:
+        t = fly["truth"]
+        p.row(f"Ground truth on the wall clock: flythrough --truth at {fly['width']}×"
+              f"{fly['height']}, the demo scene's low pass over the forest, {fly['fields']} fields: "
+              "lines written (one per field, in order), fields written late (shown objects only) "
+              "and lost (index and instant only)", "0 lost",
+              f"{t['fields']} lines, {t.get('late_fields', 0)} late, {t.get('lost_fields', 0)} "
+              f"lost; {fly['missed_deadlines']} missed field deadlines; the run completes",
+              status(t.get("lost_fields", 0) == 0 and t["fields"] == fly["fields"]),
+              p.command("flythrough_truth"))
     p.row(f"Memory per placed object (stick table + cell references + boxes), shared stick "
           f"table vs every copy its own lists, {mem['objects']} objects", "—",
           f"{fmt(mem['bytes_per_object'], 0)} B vs {fmt(own['bytes_per_object'], 0)} B "

@@ -227,10 +227,11 @@ TruthComputer::~TruthComputer() = default;
 
 void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                             const std::uint16_t* ids, int width, int lines, int firstLine,
-                            const ig::Pose& pose, double time, std::uint64_t index,
-                            FieldTruth& out) {
+                            const ig::Pose& pose, double time, std::uint64_t index, FieldTruth& out,
+                            bool late) {
     out.field = index;
     out.time = time;
+    out.late = late;
     out.objects.clear();
     // What the field shows: its warped ids.
     seen_.clear();
@@ -297,7 +298,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         return false;
     };
     const auto one = [&](const TruthObject& o, ObjectTruth& t) -> bool {
-        if (acc_[o.id].n == 0 && outside(o)) return false;
+        if (acc_[o.id].n == 0 && (late || outside(o))) return false;
         const std::array<glm::dvec3, 8> corners = objectCorners(o);
         t = ObjectTruth{};
         t.id = o.id;
@@ -357,7 +358,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
             front && bx1 > 0.0 && by1 > 0.0 && bx0 < camera.outWidth && by0 < camera.outHeight;
         if (!inFrustum && !shown) return false;
         // Unoccluded: the field's pixels inside the box whose centre ray meets the model.
-        if (inFrustum) {
+        if (inFrustum && !late) {
             const int x0 = std::max(0, static_cast<int>(std::floor(bx0)));
             const int x1 = std::min(camera.outWidth - 1, static_cast<int>(std::floor(bx1)));
             const int y0 = std::max(0, static_cast<int>(std::floor(by0)));
@@ -475,6 +476,7 @@ std::string truthLine(const FieldTruth& truth) {
     put(out, static_cast<std::uint64_t>(truth.field));
     out += ",\"time\":";
     put(out, std::round(truth.time * 1e6) / 1e6);
+    if (truth.late) out += ",\"late\":true";
     out += ",\"objects\":[";
     bool firstObject = true;
     for (const ObjectTruth& o : truth.objects) {
@@ -496,7 +498,9 @@ std::string truthLine(const FieldTruth& truth) {
         out += ",\"range_m\":";
         put(out, round2(o.rangeM));
         out += ",\"occluded\":";
-        if (o.occluded >= 0.0) {
+        if (truth.late) {
+            out += "null";
+        } else if (o.occluded >= 0.0) {
             put(out, round2(o.occluded));
         } else {
             out += "null";
@@ -510,7 +514,11 @@ std::string truthLine(const FieldTruth& truth) {
             out += "null";
         }
         out += ",\"unoccluded_px\":";
-        put(out, static_cast<std::uint64_t>(o.unoccludedPx));
+        if (truth.late) {
+            out += "null";
+        } else {
+            put(out, static_cast<std::uint64_t>(o.unoccludedPx));
+        }
         out += ",\"moving\":";
         out += o.moving ? "true" : "false";
         out += '}';
@@ -519,13 +527,28 @@ std::string truthLine(const FieldTruth& truth) {
     return out;
 }
 
+std::string lostTruthLine(std::uint64_t field, double time) {
+    std::string out = "{\"field\":";
+    put(out, field);
+    out += ",\"time\":";
+    put(out, std::round(time * 1e6) / 1e6);
+    out += ",\"lost\":true,\"objects\":null}";
+    return out;
+}
+
 TruthWriter::TruthWriter(const TruthScene& scene, const TruthCamera& camera, std::FILE* out,
-                         int width, int maxLines, bool waitWhenFull, int slots)
-    : scene_(scene), camera_(camera), out_(out), waitWhenFull_(waitWhenFull) {
+                         int width, int maxLines, bool waitWhenFull, int slots, int lateAfter)
+    : scene_(scene),
+      camera_(camera),
+      out_(out),
+      waitWhenFull_(waitWhenFull),
+      lateAfter_(static_cast<std::uint64_t>(std::max(0, lateAfter))) {
     CHECK_GT(slots, 0);
     slots_.resize(static_cast<std::size_t>(slots));
     for (Slot& s : slots_)
         s.ids.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(maxLines));
+    // About a minute of fields at 59.94 Hz: lost fields are a few words each.
+    lostQueue_.resize(4096);
     thread_ = std::thread([this] { loop(); });
 }
 
@@ -538,7 +561,15 @@ void TruthWriter::record(const prp::Field& field, const ig::Pose& pose) {
     const std::uint64_t head = head_.load(std::memory_order_relaxed);
     while (head - tail_.load(std::memory_order_acquire) >= slots_.size()) {
         if (!waitWhenFull_) {
-            lost_.fetch_add(1, std::memory_order_relaxed);
+            // No slot: the field is written as lost, in its place (its index and instant
+            // only). When even that queue is full the stream has a gap: finish() reports it.
+            const std::uint64_t lh = lostHead_.load(std::memory_order_relaxed);
+            if (lh - lostTail_.load(std::memory_order_acquire) >= lostQueue_.size()) {
+                dropped_.fetch_add(1, std::memory_order_relaxed);
+                return;
+            }
+            lostQueue_[lh % lostQueue_.size()] = Lost{field.index, field.time};
+            lostHead_.store(lh + 1, std::memory_order_release);
             return;
         }
         std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -556,31 +587,53 @@ void TruthWriter::record(const prp::Field& field, const ig::Pose& pose) {
     head_.store(head + 1, std::memory_order_release);
 }
 
+bool TruthWriter::writeLine(const std::string& line) {
+    if (std::fwrite(line.data(), 1, line.size(), out_) != line.size() ||
+        std::fputc('\n', out_) == EOF) {
+        error_ = "a write failed after " + std::to_string(written()) + " fields";
+        return false;
+    }
+    written_.fetch_add(1, std::memory_order_release);
+    return true;
+}
+
 void TruthWriter::loop() {
     TruthComputer computer;
     FieldTruth truth;
     for (;;) {
+        // The lost queue is read before the slots: a field published to it comes after every
+        // slot published before it, so the merge below keeps the field order.
+        const std::uint64_t lostTail = lostTail_.load(std::memory_order_relaxed);
+        const std::uint64_t lostHead = lostHead_.load(std::memory_order_acquire);
         const std::uint64_t tail = tail_.load(std::memory_order_relaxed);
-        if (tail == head_.load(std::memory_order_acquire)) {
+        const std::uint64_t head = head_.load(std::memory_order_acquire);
+        if (tail == head && lostTail == lostHead) {
             if (stop_.load(std::memory_order_acquire) &&
-                tail == head_.load(std::memory_order_acquire)) {
+                tail == head_.load(std::memory_order_acquire) &&
+                lostTail == lostHead_.load(std::memory_order_acquire)) {
                 return;
             }
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
             continue;
         }
         const Slot& s = slots_[tail % slots_.size()];
+        if (lostTail != lostHead &&
+            (tail == head || lostQueue_[lostTail % lostQueue_.size()].index < s.index)) {
+            const Lost& l = lostQueue_[lostTail % lostQueue_.size()];
+            if (error_.empty() && writeLine(lostTruthLine(l.index, l.time))) {
+                lost_.fetch_add(1, std::memory_order_release);
+            }
+            lostTail_.store(lostTail + 1, std::memory_order_release);
+            continue;
+        }
         if (!s.hasIds) {
             missingIds_.fetch_add(1, std::memory_order_relaxed);
         } else if (error_.empty()) {
+            // Late when more than lateAfter fields wait behind this one (wall clock only).
+            const bool late = !waitWhenFull_ && head - tail - 1 > lateAfter_;
             computer.compute(scene_, camera_, s.ids.data(), s.width, s.lines, s.firstLine, s.pose,
-                             s.time, s.index, truth);
-            const std::string line = truthLine(truth) + "\n";
-            if (std::fwrite(line.data(), 1, line.size(), out_) != line.size()) {
-                error_ = "a write failed after " + std::to_string(written()) + " fields";
-            } else {
-                written_.fetch_add(1, std::memory_order_release);
-            }
+                             s.time, s.index, truth, late);
+            if (writeLine(truthLine(truth)) && late) late_.fetch_add(1, std::memory_order_release);
         }
         tail_.store(tail + 1, std::memory_order_release);
     }
@@ -590,10 +643,9 @@ std::string TruthWriter::finish() {
     stop_.store(true, std::memory_order_release);
     if (thread_.joinable()) thread_.join();
     if (!error_.empty()) return error_;
-    if (const std::uint64_t lost = lost_.load(); lost > 0) {
-        return std::to_string(lost) +
-               " fields' truth lost (the writer fell behind the field clock by more than " +
-               std::to_string(slots_.size()) + " fields)";
+    if (const std::uint64_t dropped = dropped_.load(); dropped > 0) {
+        return std::to_string(dropped) + " fields' truth dropped (more than " +
+               std::to_string(lostQueue_.size()) + " fields lost at once)";
     }
     if (const std::uint64_t missing = missingIds_.load(); missing > 0) {
         return std::to_string(missing) +

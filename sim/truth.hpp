@@ -81,6 +81,10 @@ struct ObjectTruth {
 struct FieldTruth {
     std::uint64_t field = 0;
     double time = 0.0;
+    // Late: the writer was behind the field clock, so only what the field shows was worked out
+    // (visible pixels, boxes, centroids, ranges, true boxes of the objects it shows): no exact
+    // unoccluded count, and objects the field does not show are not listed.
+    bool late = false;
     std::vector<ObjectTruth> objects;  // by increasing id
 };
 
@@ -95,9 +99,10 @@ class TruthComputer {
     TruthComputer(const TruthComputer&) = delete;
     TruthComputer& operator=(const TruthComputer&) = delete;
     // `ids`: the field's lines (width * lines), line L being frame line firstLine + 2 L.
+    // `late`: the shown objects only, without the unoccluded count (FieldTruth::late).
     void compute(const TruthScene& scene, const TruthCamera& camera, const std::uint16_t* ids,
                  int width, int lines, int firstLine, const ig::Pose& pose, double time,
-                 std::uint64_t index, FieldTruth& out);
+                 std::uint64_t index, FieldTruth& out, bool late = false);
 
   private:
     struct Acc {
@@ -115,26 +120,37 @@ class TruthComputer {
 };
 
 // One JSON line (no newline): {"field", "time", "objects": [{"id", "visible_px", "bbox",
-// "centroid", "range_m", "occluded", "true_bbox", "unoccluded_px", "moving"}]}.
+// "centroid", "range_m", "occluded", "true_bbox", "unoccluded_px", "moving"}]}; a late field
+// adds "late": true (its objects' "occluded" and "unoccluded_px" null).
 std::string truthLine(const FieldTruth& truth);
+// The line of a field whose ids could not be queued: {"field", "time", "lost": true,
+// "objects": null}.
+std::string lostTruthLine(std::uint64_t field, double time);
 
-// Writes a truth line per field from a thread of its own. record() copies the field's ids and
-// pose into a slot allocated up front (the field thread never allocates or writes a file);
-// when every slot is taken, `waitWhenFull` (simulated clock) waits for one, else the field's
-// truth is lost and counted (finish() reports it).
+// Writes exactly one truth line per field, in field order, from a thread of its own. record()
+// copies the field's ids and pose into a slot allocated up front (the field thread never
+// allocates or writes a file). On the wall clock (`waitWhenFull` false) the writer keeps up by
+// the rule of docs/design/objects.md ("When the truth falls behind"): a field it reaches with
+// more than `lateAfter` fields queued behind it is written late (FieldTruth::late); a field
+// that finds every slot taken is written as lost (lostTruthLine). Both are counted (late(),
+// lost()), and neither is an error. The simulated clock (`waitWhenFull`) waits for a slot and
+// never writes late: its stream is deterministic.
 class TruthWriter {
   public:
     TruthWriter(const TruthScene& scene, const TruthCamera& camera, std::FILE* out, int width,
-                int maxLines, bool waitWhenFull, int slots = 32);
+                int maxLines, bool waitWhenFull, int slots = 32, int lateAfter = 4);
     ~TruthWriter();
     TruthWriter(const TruthWriter&) = delete;
     TruthWriter& operator=(const TruthWriter&) = delete;
 
     void record(const prp::Field& field, const ig::Pose& pose);
-    // Writes what was recorded and stops the thread; empty, or what went wrong (fields lost, a
-    // write error, a field without object ids).
+    // Writes what was recorded and stops the thread; empty, or what went wrong (a write error,
+    // a field without object ids, more lost fields queued at once than the writer holds).
     std::string finish();
+    // Lines written (every kind), fields written late, fields written as lost.
     std::uint64_t written() const { return written_.load(std::memory_order_acquire); }
+    std::uint64_t late() const { return late_.load(std::memory_order_acquire); }
+    std::uint64_t lost() const { return lost_.load(std::memory_order_acquire); }
 
   private:
     struct Slot {
@@ -145,16 +161,24 @@ class TruthWriter {
         double time = 0.0;
         std::uint64_t index = 0;
     };
+    // A field whose ids found no slot: written as lost, in its place among the others.
+    struct Lost {
+        std::uint64_t index = 0;
+        double time = 0.0;
+    };
     void loop();
+    bool writeLine(const std::string& line);
 
     const TruthScene& scene_;
     TruthCamera camera_;
     std::FILE* out_;
     bool waitWhenFull_;
+    std::uint64_t lateAfter_;
     std::vector<Slot> slots_;
-    std::atomic<std::uint64_t> head_{0}, tail_{0};
+    std::vector<Lost> lostQueue_;  // allocated up front, a ring like slots_
+    std::atomic<std::uint64_t> head_{0}, tail_{0}, lostHead_{0}, lostTail_{0};
     std::atomic<bool> stop_{false};
-    std::atomic<std::uint64_t> written_{0}, lost_{0}, missingIds_{0};
+    std::atomic<std::uint64_t> written_{0}, late_{0}, lost_{0}, dropped_{0}, missingIds_{0};
     std::string error_;  // writer thread, read after join
     std::thread thread_;
 };

@@ -82,7 +82,9 @@ ones stamped at each frame's instant; every field carries the object ids warped 
 colour. --truth FILE writes one JSON line per field: each object in view or in
 the frustum with its visible pixels, box and centroid in the field (output pixels, y the frame
 line), its range, the box of its exact 3-D placement projected at the field's pose, and the
-fraction hidden (docs/design/objects.md, "Ground truth").
+fraction hidden (docs/design/objects.md, "Ground truth"). On the wall clock a field whose truth
+falls behind is written "late" (the objects it shows, no hidden fraction) or "lost" (its index
+and time only): one line per field whatever happens, counted in the report.
 
 Outputs: a file is written beside its path and renamed into place when complete; a device or
 FIFO is written in place; an output on an input or another output is refused before the run;
@@ -859,8 +861,10 @@ int main(int argc, char** argv) {
                      videoPath.empty() ? outSpec.c_str() : videoPath.c_str());
         if (truth) {
             if (truthFile.commit(&error) != 0) throw std::runtime_error("--truth " + error);
-            std::fprintf(report, "truth: %s (%llu fields)\n", truthPath.c_str(),
-                         static_cast<unsigned long long>(truth->written()));
+            std::fprintf(report, "truth: %s (%llu fields, %llu late, %llu lost)\n",
+                         truthPath.c_str(), static_cast<unsigned long long>(truth->written()),
+                         static_cast<unsigned long long>(truth->late()),
+                         static_cast<unsigned long long>(truth->lost()));
         }
         if (sheet) {
             if (sheet->write(contactPath, &error) != 0) throw std::runtime_error(error);
@@ -890,7 +894,12 @@ int main(int argc, char** argv) {
                               {"moving_objects", scene->moving.size()},
                               {"caster", casterText}};
             }
-            if (truth) j["truth"] = {{"file", truthPath}, {"fields", truth->written()}};
+            if (truth) {
+                j["truth"] = {{"file", truthPath},
+                              {"fields", truth->written()},
+                              {"late_fields", truth->late()},
+                              {"lost_fields", truth->lost()}};
+            }
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
             j["memory_locked"] = memoryLock.locked;

@@ -94,8 +94,8 @@ TEST(StickTable, RunsAreClassifiedAndSplitByEmptySpace) {
     EXPECT_EQ(d.voxel(1), hole);
     EXPECT_FLOAT_EQ(table.top(s), 4.5f);
     EXPECT_FLOAT_EQ(table.bottom(s), 0.0f);
-    // Words: 2 header + (1 + 1) + (1 + 2) + (1 + 3).
-    EXPECT_EQ(table.words(), 11u);
+    // Words: 4 header + (1 + 1) + (1 + 2) + (1 + 3).
+    EXPECT_EQ(table.words(), 13u);
     // A floating run (a deck): its bottom is above the base.
     const std::uint32_t deck =
         table.addColumn(std::vector<Rgba8>{{}, {}, red}, std::vector<std::uint8_t>{0, 0, 1}, 1.0f);

@@ -408,3 +408,75 @@ TEST(Truth, SameLineWithOneAndTwoWorkers) {
 }
 
 }  // namespace
+
+// On the wall clock a writer that cannot keep up writes every field anyway, in order: late
+// fields list the objects they show without the hidden fraction, lost fields their index and
+// instant; finish() reports no error and the counts add up. Fields recorded back to back into
+// two slots, far faster than any truth is worked out.
+TEST(Truth, FallingBehindWritesEveryFieldInOrder) {
+    World world;
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 128;
+    geometry.windowHeight = 96;
+    geometry.margin = 16;
+    const sim::TruthScene truthScene(world.scene, *world.motion, world.map);
+    const sim::TruthCamera camera{sim::renderIntrinsics(geometry, ig::Pose{}).window(), 128, 96};
+    const sim::Trajectory path = cameraPath();
+    const std::string path0 = tmpDir() + "/behind.jsonl";
+    std::FILE* file = std::fopen(path0.c_str(), "w");
+    ASSERT_NE(file, nullptr);
+    constexpr int kFields = 300;
+    std::uint64_t late = 0, lost = 0;
+    {
+        sim::TruthWriter writer(truthScene, camera, file, 128, 48, false, 2, 0);
+        prp::Field field;
+        field.width = 128;
+        field.lines = 48;
+        field.objectId.assign(128 * 48, 0);
+        for (int y = 20; y < 30; ++y)
+            for (int x = 50; x < 70; ++x)
+                field.objectId[static_cast<std::size_t>(y) * 128 + x] = 1;
+        for (int i = 0; i < kFields; ++i) {
+            field.index = static_cast<std::uint64_t>(i);
+            field.time = i * 1001.0 / 60000.0;
+            field.parity = i % 2 ? prp::FieldParity::Bottom : prp::FieldParity::Top;
+            writer.record(field, path.poseAt(field.time));
+        }
+        EXPECT_EQ(writer.finish(), "");
+        EXPECT_EQ(writer.written(), static_cast<std::uint64_t>(kFields));
+        late = writer.late();
+        lost = writer.lost();
+    }
+    std::fclose(file);
+    EXPECT_GT(lost, 0u);
+    std::ifstream in(path0);
+    int index = 0;
+    std::uint64_t lateLines = 0, lostLines = 0;
+    for (std::string line; std::getline(in, line); ++index) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        ASSERT_EQ(j["field"], index) << line;
+        EXPECT_NEAR(j["time"].get<double>(), index * 1001.0 / 60000.0, 1e-6);
+        if (j.contains("lost")) {
+            ++lostLines;
+            EXPECT_TRUE(j["objects"].is_null());
+            continue;
+        }
+        const bool isLate = j.contains("late");
+        lateLines += isLate ? 1 : 0;
+        const nlohmann::json* o = findObject(j, 1);
+        ASSERT_NE(o, nullptr) << line;
+        EXPECT_EQ((*o)["visible_px"], 200);
+        for (const nlohmann::json& e : j["objects"]) {
+            if (isLate) {
+                EXPECT_GT(e["visible_px"].get<int>(), 0) << line;
+                EXPECT_TRUE(e["occluded"].is_null());
+                EXPECT_TRUE(e["unoccluded_px"].is_null());
+            } else {
+                EXPECT_TRUE(e["unoccluded_px"].is_number());
+            }
+        }
+    }
+    EXPECT_EQ(index, kFields);
+    EXPECT_EQ(lateLines, late);
+    EXPECT_EQ(lostLines, lost);
+}
