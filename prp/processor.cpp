@@ -182,9 +182,9 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
             out.warp = fitted;
         } else {
-            const DepthWarpResult r = depthWarp_.apply(frame, sourcePixels(frame), poseAtField,
-                                                       geometry, quadraticOf(out.warp), view,
-                                                       gainQ8, options_.agc, options_.depthKernel);
+            const DepthWarpResult r = depthWarp_.apply(
+                frame, sourcePixels(frame), poseAtField, geometry, quadraticOf(out.warp), view,
+                gainQ8, options_.agc, options_.depthKernel, options_.depthMethod);
             out.edgeSamples = r.edgeSamples;
             out.holeSamples = r.holes;
             lumaSum = r.lumaSum;

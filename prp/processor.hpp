@@ -35,6 +35,8 @@ struct PrpOptions {
     // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).
     DepthKernel depthKernel = DepthKernel::Auto;
+    // Depth model: the gather with the splat where it does not settle, or the splat throughout.
+    DepthMethod depthMethod = DepthMethod::Splat;
     bool depthReference = false;
     // Output pixels whose source point lies outside the rendered frame (a pose change beyond
     // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Quadratic and

@@ -92,7 +92,7 @@ TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
                 for (int parity : {0, 1}) {
                     detail::projectRowScalar(p, depth.data(), 0, n, y, parity,
                                              {i0.data(), z0.data(), x0.data(), y0.data()});
-                    detail::projectRowAvx2(p, depth.data(), n, y, parity,
+                    detail::projectRowAvx2(p, depth.data(), 0, n, y, parity,
                                            {i1.data(), z1.data(), x1.data(), y1.data()});
                     for (int x = 0; x < n; ++x) {
                         ASSERT_EQ(i0[x], i1[x]) << "width " << width << " x " << x;
