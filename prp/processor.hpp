@@ -39,8 +39,8 @@ struct PrpOptions {
     DepthMethod depthMethod = DepthMethod::Splat;
     bool depthReference = false;
     // Output pixels whose source point lies outside the rendered frame (a pose change beyond
-    // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Quadratic and
-    // projective warps; the depth model repeats edges. Counted in Field::edgeSamples either way.
+    // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Every model but the
+    // double-precision depth reference (which repeats edges). Counted in Field::edgeSamples.
     EdgeFill edgeFill = EdgeFill::Sky;
     ig::SkyModel sky;
 };
