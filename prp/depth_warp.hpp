@@ -1,4 +1,6 @@
-// The depth model on a field's budget: a float forward splat with a z-test, holes from a quadratic.
+// The depth model on a field's budget: a per-pixel gather (Newton steps from the quadratic's
+// point), and a float forward splat with a z-test (holes from the quadratic) where it does not
+// settle.
 #pragma once
 
 #include "ig/camera.hpp"
@@ -7,6 +9,8 @@
 #include "prp/warp_fit.hpp"
 
 #include <cstdint>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace prp {
@@ -15,6 +19,14 @@ namespace prp {
 // operations in the same order, no fused multiply-add); Auto takes AVX2 where the processor has it.
 enum class DepthKernel { Auto, Scalar, Avx2 };
 bool depthKernelSupported(DepthKernel kernel);
+
+// How the depth model finds each output pixel's source point. Gather: per output pixel, Newton
+// steps from the quadratic's point against the exact reprojection, the splat in the tiles where
+// they do not settle. Splat: every rendered pixel projected and z-tested (the gather's twin).
+enum class DepthMethod { Gather, Splat };
+// "gather" | "splat"; empty for anything else.
+std::optional<DepthMethod> parseDepthMethod(const std::string& text);
+const char* depthMethodName(DepthMethod method);
 
 // Per-field constants taking a rendered pixel and its depth to an output-frame point, in float.
 // A pixel (x, y) is the source-camera point (d / l) (a, b, f) with a = x + 0.5 - cx,
@@ -51,34 +63,89 @@ struct ProjectedRow {
     float* sy;
 };
 
+// The gather's constants for one field line: its output row centre and the quadratic along it,
+// Q(X) = x0 + X (x1 + X x2) (and y), with its Jacobian dQ/dX = x1 + X x2x2, dQ/dY = xy0 + X xy1.
+struct GatherLine {
+    float row = 0;  // output row centre (full-frame lines)
+    float x0 = 0, x1 = 0, x2 = 0, x2x2 = 0, xy0 = 0, xy1 = 0;
+    float y0 = 0, y1 = 0, y2 = 0, y2x2 = 0, yy0 = 0, yy1 = 0;
+
+    static GatherLine of(const Quadratic& q, double row);
+};
+
+// Gather steps: reprojections per pixel (each followed by a correction); largest residual (output
+// pixels, either axis) at the last one for a pixel to count as settled; largest parallax (output
+// pixels) between the four depth taps of the last step, and between the surface under the
+// quadratic's point and the final one when the former is nearer (an occluder), before a pixel
+// counts as on a depth edge.
+inline constexpr int kGatherSteps = 2;
+inline constexpr float kGatherSettledPx = 0.25f;
+inline constexpr float kGatherEdgePx = 1.0f;
+// Largest parallax (output pixels) between the depths two neighbouring output pixels settled on
+// before the tiles around them take the splat (DepthWarp::apply).
+inline constexpr float kGatherJumpPx = 2.0f;
+// The depth the gather takes for sky (+inf), so that it interpolates.
+inline constexpr float kGatherFar = 1e30f;
+// Output pixels of parallax per unit of inverse depth: the translation's length times the larger
+// output focal length (a bound on how far two depths at one source point land apart).
+float gatherParallaxScale(const DepthProjection& p);
+
 namespace detail {
 // Pixels [begin, end) of rendered row y (`depth` and `out` indexed from the row's start).
 void projectRowScalar(const DepthProjection& p, const float* depth, int begin, int end, int y,
                       int firstLine, const ProjectedRow& out);
+// Output pixels [begin, end) of one field line: from the quadratic's point, kGatherSteps times
+// x <- x + dQ (q - P(x, 1 / depth at x)) (P: the projection above; the inverse depth bilinear
+// between the four rendered pixel centres around x, clamped to the frame, sky 0). Writes the
+// final points (16.16, minus half a pixel, as applyPoints takes them) and 1 in `unsettled` where
+// the last residual exceeds kGatherSettledPx, a tap was not terrain or sky (NaN, zero, negative
+// depth) or a reprojection fell behind the eye, or the taps (or the quadratic's point's surface
+// against the final one) differ by more than kGatherEdgePx of parallax; returns how many did not
+// settle.
+// `dist` receives the depth each pixel settled on (sky: kGatherFar). `depth` is the whole frame
+// (width x height); the outputs are indexed from the line's start.
+int gatherLineScalar(const DepthProjection& p, const GatherLine& line, const float* depth,
+                     int width, int height, int begin, int end, std::int32_t* px, std::int32_t* py,
+                     std::uint8_t* unsettled, float* dist);
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 // The same eight pixels at a time; needs AVX2.
-void projectRowAvx2(const DepthProjection& p, const float* depth, int width, int y, int firstLine,
-                    const ProjectedRow& out);
+void projectRowAvx2(const DepthProjection& p, const float* depth, int begin, int end, int y,
+                    int firstLine, const ProjectedRow& out);
+// The gather eight pixels at a time (hardware gathers of the depth); the scalar one's bits.
+int gatherLineAvx2(const DepthProjection& p, const GatherLine& line, const float* depth, int width,
+                   int height, int begin, int end, std::int32_t* px, std::int32_t* py,
+                   std::uint8_t* unsettled, float* dist);
 #endif
 }  // namespace detail
 
 struct DepthWarpResult {
     std::uint64_t edgeSamples = 0;  // samples outside the rendered frame (edge repeated)
     std::uint64_t lumaSum = 0;
-    std::uint64_t holes = 0;  // output pixels no rendered pixel landed on (quadratic used)
+    std::uint64_t holes = 0;        // output pixels no rendered pixel landed on (quadratic used)
+    std::uint64_t unsettled = 0;    // gather: pixels whose steps did not settle
+    std::uint64_t splatPixels = 0;  // output pixels made by the splat (tiles, or the whole field)
 };
 
 // The depth model's fast path, with its scratch buffers (sized on first use, then reused).
 class DepthWarp {
   public:
-    // Splats every rendered pixel of `frame` (colour `color`, which may be a filtered copy)
-    // into the lines of `field` by the field pose (roll included), nearest output pixel, nearer
-    // points winning; each output pixel then samples bilinearly at the source point that lands
-    // on its centre, and an output pixel no source pixel reached samples at `holeWarp`'s point.
+    // Splat: every rendered pixel of `frame` (colour `color`, which may be a filtered copy) is
+    // projected into the lines of `field` by the field pose (roll included), nearest output
+    // pixel, nearer points winning; each output pixel then samples bilinearly at the source
+    // point that lands on its centre, and an output pixel no source pixel reached samples at
+    // `holeWarp`'s point. Gather: each output pixel's source point by gather steps from
+    // `holeWarp`'s point; tiles of kGatherTileWidth x kGatherTileLines with a pixel that did not
+    // settle are splatted (only the rendered pixels near theirs), the whole field when more than
+    // kGatherMaxSplatShare of the tiles have one.
     DepthWarpResult apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,
                           const ig::Pose& fieldPose, const OutputGeometry& geometry,
                           const Quadratic& holeWarp, const FieldView& field, int gainQ8, bool agc,
-                          DepthKernel kernel = DepthKernel::Auto);
+                          DepthKernel kernel = DepthKernel::Auto,
+                          DepthMethod method = DepthMethod::Splat);
+
+    static constexpr int kGatherTileWidth = 64;
+    static constexpr int kGatherTileLines = 8;
+    static constexpr double kGatherMaxSplatShare = 0.5;
     // Sizes the scratch buffers for frames like `frameWidth` x `frameHeight` (rows as long as
     // its diagonal: any roll the renderer widens the frame for) and fields of `fieldPixels`,
     // so a field that takes the depth warp first later allocates nothing.
@@ -88,10 +155,33 @@ class DepthWarp {
     // 16.16 fixed point, as applyPoints takes them).
     const std::int32_t* pointsX() const { return pointX_.data(); }
     const std::int32_t* pointsY() const { return pointY_.data(); }
+    // Gather: 1 where the last apply()'s steps did not settle (same layout as the points).
+    const std::uint8_t* unsettled() const { return unsettled_.data(); }
 
   private:
+    bool useAvx2(DepthKernel kernel) const;
+    // Splats rendered rows [y0, y1), columns [x0, x1) into the z-buffer, keeping only points
+    // that land in field lines [l0, l1), columns [c0, c1) when `clip`.
+    void splatRows(const DepthProjection& proj, const ig::RenderedFrame& frame, int firstLine,
+                   int fieldWidth, int y0, int y1, int x0, int x1, bool clip, int l0, int l1,
+                   int c0, int c1, bool avx2);
+    // Fills the holes of field lines [l0, l1), columns [c0, c1) (neighbours beyond them count as
+    // empty); returns how many.
+    std::uint64_t fillHoles(const DepthProjection& proj, const Quadratic& holeWarp,
+                            const FieldView& field, int l0, int l1, int c0, int c1);
+    // Marks for the splat the tiles around output neighbours that settled on depths apart.
+    void markDepthJumps(const DepthProjection& proj, const FieldView& field, int tilesAcross,
+                        int tilesDown);
+    // The splat of one tile: the rendered pixels near its pixels' points.
+    std::uint64_t splatTile(const DepthProjection& proj, const ig::RenderedFrame& frame,
+                            const Quadratic& holeWarp, const FieldView& field, int l0, int l1,
+                            int c0, int c1, bool avx2);
+
     std::vector<float> depth_;                   // one field: the z-buffer (inverse depths)
     std::vector<std::int32_t> pointX_, pointY_;  // one field: the points sampled (16.16)
+    std::vector<std::uint8_t> unsettled_;        // one field: the gather's flags
+    std::vector<float> gatherDist_;              // one field: the depth each pixel settled on
+    std::vector<std::uint16_t> tileUnsettled_;   // one field: unsettled pixels per tile
     std::vector<std::int32_t> rowIndex_;         // one rendered row
     std::vector<float> rowZInv_, rowSx_, rowSy_;
 };

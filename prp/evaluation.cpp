@@ -63,6 +63,7 @@ EvalResult evaluateWarps(const ig::TerrainMap& map, const ig::Caster& frameCaste
             o.useSky = config.useSky;
             o.autoThresholdPx = config.autoThresholdPx;
             o.edgeFill = config.edgeFill;
+            o.depthMethod = config.depthMethod;
             o.sky = config.sky;
             prps.emplace_back(o);
         }

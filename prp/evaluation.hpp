@@ -2,6 +2,7 @@
 #pragma once
 
 #include "ig/caster.hpp"
+#include "prp/depth_warp.hpp"
 #include "prp/field.hpp"
 #include "prp/warp_apply.hpp"
 
@@ -23,6 +24,7 @@ struct EvalConfig {
     bool useSky = true;
     double autoThresholdPx = 0.25;      // the auto model's threshold (PrpOptions::autoThresholdPx)
     EdgeFill edgeFill = EdgeFill::Sky;  // PrpOptions::edgeFill, with the casters' sky
+    DepthMethod depthMethod = DepthMethod::Splat;  // PrpOptions::depthMethod
     ig::SkyModel sky;
 };
 

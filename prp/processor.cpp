@@ -182,12 +182,24 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
             out.warp = fitted;
         } else {
-            const DepthWarpResult r = depthWarp_.apply(frame, sourcePixels(frame), poseAtField,
-                                                       geometry, quadraticOf(out.warp), view,
-                                                       gainQ8, options_.agc, options_.depthKernel);
+            const DepthWarpResult r = depthWarp_.apply(
+                frame, sourcePixels(frame), poseAtField, geometry, quadraticOf(out.warp), view,
+                gainQ8, options_.agc, options_.depthKernel, options_.depthMethod);
             out.edgeSamples = r.edgeSamples;
             out.holeSamples = r.holes;
             lumaSum = r.lumaSum;
+            if (options_.edgeFill != EdgeFill::Repeat && r.edgeSamples > 0) {
+                // Beyond the rendered frame as the quadratic: through the points it sampled.
+                OutsideFill fill =
+                    OutsideFill::of(options_.sky, frame.intrinsics, geometry, poseAtField);
+                fill.hazeBelow = options_.edgeFill == EdgeFill::SkyHaze;
+                ApplyResult applied{r.edgeSamples, r.lumaSum};
+                fillOutside({sourcePixels(frame), frame.width(), frame.height()},
+                            depthWarp_.pointsX(), depthWarp_.pointsY(),
+                            static_cast<std::size_t>(out.width), view, gainQ8, options_.agc, fill,
+                            applied);
+                lumaSum = applied.lumaSum;
+            }
             if (ids) {
                 warpIdsPoints(idSource, depthWarp_.pointsX(), depthWarp_.pointsY(),
                               static_cast<std::size_t>(out.width), idView);

@@ -35,10 +35,12 @@ struct PrpOptions {
     // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).
     DepthKernel depthKernel = DepthKernel::Auto;
+    // Depth model: the gather with the splat where it does not settle, or the splat throughout.
+    DepthMethod depthMethod = DepthMethod::Splat;
     bool depthReference = false;
     // Output pixels whose source point lies outside the rendered frame (a pose change beyond
-    // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Quadratic and
-    // projective warps; the depth model repeats edges. Counted in Field::edgeSamples either way.
+    // the margins): EdgeFill (prp/warp_apply.hpp) with the casters' `sky`. Every model but the
+    // double-precision depth reference (which repeats edges). Counted in Field::edgeSamples.
     EdgeFill edgeFill = EdgeFill::Sky;
     ig::SkyModel sky;
 };

@@ -146,6 +146,30 @@ void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
     fillField(source, ProjectiveRows{sourceFromOutput}, field, gainQ8, agc, fill, result);
 }
 
+void fillOutside(const SourceView& source, const std::int32_t* xs, const std::int32_t* ys,
+                 std::size_t stride, const FieldView& field, int gainQ8, bool agc,
+                 const OutsideFill& fill, ApplyResult& result) {
+    // The points as the rows the fill pass walks: 16.16 widened to the kernels' 32.32.
+    struct PointRows {
+        const std::int32_t *xs, *ys, *x = nullptr, *y = nullptr;
+        std::size_t stride;
+        int firstLine;
+        void start(double rowY) {
+            const auto line = static_cast<std::size_t>((rowY - 0.5 - firstLine) / 2.0);
+            x = xs + line * stride;
+            y = ys + line * stride;
+        }
+        void next() {
+            ++x;
+            ++y;
+        }
+        std::int64_t px() const { return std::int64_t{*x} * kPointScale; }
+        std::int64_t py() const { return std::int64_t{*y} * kPointScale; }
+    };
+    fillField(source, PointRows{xs, ys, nullptr, nullptr, stride, field.firstLine}, field, gainQ8,
+              agc, fill, result);
+}
+
 bool warpKernelSupported(WarpKernel kernel) {
     switch (kernel) {
         case WarpKernel::Auto:

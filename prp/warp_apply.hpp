@@ -104,6 +104,10 @@ void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,
 void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
                  const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
                  ApplyResult& result);
+// The same for the points applyPoints sampled (the depth model's).
+void fillOutside(const SourceView& source, const std::int32_t* xs, const std::int32_t* ys,
+                 std::size_t stride, const FieldView& field, int gainQ8, bool agc,
+                 const OutsideFill& fill, ApplyResult& result);
 
 // Converts one row of interleaved RGB8 pixels into `format` (with gain), adding luma to
 // `lumaSum` when `agc`.

@@ -142,6 +142,9 @@ fi
 
 if wanted warp-eval; then
     run warp_eval "$bin/warp-eval" --json "$data/warp_eval.json" --csv "$data/warp_eval.csv"
+    # The depth model's gather (Newton steps from the quadratic, the splat where they do not settle).
+    run warp_eval_gather "$bin/warp-eval" --depth-warp gather --models poly,depth,auto \
+        --json "$data/warp_eval_gather.json"
     scripts/plot-warp-eval.sh "$data/warp_eval.csv" docs/warp_eval_prp.png \
         "Warp error against horizon, 320x240, 5 trajectories"
     # Frames and truths by the exact single level instead of the multiresolution caster.

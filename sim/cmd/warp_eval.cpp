@@ -147,6 +147,7 @@ int main(int argc, char** argv) {
     double fovDeg = 60.0;
     bool noSky = false;
     std::string edgeFillText = "sky";
+    std::string depthWarpText = "splat";
     prp::EvalConfig config;
     app.add_option("--trajectory", trajectories, "Trajectory CSV (repeatable)");
     app.add_option("--size", sizeText, "Output window WxH")->capture_default_str();
@@ -172,6 +173,11 @@ int main(int argc, char** argv) {
                    "Where a field samples beyond the rendered frame: sky (the sky colour above "
                    "the horizon, the edge pixel below) | sky-haze (the haze colour below) | "
                    "repeat (the edge pixel)")
+        ->capture_default_str();
+    app.add_option("--depth-warp", depthWarpText,
+                   "How the depth model (and auto's depth fields) finds source points: gather "
+                   "(Newton steps from the quadratic, the splat where they do not settle) | splat "
+                   "(every rendered pixel projected, z-tested)")
         ->capture_default_str();
     app.add_option("--json", jsonPath, "Results as JSON");
     app.add_option("--csv", csvPath, "Results as CSV");
@@ -220,6 +226,12 @@ int main(int argc, char** argv) {
                                  edgeFillText + "'");
         }
         config.edgeFill = *edgeFill;
+        const std::optional<prp::DepthMethod> depthMethod = prp::parseDepthMethod(depthWarpText);
+        if (!depthMethod) {
+            throw ig::InputError("--depth-warp: expected gather or splat, got '" + depthWarpText +
+                                 "'");
+        }
+        config.depthMethod = *depthMethod;
         const bool shippedTrajectories = trajectories.empty();
         if (shippedTrajectories) {
             const std::filesystem::path dir = std::filesystem::path(VIG_DATA_DIR) / "trajectories";
@@ -279,6 +291,7 @@ int main(int argc, char** argv) {
             j["caster"] = casterText;
             j["margin"] = config.margin;
             j["fov_deg"] = fovDeg;
+            j["depth_warp"] = depthWarpText;
             j["field_period_s"] = prp::kFieldPeriod;
             j["terrain"] = ig::describeTerrain(map);
             j["results"] = cellsJson(all);

@@ -96,8 +96,9 @@ void BM_PrpWarpRgbFieldScalar(benchmark::State& state) {
 }
 // The whole processor on one field of a frame with depth: a ground plane seen from 60 m at
 // 20 degrees down, warped to a pose 8 fields on at 200 m/s (rolled, turning). `model` Depth
-// (the fast splat with `kernel`), Poly or Auto; the time includes the fit.
-void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel kernel) {
+// (the gather or the splat, `method`, with `kernel`), Poly or Auto; the time includes the fit.
+void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel kernel,
+                prp::DepthMethod method = prp::DepthMethod::Splat) {
     if (!prp::depthKernelSupported(kernel)) {
         state.SkipWithError("kernel not supported by this processor");
         return;
@@ -135,6 +136,7 @@ void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel 
     o.format = prp::PixelFormat::Uyvy;
     o.model = model;
     o.depthKernel = kernel;
+    o.depthMethod = method;
     prp::PostRenderingProcessor prp(o);
     prp::Field field;
     std::uint64_t index = 1;
@@ -143,8 +145,21 @@ void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel 
         index += 2;  // the same parity every time
         benchmark::DoNotOptimize(field.pixels.data());
     }
-    state.counters["holes_pct"] =
-        100.0 * field.holeSamples / (static_cast<double>(field.width) * field.lines);
+    const double outPixels = static_cast<double>(field.width) * field.lines;
+    state.counters["holes_pct"] = 100.0 * field.holeSamples / outPixels;
+    if (model == prp::WarpModel::Depth) {
+        // The gather's share of pixels that did not settle, and of pixels the splat made.
+        prp::DepthWarp warp;
+        prp::Field scratch = field;
+        const prp::FieldView view{scratch.pixels.data(), scratch.stride,
+                                  scratch.width,         prp::fieldFirstLine(scratch.parity),
+                                  scratch.lines,         scratch.format};
+        const prp::DepthWarpResult r = warp.apply(
+            frame, frame.color.data(), at, prp::OutputGeometry::of(frame.intrinsics, kW, kH),
+            prp::quadraticOf(field.warp), view, prp::kUnityGain, false, kernel, method);
+        state.counters["unsettled_pct"] = 100.0 * r.unsettled / outPixels;
+        state.counters["splat_pct"] = 100.0 * r.splatPixels / outPixels;
+    }
     state.counters["ns_per_px"] = benchmark::Counter(
         static_cast<double>(kW) * (kH / 2),
         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
@@ -155,11 +170,21 @@ void BM_PrpDepthUyvyField(benchmark::State& state) {
 void BM_PrpDepthUyvyFieldScalar(benchmark::State& state) {
     prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Scalar);
 }
+// The gather (Newton steps from the quadratic's point; the splat in tiles where they do not
+// settle), AVX2 and its scalar twin.
+void BM_PrpDepthUyvyFieldGather(benchmark::State& state) {
+    prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Auto, prp::DepthMethod::Gather);
+}
+void BM_PrpDepthUyvyFieldGatherScalar(benchmark::State& state) {
+    prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Scalar, prp::DepthMethod::Gather);
+}
 void BM_PrpPolyUyvyFieldWithFit(benchmark::State& state) {
     prpProcess(state, prp::WarpModel::Poly, prp::DepthKernel::Auto);
 }
 BENCHMARK(BM_PrpDepthUyvyField)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpDepthUyvyFieldScalar)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpDepthUyvyFieldGather)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpDepthUyvyFieldGatherScalar)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpPolyUyvyFieldWithFit)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpUyvyField)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpUyvyFieldScalar)->Unit(benchmark::kMicrosecond);

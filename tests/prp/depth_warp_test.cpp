@@ -92,7 +92,7 @@ TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
                 for (int parity : {0, 1}) {
                     detail::projectRowScalar(p, depth.data(), 0, n, y, parity,
                                              {i0.data(), z0.data(), x0.data(), y0.data()});
-                    detail::projectRowAvx2(p, depth.data(), n, y, parity,
+                    detail::projectRowAvx2(p, depth.data(), 0, n, y, parity,
                                            {i1.data(), z1.data(), x1.data(), y1.data()});
                     for (int x = 0; x < n; ++x) {
                         ASSERT_EQ(i0[x], i1[x]) << "width " << width << " x " << x;
@@ -219,6 +219,48 @@ TEST(AutoWarp, CheckPointsAreExactAtTheFramePoseAnyRoll) {
         FitOptions fo;
         const WarpInfo w = fitWarp(frame, at, g, fo, nullptr);
         EXPECT_LT(warpCheckError(w, {pts.data(), n}), 1e-6) << "roll " << roll;
+    }
+}
+
+// Beyond the rendered frame the depth warp (splat or gather) and auto's depth fields honour
+// --edge-fill as the quadratic does: with the haze below the horizon, every pixel the fill
+// rewrote (it differs from the repeated edge) where the quadratic's was rewritten too is the
+// quadratic's pixel, which depends only on the output pixel and the pose.
+TEST(DepthWarp, EdgeFillBeyondTheFrameAsTheQuadratic) {
+    const ig::Pose pose = test::lookingDown(-10.0, 300.0);  // horizon in view
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    ig::Pose at = pose;
+    at.yaw += 0.35;  // a third of the field beyond the frame's right edge
+    at.position += glm::dvec3{5.0, 10.0, -3.0};
+    const auto run = [&](WarpModel m, EdgeFill fill, DepthMethod method) {
+        PrpOptions o = options(m);
+        o.edgeFill = fill;
+        o.depthMethod = method;
+        o.autoThresholdPx = 1e-9;  // auto takes the depth warp
+        Field f;
+        PostRenderingProcessor(o).process(frame, at, 0.0, 1, f);
+        return f;
+    };
+    const Field poly = run(WarpModel::Poly, EdgeFill::SkyHaze, DepthMethod::Splat);
+    const Field polyRepeat = run(WarpModel::Poly, EdgeFill::Repeat, DepthMethod::Splat);
+    for (const WarpModel m : {WarpModel::Depth, WarpModel::Auto}) {
+        for (const DepthMethod method : {DepthMethod::Splat, DepthMethod::Gather}) {
+            const Field repeat = run(m, EdgeFill::Repeat, method);
+            const Field haze = run(m, EdgeFill::SkyHaze, method);
+            ASSERT_EQ(haze.warp.model, WarpModel::Depth);
+            ASSERT_GT(haze.edgeSamples, 0u);
+            std::size_t filled = 0, both = 0;
+            for (std::size_t i = 0; i < haze.pixels.size(); i += 3) {
+                if (std::memcmp(&haze.pixels[i], &repeat.pixels[i], 3) == 0) continue;
+                ++filled;
+                // Near the frame's edge the models may disagree on which side a point lies.
+                if (std::memcmp(&poly.pixels[i], &polyRepeat.pixels[i], 3) == 0) continue;
+                ++both;
+                ASSERT_EQ(std::memcmp(&haze.pixels[i], &poly.pixels[i], 3), 0) << "pixel " << i / 3;
+            }
+            EXPECT_GT(filled, haze.edgeSamples / 2);
+            EXPECT_GT(both, 9 * filled / 10);
+        }
     }
 }
 
