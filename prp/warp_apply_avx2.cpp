@@ -190,8 +190,12 @@ struct ArrayLanes {
     }
 };
 
+// Flattened: everything it calls from the shared kernel header (writePixels, Sampler::sample
+// for the edge pixels) is inlined here, compiled for AVX2, and never emitted out of line as a
+// weak symbol the linker could hand to the baseline code (scripts/isa-symbols.sh,
+// prp.isa_objects_share_no_code).
 template <PixelFormat kFormat, bool kGain, bool kAgc, class Lanes>
-VIG_TARGET_AVX2 ApplyResult warpAvx2(const SourceView& source, Lanes& lanes, const FieldView& field,
+[[gnu::flatten]] VIG_TARGET_AVX2 ApplyResult warpAvx2(const SourceView& source, Lanes& lanes, const FieldView& field,
                                      int gainQ8) {
     Sampler s(source);
     std::uint64_t luma = 0;
