@@ -190,12 +190,20 @@ struct ArrayLanes {
     }
 };
 
-// Flattened: everything it calls from the shared kernel header (writePixels, Sampler::sample
-// for the edge pixels) is inlined here, compiled for AVX2, and never emitted out of line as a
-// weak symbol the linker could hand to the baseline code (scripts/isa-symbols.sh,
-// prp.isa_objects_share_no_code).
+// The pixels the vector code leaves to the scalar code (edges, a line's last width % 8): the
+// shared kernel header's writePixels and Sampler::sample, flattened into this object's own
+// copy (internal linkage, baseline code, out of the vector loop as the sampler's call was), so
+// that no weak symbol is left for the linker to share with the baseline objects
+// (scripts/isa-symbols.sh, prp.isa_objects_share_no_code).
+template <PixelFormat kFormat, bool kGain, bool kAgc, class Positions>
+[[gnu::noinline, gnu::flatten]] std::uint8_t* edgePixels(Sampler& s, Positions& pos, int count,
+                                                         int gainQ8, std::uint8_t* out,
+                                                         std::uint64_t& luma) {
+    return writePixels<kFormat, kGain, kAgc>(s, pos, count, gainQ8, out, luma);
+}
+
 template <PixelFormat kFormat, bool kGain, bool kAgc, class Lanes>
-[[gnu::flatten]] VIG_TARGET_AVX2 ApplyResult warpAvx2(const SourceView& source, Lanes& lanes, const FieldView& field,
+VIG_TARGET_AVX2 ApplyResult warpAvx2(const SourceView& source, Lanes& lanes, const FieldView& field,
                                      int gainQ8) {
     Sampler s(source);
     std::uint64_t luma = 0;
@@ -349,7 +357,7 @@ template <PixelFormat kFormat, bool kGain, bool kAgc, class Lanes>
                 store(py, ya);
                 store(py + 4, yb);
                 ArrayPositions pos{px, py, kSlot};
-                out = writePixels<kFormat, kGain, kAgc>(s, pos, 8, gainQ8, out, luma);
+                out = edgePixels<kFormat, kGain, kAgc>(s, pos, 8, gainQ8, out, luma);
             }
             lanes.step();
         }
@@ -360,11 +368,11 @@ template <PixelFormat kFormat, bool kGain, bool kAgc, class Lanes>
                 store(py, lanes.ya);
                 store(py + 4, lanes.yb);
                 ArrayPositions pos{px, py, kSlot};
-                writePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
+                edgePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
             } else {
                 // The line's last width % 8 points, in natural order.
                 LinePositions pos{lanes.x, lanes.y};
-                writePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
+                edgePixels<kFormat, kGain, kAgc>(s, pos, width - i, gainQ8, out, luma);
             }
         }
         if constexpr (kAgc) luma += sumLanes(lumaSum);
