@@ -43,16 +43,22 @@ std::string_view casterKernelName(CasterKernel kernel) {
             return "avx2";
         case CasterKernel::Avx512:
             return "avx512";
+        case CasterKernel::Rows4Portable:
+            return "rows4-portable";
+        case CasterKernel::Rows8Portable:
+            return "rows8-portable";
     }
     return "?";
 }
 
 CasterKernel parseCasterKernel(std::string_view name) {
     for (const CasterKernel k :
-         {CasterKernel::Auto, CasterKernel::Scalar, CasterKernel::Avx2, CasterKernel::Avx512}) {
+         {CasterKernel::Auto, CasterKernel::Scalar, CasterKernel::Avx2, CasterKernel::Avx512,
+          CasterKernel::Rows4Portable, CasterKernel::Rows8Portable}) {
         if (name == casterKernelName(k)) return k;
     }
-    throw InputError("kernel '" + std::string(name) + "': expected auto, scalar, avx2 or avx512");
+    throw InputError("kernel '" + std::string(name) +
+                     "': expected auto, scalar, avx2, avx512, rows4-portable or rows8-portable");
 }
 
 std::string casterKernelMissing(CasterKernel kernel) {
@@ -60,6 +66,8 @@ std::string casterKernelMissing(CasterKernel kernel) {
     switch (kernel) {
         case CasterKernel::Auto:
         case CasterKernel::Scalar:
+        case CasterKernel::Rows4Portable:
+        case CasterKernel::Rows8Portable:
             return {};
         case CasterKernel::Avx2:
             return cpu.avx2 ? std::string() : std::string("AVX2");

@@ -38,17 +38,23 @@ struct SkyModel {
 inline constexpr int kLevelsAuto = -1;
 inline constexpr int kSupersampleAuto = 0;
 
-// The fast caster's kernels (docs/design/ray_casting.md), chosen once when the caster is built;
-// every one gives the scalar kernel's image to the bit. Auto: the widest the processor has.
+// The fast caster's kernels (docs/design/ray_casting.md), chosen once when the caster is built.
+// On the single level every one gives the scalar kernel's image to the bit; the row batches
+// give their portable twins' to the bit and the scalar kernel's within the multiresolution
+// caster's accuracy (docs/design/multires.md). Auto: the widest the processor has.
 // Scalar: one column at a time, one ray at a time (the twin the vector kernels are tested
 // against). Avx2: four adjacent columns at a time on the single level (one ray per pixel),
 // four rows of a column at a time on the multiresolution caster. Avx512: eight rows at a time
 // on the multiresolution caster (four where eight do not go together); the single level has no
-// wider kernel than Avx2 and runs that.
-enum class CasterKernel { Auto, Scalar, Avx2, Avx512 };
+// wider kernel than Avx2 and runs that. Rows4Portable, Rows8Portable: the Avx2 and Avx512 row
+// batches' twins, the same template on portable lanes compiled for no instruction set, equal
+// to them to the bit on any processor; never chosen by Auto (slow: for tests). On the single
+// level they run the scalar kernel (the four-column packets' twin).
+enum class CasterKernel { Auto, Scalar, Avx2, Avx512, Rows4Portable, Rows8Portable };
 
 std::string_view casterKernelName(CasterKernel kernel);
-// Parses "auto" | "scalar" | "avx2" | "avx512"; throws InputError otherwise.
+// Parses "auto" | "scalar" | "avx2" | "avx512" | "rows4-portable" | "rows8-portable"; throws
+// InputError otherwise.
 CasterKernel parseCasterKernel(std::string_view name);
 // What the running processor lacks to run `kernel` ("AVX2", "AVX-512 F/DQ/VL/BW"); empty when
 // it can (always for Auto and Scalar).

@@ -161,7 +161,8 @@ void FastCaster::renderUnit(const Camera& camera, RenderedFrame& frame, int unit
 
 void FastCaster::chooseKernel() {
     CasterKernel k = options_.kernel;
-    // The vector gathers index colour bytes with 32-bit offsets.
+    const bool portable = k == CasterKernel::Rows4Portable || k == CasterKernel::Rows8Portable;
+    // The vector gathers index colour bytes with 32-bit offsets (the portable twins too).
     const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
     if (k == CasterKernel::Auto) {
         const base::CpuFeatures& cpu = base::cpuFeatures();
@@ -171,7 +172,8 @@ void FastCaster::chooseKernel() {
                                             : CasterKernel::Scalar;
     } else if (k != CasterKernel::Scalar) {
         std::string missing = casterKernelMissing(k);
-        if (!VIG_CASTER_PACKETS) missing = "this build's vector code (x86-64 only)";
+        if (!portable && !VIG_CASTER_PACKETS) missing = "this build's vector code (x86-64 only)";
+        if (portable && !VIG_CASTER_ROWS) missing = "this build's vector types (GCC or Clang)";
         if (!missing.empty()) {
             throw InputError("kernel " + std::string(casterKernelName(k)) +
                              ": the processor lacks " + missing);
@@ -190,7 +192,26 @@ void FastCaster::chooseKernel() {
         renderUnit_ = super ? &FastCaster::renderLinearColumn<true, 0>
                             : &FastCaster::renderLinearColumn<false, 0>;
         // The row batches, each compiled for its instruction set (caster_rows_*.cpp): four
-        // lanes with AVX2; eight with AVX-512, and four where eight do not go.
+        // lanes with AVX2; eight with AVX-512, and four where eight do not go. Their portable
+        // twins the same, on lanes compiled for no instruction set.
+#if VIG_CASTER_ROWS
+        if (k == CasterKernel::Rows4Portable || k == CasterKernel::Rows8Portable) {
+            rowsNarrow_ = rows_portable::kernel4();
+            CHECK(rowsNarrow_.lanes == 4) << "this build lacks the portable row batches";
+        }
+        if (k == CasterKernel::Rows8Portable) {
+            rowsWide_ = rows_portable::kernel8();
+            CHECK(rowsWide_.lanes == 8) << "this build lacks the portable row batches";
+        }
+        if (portable) {
+            kernel_ = k;
+            const bool wide = k == CasterKernel::Rows8Portable;
+            renderUnit_ = super  ? (wide ? &FastCaster::renderLinearColumn<true, 8>
+                                         : &FastCaster::renderLinearColumn<true, 4>)
+                          : wide ? &FastCaster::renderLinearColumn<false, 8>
+                                 : &FastCaster::renderLinearColumn<false, 4>;
+        }
+#endif
 #if VIG_CASTER_PACKETS
         if (k == CasterKernel::Avx2 || k == CasterKernel::Avx512) {
             rowsNarrow_ = rows_avx2::kernel();
@@ -214,8 +235,9 @@ void FastCaster::chooseKernel() {
         return;
     }
 #if VIG_CASTER_PACKETS
-    // The single level has four-column packets (AVX2) only, for one ray per pixel.
-    if (k != CasterKernel::Scalar && !super) {
+    // The single level has four-column packets (AVX2) only, for one ray per pixel (their twin
+    // is the scalar kernel, which the portable kernels run there).
+    if ((k == CasterKernel::Avx2 || k == CasterKernel::Avx512) && !super) {
         kernel_ = CasterKernel::Avx2;
         renderUnit_ = &FastCaster::renderPacketUnit;
         columnsPerUnit_ = 4;
@@ -795,21 +817,21 @@ inline void FastCaster::renderLinearColumn(const MapView& mv, const Camera& came
             depthOut[idx] = tHit >= 0.0 ? static_cast<float>(tHit) : kSkyDepth;
         }
     };
-#if VIG_CASTER_PACKETS
+#if VIG_CASTER_ROWS
     constexpr bool rows = kLanes >= 4;
     constexpr bool wide = kLanes == 8;
 #endif
     const int rays = h * sub;
     int single = 0;  // rays to cast one by one before trying a batch again
     for (int v = rays - 1; v >= 0;) {
-#if VIG_CASTER_PACKETS
+#if VIG_CASTER_ROWS
         // Sky above the map's highest point goes in batches again.
         if (single > 0 && st.prevAbove) single = 0;
         if (!kSuper && rows && single == 0 && v >= 3 && st.havePrev) {
             // Batches run inside the vector code, as many at a time as go.
             RowsOutcome r = RowsOutcome::kOther;
             bool tried = false;
-#if VIG_CASTER_WIDE
+#if VIG_CASTER_ROWS
             if (wide && v >= 7) {
                 v = rowsWide_.run(rows_, cc, st, v, rays, colorOut, depthOut,
                                   static_cast<std::size_t>(w), r);
@@ -835,7 +857,7 @@ inline void FastCaster::renderLinearColumn(const MapView& mv, const Camera& came
             double tHit[8];
             int n = 4;
             RowsOutcome r = RowsOutcome::kOther;
-#if VIG_CASTER_WIDE
+#if VIG_CASTER_ROWS
             if (wide && v >= 7) {
                 n = 8;
                 double yy[8];

@@ -9,40 +9,74 @@
 // carry the AVX2 target attribute, for the packets' object compiled for the baseline; the
 // AVX-512 row batches declare their own eight-lane primitives (gather32, texelChannel,
 // texelsFromEarlier) before including this header, so that cellColors finds them.
+//
+// The portable row batches (caster_rows_portable.cpp, the vector kernels' scalar twins) define
+// VIG_CASTER_LANES_PORTABLE before including this header: they get the operations written once
+// for every lane width, without any target attribute, and declare their own lane-by-lane
+// primitives; the x86 primitives are left out.
 #pragma once
 
 #include "ig/caster.hpp"
 #include "ig/fast_column.hpp"
 #include "ig/level0_march.hpp"
 
-#if VIG_CASTER_PACKETS
-#include <immintrin.h>
-
 #include <cstdint>
 #include <cstring>
 
+#if VIG_CASTER_PACKETS
+#include <immintrin.h>
+
 #define VIG_CASTER_AVX2 __attribute__((target("avx2")))
+#endif
+
+#if VIG_CASTER_LANES_PORTABLE
+#define VIG_CASTER_LANES_TARGET
+#else
+#define VIG_CASTER_LANES_TARGET VIG_CASTER_AVX2
+#endif
+
+#if VIG_CASTER_PACKETS || VIG_CASTER_LANES_PORTABLE
 
 namespace ig::fast {
 namespace {
 
-using V4 = double __attribute__((vector_size(32)));
-using M4 = decltype(V4{} < V4{});
-
 // std::max, std::min and std::clamp to [0, 1] on N lanes, with their exact semantics.
 template <class V>
-[[gnu::always_inline]] VIG_CASTER_AVX2 inline V vmax(V a, V b) {
+[[gnu::always_inline]] VIG_CASTER_LANES_TARGET inline V vmax(V a, V b) {
     return a < b ? b : a;
 }
 template <class V>
-[[gnu::always_inline]] VIG_CASTER_AVX2 inline V vmin(V a, V b) {
+[[gnu::always_inline]] VIG_CASTER_LANES_TARGET inline V vmin(V a, V b) {
     return b < a ? b : a;
 }
 template <class V>
-[[gnu::always_inline]] VIG_CASTER_AVX2 inline V vclamp01(V v) {
+[[gnu::always_inline]] VIG_CASTER_LANES_TARGET inline V vclamp01(V v) {
     const V zero = V{} + 0.0, one = V{} + 1.0;
     return v < zero ? zero : (one < v ? one : v);
 }
+
+// The surface where each lane crosses a level-0 major line, linear along the line:
+// lineSample's h, h0, h1 and i (an integer-valued double), lane by lane.
+template <class V>
+struct LineN {
+    V h, h0, h1, i;
+};
+
+// One step of a row batch's lanes from major line A to line B (stepHits): A's cell iA
+// (an integer-valued double) and the ray's height over A's sample on the side the track
+// moves to, dEdgeA; the minor coordinate nA at A; B's ray height zB; the ray's height over
+// the surface at A (above) and at B (below); A and B's major distances uA, uB; the step's
+// index k.
+template <class V>
+struct LaneStep {
+    V iA, dEdgeA, nA, zB, above, below;
+    double uA, uB;
+    long k;
+};
+
+#if !VIG_CASTER_LANES_PORTABLE
+using V4 = double __attribute__((vector_size(32)));
+using M4 = decltype(V4{} < V4{});
 
 [[gnu::always_inline]] VIG_CASTER_AVX2 inline V4 vsqrt(V4 v) {
     return reinterpret_cast<V4>(_mm256_sqrt_pd(reinterpret_cast<__m256d>(v)));
@@ -80,25 +114,6 @@ template <int kScale>
 [[gnu::always_inline]] VIG_CASTER_AVX2 inline __m128i texelsFromEarlier(__m128i texels) {
     return _mm_srli_epi32(texels, 8);
 }
-
-// The surface where each lane crosses a level-0 major line, linear along the line:
-// lineSample's h, h0, h1 and i (an integer-valued double), lane by lane.
-template <class V>
-struct LineN {
-    V h, h0, h1, i;
-};
-
-// One step of a row batch's lanes from major line A to line B (stepHits): A's cell iA
-// (an integer-valued double) and the ray's height over A's sample on the side the track
-// moves to, dEdgeA; the minor coordinate nA at A; B's ray height zB; the ray's height over
-// the surface at A (above) and at B (below); A and B's major distances uA, uB; the step's
-// index k.
-template <class V>
-struct LaneStep {
-    V iA, dEdgeA, nA, zB, above, below;
-    double uA, uB;
-    long k;
-};
 
 // Whether the four 32-bit lanes of v are equal.
 [[gnu::always_inline]] VIG_CASTER_AVX2 inline bool sameInAllLanes(__m128i v) {
@@ -195,10 +210,12 @@ template <bool kMajorX>
     storeRgb(q[0], q[1], q[2], c);
 }
 
+#endif  // !VIG_CASTER_LANES_PORTABLE
+
 // cellColor on N lanes (the unused lanes must carry a valid cell).
 template <class V>
-[[gnu::always_inline]] VIG_CASTER_AVX2 inline void cellColors(const MapView& mv, V cx, V cy, V fx,
-                                                              V fy, V rgb[3]) {
+[[gnu::always_inline]] VIG_CASTER_LANES_TARGET inline void cellColors(const MapView& mv, V cx, V cy,
+                                                                      V fx, V fy, V rgb[3]) {
     fx = vclamp01(fx);
     fy = vclamp01(fy);
     const V i00 = cy * static_cast<double>(mv.width) + cx;
@@ -219,4 +236,4 @@ template <class V>
 }  // namespace
 }  // namespace ig::fast
 
-#endif  // VIG_CASTER_PACKETS
+#endif  // VIG_CASTER_PACKETS || VIG_CASTER_LANES_PORTABLE

@@ -4,10 +4,11 @@
 // precision, so every width gives the image rays one by one give.
 //
 // Included only by the row-batch objects, one per instruction set (caster_rows_avx2.cpp,
-// caster_rows_avx512.cpp, each compiled with its instruction set's flags), after the lane
-// primitives for V (caster_lanes.hpp and the object's own). The template lives in an anonymous
-// namespace: its instances have internal linkage, so no other object can be handed them. What
-// it calls from the rest of the caster is out of line, compiled for the baseline (climbsClear,
+// caster_rows_avx512.cpp, each compiled with its instruction set's flags) and their scalar
+// twins' (caster_rows_portable.cpp: the same template on portable lanes, compiled for none),
+// after the lane primitives for V (caster_lanes.hpp and the object's own). The template lives in an
+// anonymous namespace: its instances have internal linkage, so no other object can be handed them.
+// What it calls from the rest of the caster is out of line, compiled for the baseline (climbsClear,
 // FarMarch::linearFar); the shared inline code it uses (skipNodes, applyHaze, skyColor,
 // std::min ...) is inlined, never emitted here (the objects are compiled at -O1 at least, and
 // scripts/isa-symbols.sh checks that they define no weak symbol). See docs/design/multires.md,

@@ -25,6 +25,13 @@
 #define VIG_CASTER_PACKETS 0
 #define VIG_CASTER_WIDE 0
 #endif
+// The row batches' portable twins (GCC and Clang vector types, lowered lane by lane by the
+// compiler for any processor) exist wherever the compiler has them.
+#if defined(__GNUC__) || defined(__clang__)
+#define VIG_CASTER_ROWS 1
+#else
+#define VIG_CASTER_ROWS 0
+#endif
 
 namespace ig {
 
@@ -97,7 +104,8 @@ struct RowsCaster {
 };
 
 // One lane width's row batches, each compiled for its instruction set (caster_rows_avx2.cpp,
-// caster_rows_avx512.cpp) and picked once, when the caster is made.
+// caster_rows_avx512.cpp) or for none (caster_rows_portable.cpp, their twins) and picked
+// once, when the caster is made.
 struct RowKernel {
     // Batches of N rows down from image row y (one ray per pixel) while they go and at most
     // `batches` of them, each batch's pixels written to the column (colour and depth, row
@@ -125,5 +133,12 @@ fast::RowKernel kernel();
 namespace rows_avx512 {
 fast::RowKernel kernel();
 }
+// The same template on portable lanes of four and eight doubles, compiled without any
+// instruction-set flag: each vector kernel's scalar twin, equal to it to the bit. Never chosen
+// by default; runs on any processor (empty where the compiler lacks vector types).
+namespace rows_portable {
+fast::RowKernel kernel4();
+fast::RowKernel kernel8();
+}  // namespace rows_portable
 
 }  // namespace ig

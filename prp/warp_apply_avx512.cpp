@@ -113,9 +113,14 @@ VIG_TARGET_AVX512 inline __m512i load4x2(const std::uint8_t* base, const Offsets
                               load2x2Masked(base, p[2], p[3]), 1);
 }
 
+// Flattened: what it calls from the shared kernel header for the pixels the vector code leaves
+// to the scalar code (writePixels, Sampler::sample) is inlined here, at every optimisation
+// level (at -O1 the compiler emitted weak writePixels copies), so that no weak symbol is left
+// for the linker to share with the baseline objects (scripts/isa-symbols.sh).
 template <PixelFormat kFormat, bool kGain, bool kAgc>
-VIG_TARGET_AVX512 ApplyResult quadraticAvx512(const SourceView& source, const Quadratic& q,
-                                              const FieldView& field, int gainQ8) {
+[[gnu::flatten]] VIG_TARGET_AVX512 ApplyResult quadraticAvx512(const SourceView& source,
+                                                               const Quadratic& q,
+                                                               const FieldView& field, int gainQ8) {
     Sampler s(source);
     QuadraticRows rows{q};
     std::uint64_t luma = 0;

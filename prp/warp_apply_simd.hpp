@@ -14,7 +14,10 @@
 #define VIG_TARGET_AVX512 \
     __attribute__((target("avx2,avx512f,avx512bw,avx512dq,avx512vl,avx512vbmi")))
 
+// In an anonymous namespace: each kernel object has its own copies, and no weak symbol with
+// AVX2 code is left for the linker to share (scripts/isa-symbols.sh).
 namespace prp::detail::simd {
+namespace {
 
 // Two 16-bit words in one dword (lo | hi << 16), as _mm256_madd_epi16 reads them.
 constexpr int words(int lo, int hi) {
@@ -44,6 +47,7 @@ VIG_TARGET_AVX2 inline __m256i load2x2(const std::uint8_t* base, Offsets2 lo, Of
                               0xf0);
 }
 
+}  // namespace
 }  // namespace prp::detail::simd
 
 #endif  // VIG_PRP_HAVE_AVX2

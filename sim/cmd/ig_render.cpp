@@ -455,8 +455,10 @@ int main(int argc, char** argv) {
                    "(all) | 0 (single level, exact) | N (at most N)")
         ->capture_default_str();
     app.add_option("--kernel", kernelText,
-                   "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512; "
-                   "the same image with each, refused where the processor lacks it")
+                   "Fast caster: auto (the widest the processor has) | scalar | avx2 | avx512, "
+                   "refused where the processor lacks it | rows4-portable | rows8-portable (the "
+                   "row batches' scalar twins, for tests: the avx2 and avx512 images on any "
+                   "processor)")
         ->capture_default_str();
     std::string scenePath, objectsOut;
     std::optional<double> sceneTime;

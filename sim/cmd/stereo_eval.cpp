@@ -139,7 +139,8 @@ int main(int argc, char** argv) {
     app.add_option("--json", jsonPath, "Results as JSON ('-': standard output)");
     std::string kernelText = "auto";
     app.add_option("--kernel", kernelText,
-                   "Fast caster's kernel: auto | scalar | avx2 | avx512 (the same images)")
+                   "Fast caster's kernel: auto | scalar | avx2 | avx512 | rows4-portable | "
+                   "rows8-portable (docs/design/ray_casting.md)")
         ->capture_default_str();
     CLI11_PARSE(app, argc, argv);
 
