@@ -205,15 +205,28 @@ void PagedTerrain::release(int tx, int ty) {
     }
 }
 
+TileKey PagedTerrain::tileUnder(double x, double y) const {
+    const int t = db_.layout().tileSize();
+    const int cx = std::clamp(static_cast<int>(std::floor(x / map_.spacingX())), 0,
+                              std::max(map_.width() - 2, 0));
+    const int cy = std::clamp(static_cast<int>(std::floor(y / map_.spacingY())), 0,
+                              std::max(map_.height() - 2, 0));
+    return TileKey{TileKind::Display, 0, cx / t, cy / t};
+}
+
+PagedFrameStats PagedTerrain::placeAround(double x, double y) {
+    return page({tileUnder(x, y)}, {}, true);
+}
+
 PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm::dvec3& velocity,
                                       double yawRate) {
-    PagedFrameStats st;
-    st.frame = ++frame_;
     const TerrainDbLayout& layout = db_.layout();
     const TerrainDbInfo& info = db_.info();
     // The casters reading this map march level 0 everywhere.
     const LevelSelection selection = LevelSelection::forCamera(camera.intrinsics(), info, 0);
-    const Footprint fp = frameFootprint(camera, layout, info, selection);
+    Footprint fp = frameFootprint(camera, layout, info, selection);
+    // The ground under the eye too (the check that the eye is above it, height queries).
+    fp.tiles.insert(tileUnder(camera.pose().position.x, camera.pose().position.y));
     std::set<TileKey> prefetch;
     if (velocity != glm::dvec3(0.0) || yawRate != 0.0) {
         prefetch =
@@ -225,11 +238,18 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
     }
     for (const TileKey& k : fp.tiles)
         prefetch.erase(k);
-    cache_.beginFrame(frame_, fp.tiles, prefetch);
+    return page(fp.tiles, prefetch, wait);
+}
+
+PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
+                                   const std::set<TileKey>& prefetch, bool wait) {
+    PagedFrameStats st;
+    st.frame = ++frame_;
+    cache_.beginFrame(frame_, required, prefetch);
     if (wait) cache_.waitIdle();
 
     std::set<Cell> needed;
-    for (const TileKey& k : fp.tiles)
+    for (const TileKey& k : required)
         if (k.kind == TileKind::Display && k.level == 0) needed.insert({k.tx, k.ty});
     st.required = needed.size();
 

@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,6 +67,11 @@ class PagedTerrain {
     PagedFrameStats prepare(const Camera& camera, bool wait, const glm::dvec3& velocity = {},
                             double yawRate = 0.0);
 
+    // Places the level-0 tile under world (x, y) (clamped to the map), waiting for it, and
+    // only it (what a program needs before its first frame: the ground under a pose given as
+    // a height above it). The next prepare() keeps it only if its frame needs it.
+    PagedFrameStats placeAround(double x, double y);
+
     // Level-0 tiles placed in the map now, and how many of them are stand-ins.
     std::size_t placedTiles() const { return placed_.size(); }
     std::size_t substitutedTiles() const;
@@ -79,6 +85,9 @@ class PagedTerrain {
     };
     using Cell = std::pair<int, int>;  // (tx, ty) of level 0
 
+    TileKey tileUnder(double x, double y) const;
+    PagedFrameStats page(const std::set<TileKey>& required, const std::set<TileKey>& prefetch,
+                         bool wait);
     void copyTile(const TerrainTile& tile);
     void fillFromCoarser(int tx, int ty, const TerrainTile& coarse);
     void updateCellMax(int tx, int ty);
