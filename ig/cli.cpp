@@ -274,8 +274,13 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
                     base::quoted(o.sunTime));
             }
         } else if (!usesShippedMap(terrain)) {
-            throw InputError(
-                "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
+            const auto geo = geodeticOrigin(map.georeference());
+            if (!geo) {
+                throw InputError(
+                    "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
+            }
+            lat = (*geo)[0];
+            lon = (*geo)[1];
         }
         a.sun = sunAt(lat, lon, days);
         a.sunClock.almanac = true;

@@ -277,12 +277,5 @@ TEST(PagedTerrain, CorruptTileInFlightIsAReportedHoleAndFramesGoOn) {
     std::filesystem::remove(path);
 }
 
-TEST(PagedTerrain, CarriesTheDatabasesGeoreference) {
-    const PagedFixture& f = fixture();
-    const TerrainDb db = TerrainDb::open(f.path);
-    PagedTerrain paged(db, smallBudget());
-    EXPECT_EQ(paged.map().georeference().crs, db.info().crs);
-}
-
 }  // namespace
 }  // namespace ig
