@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -204,6 +205,10 @@ TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
         differ += d > 0;
         sum += d / 3.0;
     }
+    std::printf(
+        "withheld tile (%d, %d) from level %d: %zu of %zu pixels differ, mean colour "
+        "error %.3f levels\n",
+        tx, ty, k, differ, full.color.size(), sum / full.color.size());
     EXPECT_GT(differ, 0u) << "the withheld tile is in view";
     EXPECT_LT(sum / full.color.size(), 4.0) << "mean colour error over the frame, levels";
 
