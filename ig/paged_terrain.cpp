@@ -10,6 +10,8 @@
 
 #include "ig/pyramid.hpp"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -77,6 +79,24 @@ std::size_t PagedTerrain::placedBytes() const {
     // Heights, colours and cell maxima: rows of at most T + 1 samples, each row spanning at
     // most two pages per array.
     return placed_.size() * static_cast<std::size_t>(t + 1) * 3 * 2 * kPage;
+}
+
+std::size_t PagedTerrain::residentMapBytes() const {
+    auto resident = [](const void* data, std::size_t bytes) -> std::size_t {
+        if (bytes == 0) return 0;
+        const std::size_t pages = (bytes + kPage - 1) / kPage;
+        std::vector<unsigned char> in(pages);
+        if (mincore(const_cast<void*>(data), pages * kPage, in.data()) != 0) return 0;
+        std::size_t n = 0;
+        for (const unsigned char c : in)
+            n += c & 1;
+        return n * kPage;
+    };
+    return resident(map_.rawHeights().data(), map_.rawHeights().size() * sizeof(std::uint16_t)) +
+           resident(map_.colors().data(), map_.colors().size() * sizeof(Rgb8)) +
+           resident(map_.cellMaxData(),
+                    (static_cast<std::size_t>(map_.width() - 1) * (map_.height() - 1) + 2) *
+                        sizeof(std::uint16_t));
 }
 
 bool PagedTerrain::samplePlaced(int x, int y) const {

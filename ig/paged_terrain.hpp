@@ -75,8 +75,10 @@ class PagedTerrain {
     // Level-0 tiles placed in the map now, and how many of them are stand-ins.
     std::size_t placedTiles() const { return placed_.size(); }
     std::size_t substitutedTiles() const;
-    // Bytes of the map's pages that placed tiles cover (an upper bound on the map's memory).
+    // Bytes of the map's pages that placed tiles can cover (a bound on the map's memory).
     std::size_t placedBytes() const;
+    // Bytes of the map's arrays in memory now (mincore over the sparse blocks).
+    std::size_t residentMapBytes() const;
 
   private:
     struct Placed {

@@ -95,11 +95,19 @@ TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
             const RenderedFrame a = renderFrame(*inMemory, f.map, p, kView);
             const RenderedFrame b = renderFrame(*fromCache, paged.map(), p, kView);
             expectSameImage(a, b, std::string(casterName(kind)) + " pose " + std::to_string(pose));
-            // Only the frame's tiles stay placed.
+            // Only the frame's tiles stay placed, and the map's memory follows them.
             EXPECT_EQ(paged.placedTiles(), st.required);
+            EXPECT_LE(paged.residentMapBytes(), paged.placedBytes());
+            EXPECT_GT(paged.residentMapBytes(), 0u);
             ++pose;
         }
     }
+    // The map's arrays take 7 bytes a sample, 7.4 MB: the pages of one frame's tiles stay.
+    const std::size_t wholeMap = static_cast<std::size_t>(f.map.width()) * f.map.height() * 7;
+    std::printf("map pages resident after the sweep: %zu bytes for %zu tiles (whole map %zu)\n",
+                paged.residentMapBytes(), paged.placedTiles(), wholeMap);
+    EXPECT_LT(paged.residentMapBytes(), wholeMap / 4)
+        << paged.residentMapBytes() << " bytes resident";
     const TileCacheStats s = paged.cache().stats();
     EXPECT_GT(s.evictions, 0u) << "the sweep must page";
     EXPECT_GT(s.bytesRead, paged.cache().budgetBytes());
