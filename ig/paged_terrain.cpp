@@ -292,7 +292,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             const std::string failure = cache_.failure(key);
             if (!failure.empty()) {
                 ++st.failed;
-                if (it == placed_.end() || !it->second.failed) st.failures.push_back(failure);
+                if (reported_.insert(c).second) st.failures.push_back(failure);
             }
             tile = cache_.findOrCoarser(key);
             if (!tile) {

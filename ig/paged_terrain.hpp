@@ -33,7 +33,7 @@ struct PagedFrameStats {
     std::size_t failed = 0;             // of those, unreadable (corrupt, truncated): reported holes
     std::size_t holes = 0;              // nothing resident above either: left as they were
     std::size_t released = 0;           // placed tiles no longer needed, their pages given back
-    std::vector<std::string> failures;  // the messages of the failed tiles first seen this frame
+    std::vector<std::string> failures;  // messages of failed tiles, each reported once
 };
 
 class PagedTerrain {
@@ -83,7 +83,7 @@ class PagedTerrain {
   private:
     struct Placed {
         int sourceLevel = 0;  // 0: the tile itself; k > 0: upsampled from level k
-        bool failed = false;  // its own read failed (counted once)
+        bool failed = false;  // its own read failed
     };
     using Cell = std::pair<int, int>;  // (tx, ty) of level 0
 
@@ -101,6 +101,7 @@ class PagedTerrain {
     TileCache cache_;
     TerrainMap map_;
     std::map<Cell, Placed> placed_;
+    std::set<Cell> reported_;  // failed tiles already reported
     std::uint64_t frame_ = 0;
 };
 
