@@ -32,8 +32,8 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
                    "Terrain database (ig-build-db) instead of files, loaded whole when it fits "
                    "--cache-mb");
     app.add_option("--cache-mb", o.cacheMb,
-                   "Memory for the terrain database's map, MB (default 4096); a larger map is "
-                   "refused (paged rendering is not yet supported)");
+                   "Memory for the terrain database, MB (default 4096): a larger map is paged by "
+                   "the view (ig-render with --caster reference|naive; refused elsewhere)");
 }
 
 namespace {
@@ -123,25 +123,39 @@ bool usesShippedMap(const TerrainOptions& o) {
     return o.height.empty() && o.synthetic.empty() && o.db.empty();
 }
 
+double databaseMemoryMb(const TerrainDb& db) {
+    // Heights, colours and cell maxima, and the pyramid's third more.
+    return 7.0 * 4.0 / 3.0 * db.info().width * db.info().height / (1 << 20);
+}
+
+bool databaseNeedsPaging(const TerrainOptions& o, const TerrainDb& db) {
+    return databaseMemoryMb(db) > o.cacheMb;
+}
+
+void checkDatabaseOptions(const TerrainOptions& o) {
+    if (o.db.empty()) return;
+    if (!o.height.empty() || !o.color.empty() || !o.synthetic.empty() || o.spacing ||
+        o.heightScale || o.heightOffset || o.voidHeight) {
+        throw InputError("--db: the database holds the map; give no other terrain flags");
+    }
+    if (!(o.cacheMb > 0) || !std::isfinite(o.cacheMb) || o.cacheMb > 1e8) {
+        throw InputError("--cache-mb: must be a positive number of MB (at most 1e8)");
+    }
+}
+
 TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
     if (!o.db.empty()) {
-        if (!o.height.empty() || !o.color.empty() || !o.synthetic.empty() || o.spacing ||
-            o.heightScale || o.heightOffset || o.voidHeight) {
-            throw InputError("--db: the database holds the map; give no other terrain flags");
-        }
-        if (!(o.cacheMb > 0) || !std::isfinite(o.cacheMb)) {
-            throw InputError("--cache-mb: must be a positive number of MB");
-        }
+        checkDatabaseOptions(o);
         const TerrainDb db = TerrainDb::open(o.db);
-        // The map in memory: heights, colours and cell maxima, and the pyramid's third more.
-        const double mb = 7.0 * 4.0 / 3.0 * db.info().width * db.info().height / (1 << 20);
-        if (mb > o.cacheMb) {
-            throw InputError(o.db + ": the map (" + std::to_string(db.info().width) + " x " +
-                             std::to_string(db.info().height) + ") needs about " +
-                             std::to_string(static_cast<long long>(std::ceil(mb))) +
-                             " MB in memory, over --cache-mb " +
-                             std::to_string(static_cast<long long>(o.cacheMb)) +
-                             "; paged rendering beyond the budget is not yet supported");
+        if (databaseNeedsPaging(o, db)) {
+            throw InputError(
+                o.db + ": the map (" + std::to_string(db.info().width) + " x " +
+                std::to_string(db.info().height) + ") needs about " +
+                std::to_string(static_cast<long long>(std::ceil(databaseMemoryMb(db)))) +
+                " MB in memory, over --cache-mb " +
+                std::to_string(static_cast<long long>(o.cacheMb)) +
+                "; this program loads a database whole (ig-render pages one "
+                "beyond the budget with --caster reference or naive)");
         }
         return db.loadMap();
     }
@@ -272,8 +286,13 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
                     base::quoted(o.sunTime));
             }
         } else if (!usesShippedMap(terrain)) {
-            throw InputError(
-                "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
+            const auto geo = geodeticOrigin(map.georeference());
+            if (!geo) {
+                throw InputError(
+                    "--sun-time: this map's position is not known; give DATE,TIME,LAT,LON");
+            }
+            lat = (*geo)[0];
+            lon = (*geo)[1];
         }
         a.sun = sunAt(lat, lon, days);
         a.sunClock.almanac = true;

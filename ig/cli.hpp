@@ -6,6 +6,7 @@
 #include "ig/caster.hpp"
 #include "ig/lighting_pass.hpp"
 #include "ig/terrain.hpp"
+#include "ig/terrain_db.hpp"
 #include "ig/terrain_io.hpp"
 
 #include <CLI/CLI.hpp>
@@ -20,8 +21,8 @@ namespace ig {
 
 // Terrain flags: --height FILE [--color FILE] [--spacing M] [--height-scale M]
 // [--height-offset M], or --synthetic SIZE[:SEED], or --db FILE [--cache-mb N] (a terrain
-// database from ig-build-db, loaded whole when it fits the budget). None: the shipped Puget
-// Sound map.
+// database from ig-build-db, loaded whole when it fits the budget, else paged where the
+// program can). None: the shipped Puget Sound map.
 struct TerrainOptions {
     std::string height;
     std::string color;
@@ -37,6 +38,12 @@ struct TerrainOptions {
 bool usesShippedMap(const TerrainOptions& options);
 
 void addTerrainOptions(CLI::App& app, TerrainOptions& options);
+// --db with other terrain flags, or a --cache-mb out of range: InputError.
+void checkDatabaseOptions(const TerrainOptions& options);
+// Memory a database's map takes loaded whole (heights, colours, maxima, pyramid), MB; and
+// whether that is over --cache-mb (the map is then rendered paged, or refused).
+double databaseMemoryMb(const TerrainDb& db);
+bool databaseNeedsPaging(const TerrainOptions& options, const TerrainDb& db);
 // Loads what the flags name; throws InputError. The numbers are checked first against ranges
 // that make physical sense (spacing 1 mm..100 km, height scale 1e-6..1e4 m per unit, offset and
 // void height within +-100 km).

@@ -53,6 +53,49 @@ void deallocateLarge(void* p, std::size_t bytes) noexcept {
     }
 }
 
+void* allocateSparse(std::size_t bytes) {
+    if (bytes == 0) bytes = 1;
+    void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE,
+                   MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    // 4 KiB pages: memory follows the tiles written, not 2 MiB around each.
+    madvise(p, bytes, MADV_NOHUGEPAGE);
+    return p;
+}
+
+void deallocateSparse(void* p, std::size_t bytes) noexcept {
+    if (p) munmap(p, bytes == 0 ? 1 : bytes);
+}
+
+void releaseSparsePages(void* p, std::size_t bytes) noexcept {
+    constexpr std::uintptr_t kPage = 4096;
+    const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kPage - 1) & ~(kPage - 1);
+    const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kPage - 1);
+    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
+
+TerrainMap TerrainMap::sparse(int width, int height, double spacingX, double spacingY,
+                              double heightScale, double heightOffset, double minHeight,
+                              double maxHeight, double maxSlope) {
+    TerrainMap m;
+    m.width_ = width;
+    m.height_ = height;
+    m.spacingX_ = spacingX;
+    m.spacingY_ = spacingY;
+    m.heightScale_ = heightScale;
+    m.heightOffset_ = heightOffset;
+    m.minHeight_ = minHeight;
+    m.maxHeight_ = maxHeight;
+    m.maxSlope_ = maxSlope;
+    const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    m.heights_ = LargeVector<std::uint16_t>(n, LargeAllocator<std::uint16_t>(true));
+    m.colors_ = LargeVector<Rgb8>(n, LargeAllocator<Rgb8>(true));
+    m.cellMax_ = LargeVector<std::uint16_t>(
+        static_cast<std::size_t>(std::max(width - 1, 0)) * std::max(height - 1, 0) + 2,
+        LargeAllocator<std::uint16_t>(true));
+    return m;
+}
+
 TerrainMap::TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
                        double heightOffset)
     : width_(width),

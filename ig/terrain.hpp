@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace ig {
@@ -15,18 +18,50 @@ namespace ig {
 // step). Smaller blocks come from operator new. See adviseHugePages.
 void* allocateLarge(std::size_t bytes);
 void deallocateLarge(void* p, std::size_t bytes) noexcept;
+// Sparse blocks: address space reserved without backing (mmap, MAP_NORESERVE, 4 KiB pages),
+// reading zero until written; only the pages written count as memory. releaseSparsePages gives
+// back the whole pages inside [p, p + bytes) (they read zero again).
+void* allocateSparse(std::size_t bytes);
+void deallocateSparse(void* p, std::size_t bytes) noexcept;
+void releaseSparsePages(void* p, std::size_t bytes) noexcept;
 
+// `sparse`: the vector's block is a sparse one and its elements are left as the fresh block
+// holds them (zero bytes, which is what value-initialisation gives the map's element types):
+// a sparse vector is sized once, at construction, and never grows.
 template <class T>
 struct LargeAllocator {
     using value_type = T;
+    using propagate_on_container_move_assignment = std::true_type;
+    using propagate_on_container_swap = std::true_type;
+    using is_always_equal = std::false_type;
+    bool sparse = false;
     LargeAllocator() = default;
+    explicit LargeAllocator(bool sparseBlock) noexcept : sparse(sparseBlock) {}
     template <class U>
-    LargeAllocator(const LargeAllocator<U>&) noexcept {}
-    T* allocate(std::size_t n) { return static_cast<T*>(allocateLarge(n * sizeof(T))); }
-    void deallocate(T* p, std::size_t n) noexcept { deallocateLarge(p, n * sizeof(T)); }
+    LargeAllocator(const LargeAllocator<U>& o) noexcept : sparse(o.sparse) {}
+    T* allocate(std::size_t n) {
+        return static_cast<T*>(sparse ? allocateSparse(n * sizeof(T))
+                                      : allocateLarge(n * sizeof(T)));
+    }
+    void deallocate(T* p, std::size_t n) noexcept {
+        if (sparse) {
+            deallocateSparse(p, n * sizeof(T));
+        } else {
+            deallocateLarge(p, n * sizeof(T));
+        }
+    }
+    template <class U, class... Args>
+    void construct(U* p, Args&&... args) {
+        if constexpr (sizeof...(Args) == 0) {
+            if (sparse) return;  // a fresh sparse block reads zero
+        }
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+    // A copy is an ordinary vector.
+    LargeAllocator select_on_container_copy_construction() const { return LargeAllocator(); }
     template <class U>
-    bool operator==(const LargeAllocator<U>&) const noexcept {
-        return true;
+    bool operator==(const LargeAllocator<U>& o) const noexcept {
+        return sparse == o.sparse;
     }
 };
 
@@ -36,6 +71,15 @@ using LargeVector = std::vector<T, LargeAllocator<T>>;
 struct Rgb8 {
     std::uint8_t r = 0, g = 0, b = 0;
     bool operator==(const Rgb8&) const = default;
+};
+
+// Where a map lies on the earth: the CRS coordinates of sample (0, 0) (the south-west one, in
+// the CRS's units) and the CRS as WKT. Absent (NaN, empty) for maps without one (synthetic, PNG).
+struct Georeference {
+    double originX = std::numeric_limits<double>::quiet_NaN();
+    double originY = std::numeric_limits<double>::quiet_NaN();
+    std::string crs;
+    bool present() const { return !crs.empty() && originX == originX && originY == originY; }
 };
 
 // Grid convention (files): column i -> x = i * spacingX (east); row j with row 0 the north edge
@@ -48,6 +92,13 @@ class TerrainMap {
     // Allocates a width x height map filled with raw height 0 and black.
     TerrainMap(int width, int height, double spacingX, double spacingY, double heightScale,
                double heightOffset);
+    // A map whose arrays are sparse blocks (allocateSparse): heights, colours and cell maxima
+    // read zero until written and only the pages written take memory. Its height range and
+    // slope bound are the given ones (what the whole map has), not computed: whoever fills it
+    // (PagedTerrain) keeps the cell maxima consistent and never calls updateRange().
+    static TerrainMap sparse(int width, int height, double spacingX, double spacingY,
+                             double heightScale, double heightOffset, double minHeight,
+                             double maxHeight, double maxSlope);
 
     int width() const { return width_; }
     int height() const { return height_; }
@@ -85,6 +136,9 @@ class TerrainMap {
     // Samples the source had no data for, filled by the loader (0 for most maps).
     std::size_t filledSamples() const { return filledSamples_; }
     void setFilledSamples(std::size_t n) { filledSamples_ = n; }
+    // The map's georeference (loaders of georeferenced rasters and databases set it).
+    const Georeference& georeference() const { return georef_; }
+    void setGeoreference(Georeference g) { georef_ = std::move(g); }
 
     // Raw maximum of the four samples of cell (cx, cy), cx in [0, width-2], cy in [0, height-2]:
     // a conservative bound on the bilinear surface over the cell. Stored (width-1) per row.
@@ -93,6 +147,7 @@ class TerrainMap {
     }
     // The cell maxima, (width-1) per row, followed by two spare entries.
     const std::uint16_t* cellMaxData() const { return cellMax_.data(); }
+    std::uint16_t* cellMaxData() { return cellMax_.data(); }
     // Raises cell (cx, cy)'s maximum to at least `raw`, and the map's highest height with it
     // (objects standing on the map; updateRange() drops what was raised).
     void raiseCellMaxRaw(int cx, int cy, std::uint16_t raw) {
@@ -120,6 +175,7 @@ class TerrainMap {
     LargeVector<Rgb8> colors_;
     LargeVector<std::uint16_t> cellMax_;
     std::size_t filledSamples_ = 0;
+    Georeference georef_;
 };
 
 // Whether (x, y) lies within the map's own size of the map; positions further off are taken for

@@ -596,6 +596,11 @@ TerrainMap TerrainDb::loadMap() const {
         }
     }
     map.updateRange();
+    Georeference g;
+    g.originX = info_.originX;
+    g.originY = info_.originY;
+    g.crs = info_.crs;
+    map.setGeoreference(std::move(g));
     return map;
 }
 

@@ -1405,6 +1405,21 @@ TerrainMap loadTerrain(const TerrainSource& src) {
     raw = {};
     map.updateRange();
     map.setFilledSamples(hr.filled);
+    if (hr.geo.valid && hr.geo.srs) {
+        // As the streaming source gives a database's header: sample (0, 0) is the south-west
+        // pixel's centre.
+        Georeference g;
+        g.originX = hr.geo.gt[0] + 0.5 * hr.geo.gt[1];
+        g.originY = hr.geo.gt[3] + (static_cast<double>(h) - 0.5) * hr.geo.gt[5];
+        char* wkt = nullptr;
+        if (OSRExportToWkt(static_cast<OGRSpatialReferenceH>(hr.geo.srs.get()), &wkt) ==
+                OGRERR_NONE &&
+            wkt) {
+            g.crs = wkt;
+        }
+        CPLFree(wkt);
+        map.setGeoreference(std::move(g));
+    }
 
     if (!hasColor) {
         map.shadeFromHeights();
@@ -1417,6 +1432,29 @@ TerrainMap loadTerrain(const TerrainSource& src) {
         resampleReprojected(src, hr, cr, map);
     }
     return map;
+}
+
+std::optional<std::array<double, 2>> geodeticOrigin(const Georeference& g) {
+    if (!g.present()) return std::nullopt;
+    OGRSpatialReferenceH from = OSRNewSpatialReference(g.crs.c_str());
+    OGRSpatialReferenceH to = OSRNewSpatialReference(nullptr);
+    const std::unique_ptr<void, void (*)(void*)> fromGuard(from, [](void* p) {
+        if (p) OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p));
+    });
+    const std::unique_ptr<void, void (*)(void*)> toGuard(to, [](void* p) {
+        if (p) OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p));
+    });
+    if (!from || !to || OSRSetWellKnownGeogCS(to, "WGS84") != OGRERR_NONE) return std::nullopt;
+    OSRSetAxisMappingStrategy(from, OAMS_TRADITIONAL_GIS_ORDER);  // x = easting / longitude
+    OSRSetAxisMappingStrategy(to, OAMS_TRADITIONAL_GIS_ORDER);
+    const QuietGdal quiet;
+    OGRCoordinateTransformationH ct = OCTNewCoordinateTransformation(from, to);
+    if (!ct) return std::nullopt;
+    double x = g.originX, y = g.originY;
+    const bool ok = OCTTransform(ct, 1, &x, &y, nullptr) != 0;
+    OCTDestroyCoordinateTransformation(ct);
+    if (!ok || !std::isfinite(x) || !std::isfinite(y) || std::abs(y) > 90.0) return std::nullopt;
+    return std::array<double, 2>{y, x};
 }
 
 TerrainMap loadPugetSound() {

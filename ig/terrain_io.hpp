@@ -2,6 +2,7 @@
 // TerrainMap.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -51,6 +52,10 @@ TerrainMap loadTerrain(const TerrainSource& src);
 TerrainMap loadPugetSound();
 // The shipped Goleta map: 512 x 512 float GeoTIFF heights and an RGB orthophoto, WGS84.
 TerrainMap loadGoleta();
+
+// The WGS 84 latitude and longitude (degrees) of a georeferenced map's sample (0, 0), through
+// GDAL/PROJ; empty when the map has no georeference or it cannot be transformed.
+std::optional<std::array<double, 2>> geodeticOrigin(const Georeference& georeference);
 
 // Length of one degree on the WGS84 ellipsoid at geodetic latitude `latitude` (radians), metres.
 double metresPerDegreeLatitude(double latitude);

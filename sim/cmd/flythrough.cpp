@@ -277,7 +277,8 @@ int main(int argc, char** argv) {
                    "repeatable; needs --scene and --renderer thread)");
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
-                   "metres)");
+                   "metres); default: from the map's georeference (a georeferenced raster or "
+                   "database), at altitude 0");
     app.add_option("--duration", duration,
                    "Seconds to fly (default: the scenario's 10 s, or the trajectory's span)");
     app.add_option("--render-hz", renderHz, "Cap on the render rate (0: as fast as it can)")
@@ -433,11 +434,9 @@ int main(int argc, char** argv) {
                 !bad.empty()) {
                 throw ig::InputError("--cigi-host " + base::quoted(cigiHost) + ": " + bad);
             }
-            if (cigiOrigin.empty()) {
-                throw ig::InputError(
-                    "--cigi-origin: needed with --cigi (LAT,LON[,ALT] of the map's origin)");
-            }
-            cigiOptions.origin = sim::parseGeoOrigin(cigiOrigin, "--cigi-origin");
+            // Without --cigi-origin: the map's georeference (once it is loaded).
+            if (!cigiOrigin.empty())
+                cigiOptions.origin = sim::parseGeoOrigin(cigiOrigin, "--cigi-origin");
             if (cigiView < 0 || cigiView > 65535) {
                 throw ig::InputError("--cigi-view " + std::to_string(cigiView) +
                                      ": must be a view id 0..65535");
@@ -550,6 +549,16 @@ int main(int argc, char** argv) {
         std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
 
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        if (!cigiBind.empty() && cigiOrigin.empty()) {
+            const auto geo = ig::geodeticOrigin(map.georeference());
+            if (!geo) {
+                throw ig::InputError(
+                    "--cigi-origin: needed with --cigi over a map without a georeference "
+                    "(LAT,LON[,ALT] of the map's origin)");
+            }
+            cigiOptions.origin.latDeg = (*geo)[0];
+            cigiOptions.origin.lonDeg = (*geo)[1];
+        }
         ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
         // The scene: the static layer once, the moving objects per frame (the renderer).
         std::optional<ig::Scene> scene;

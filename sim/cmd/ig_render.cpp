@@ -4,6 +4,7 @@
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/object_trace.hpp"
+#include "ig/paged_terrain.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/scene.hpp"
 #include "ig/stereo.hpp"
@@ -401,6 +402,101 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
     return 0;
 }
 
+// What the flags ask of one frame from a paged database.
+struct PagedRequest {
+    std::string poseText, casterText, outPath, depthPath, jsonPath;
+    ig::CasterKind kind = ig::CasterKind::Reference;
+    ig::Intrinsics intr;
+    int threads = 0;
+};
+
+// One frame from a database over --cache-mb: the tiles its footprint needs are read (waiting
+// for each: no deadline here) into the sparse map the caster reads (ig/paged_terrain.hpp), so
+// the image is the in-memory render's wherever every tile could be read; an unreadable tile is
+// drawn from a coarser level and reported.
+int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
+                const ig::AppearanceOptions& look, const PagedRequest& r) {
+    if (r.kind != ig::CasterKind::Reference && r.kind != ig::CasterKind::Naive) {
+        throw ig::InputError("--caster " + r.casterText + ": " + terrain.db +
+                             " is over --cache-mb and is rendered paged, which the reference "
+                             "and naive casters do; use --caster reference or naive, or a "
+                             "larger --cache-mb");
+    }
+    ig::PagedTerrain::Options po;
+    po.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
+    ig::PagedTerrain paged(db, po);
+    const ig::TerrainMap& map = paged.map();
+    const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
+    if (appearance.ramp || appearance.shade) {
+        throw ig::InputError(std::string(appearance.ramp ? "--colors ramp" : "--shade") +
+                             ": not with a database rendered paged (over --cache-mb)");
+    }
+    // The ground under the pose first (a height given as +H is above it).
+    ig::Pose pose;
+    if (r.poseText.empty()) {
+        paged.placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
+        pose = ig::defaultViewPose(map);
+    } else {
+        const ig::Pose where = ig::parsePose(r.poseText, map);
+        paged.placeAround(where.position.x, where.position.y);
+        pose = ig::parsePose(r.poseText, map);
+    }
+    ig::RenderOptions options;
+    options.threads = r.threads;
+    options.sky.hazeDistance = appearance.hazeDistance;
+    options.supersample = appearance.supersample;
+    options.supersampleMax = appearance.supersampleMax;
+    const ig::Camera camera(pose, r.intr);
+    const auto start = std::chrono::steady_clock::now();
+    const ig::PagedFrameStats st = paged.prepare(camera, true);
+    const double pageMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    for (const std::string& m : st.failures)
+        std::fprintf(stderr, "ig-render: %s (drawn from a coarser level)\n", m.c_str());
+    if (st.substituted > st.failed) {
+        std::fprintf(stderr,
+                     "ig-render: %zu of the frame's %zu tiles did not fit --cache-mb %g: drawn "
+                     "from a coarser level\n",
+                     st.substituted - st.failed, st.required, terrain.cacheMb);
+    }
+    const auto caster = ig::makeCaster(r.kind, map, options);
+    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr);
+    std::string error;
+    const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
+    if (io::writePng8(r.outPath, frame.width(), frame.height(), 3, {bytes, frame.color.size() * 3},
+                      &error) != 0) {
+        throw ig::InputError("--out " + error);
+    }
+    if (!r.depthPath.empty() &&
+        io::writePfm(r.depthPath, frame.width(), frame.height(), frame.depth, &error) != 0) {
+        throw ig::InputError("--depth " + error);
+    }
+    const ig::TileCacheStats cs = paged.cache().stats();
+    nlohmann::json j;
+    j["caster"] = r.casterText;
+    j["width"] = frame.width();
+    j["height"] = frame.height();
+    j["render_ms"] = frame.stats.renderMs;
+    j["pose"] = poseJson(pose);
+    j["terrain"] = ig::describeTerrain(map);
+    j["paging"] = {{"budget_mb", terrain.cacheMb},
+                   {"tiles_needed", st.required},
+                   {"tiles_substituted", st.substituted},
+                   {"tiles_failed", st.failed},
+                   {"tiles_read", cs.tilesRead},
+                   {"bytes_read", cs.bytesRead},
+                   {"resident_bytes", paged.cache().residentBytes()},
+                   {"page_ms", pageMs}};
+    if (!r.jsonPath.empty()) io::writeTextOutput("--json", r.jsonPath, j.dump(2) + "\n");
+    if (r.outPath != "-") {
+        std::fprintf(
+            stderr, "%s (paged, %zu tiles, %llu read in %.1f ms): %dx%d in %.1f ms -> %s\n",
+            r.casterText.c_str(), st.required, static_cast<unsigned long long>(cs.tilesRead),
+            pageMs, frame.width(), frame.height(), frame.stats.renderMs, r.outPath.c_str());
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -534,6 +630,28 @@ int main(int argc, char** argv) {
             throw ig::InputError("--time: not a finite number");
         if (!scenePath.empty() && stereo.enabled()) {
             throw ig::InputError("--scene: objects are drawn in single frames; drop --stereo");
+        }
+        if (!terrain.db.empty()) {
+            ig::checkDatabaseOptions(terrain);
+            const ig::TerrainDb db = ig::TerrainDb::open(terrain.db);
+            if (ig::databaseNeedsPaging(terrain, db)) {
+                if (stereo.enabled() || batchMode || !scenePath.empty() || !objectsOut.empty()) {
+                    throw ig::InputError(
+                        terrain.db +
+                        " is over --cache-mb and is rendered paged: one frame, without "
+                        "--stereo, --poses or --scene (or give a larger --cache-mb)");
+                }
+                PagedRequest req;
+                req.poseText = poseText;
+                req.casterText = casterText;
+                req.outPath = outPath;
+                req.depthPath = depthPath;
+                req.jsonPath = jsonPath;
+                req.kind = kind;
+                req.intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg), margin);
+                req.threads = threads;
+                return renderPaged(terrain, db, look, req);
+            }
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);

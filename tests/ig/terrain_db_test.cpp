@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include "ig/error.hpp"
+#include "ig/paged_terrain.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_db_build.hpp"
@@ -390,6 +391,30 @@ TEST(TerrainDb, GdalStreamedEqualsTheWholeMapLoader) {
     EXPECT_EQ(db.info().heightOffset, map.heightOffset());
     EXPECT_EQ(db.info().crs, info.crs);
     expectMatchesPyramid(db, map);
+
+    // The georeference travels with the map: loaded from the files, from the database whole,
+    // and paged; and gives the origin's latitude and longitude (UTM 10N, 15 m east of the
+    // central meridian -123, northing 5193925 m: 46.899 N).
+    for (const TerrainMap* m : {&map}) {
+        EXPECT_TRUE(m->georeference().present());
+        EXPECT_DOUBLE_EQ(m->georeference().originX, info.originX);
+        EXPECT_DOUBLE_EQ(m->georeference().originY, info.originY);
+        EXPECT_EQ(m->georeference().crs, info.crs);
+    }
+    const TerrainMap fromDb = db.loadMap();
+    EXPECT_DOUBLE_EQ(fromDb.georeference().originX, info.originX);
+    EXPECT_DOUBLE_EQ(fromDb.georeference().originY, info.originY);
+    EXPECT_EQ(fromDb.georeference().crs, info.crs);
+    PagedTerrain::Options po;
+    po.cache.budgetBytes = std::size_t{1} << 20;
+    const PagedTerrain paged(db, po);
+    EXPECT_DOUBLE_EQ(paged.map().georeference().originY, info.originY);
+    EXPECT_EQ(paged.map().georeference().crs, info.crs);
+    const auto geo = geodeticOrigin(fromDb.georeference());
+    ASSERT_TRUE(geo);
+    EXPECT_NEAR((*geo)[0], 46.899, 0.01);
+    EXPECT_NEAR((*geo)[1], -123.0 + 15.0 / (111320.0 * std::cos(46.899 * M_PI / 180.0)), 1e-4);
+    EXPECT_FALSE(geodeticOrigin(makeSyntheticTerrain(16, 1).georeference()));
 
     // Without a colour image the heights are shaded over the whole map: not streamed, said why.
     src.colorPath.clear();

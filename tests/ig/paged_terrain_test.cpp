@@ -1,0 +1,294 @@
+#include "ig/paged_terrain.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "common/small_terrain_db.hpp"
+#include "ig/caster.hpp"
+#include "ig/pyramid.hpp"
+#include "ig/synthetic.hpp"
+#include "ig/terrain_db_build.hpp"
+
+namespace ig {
+namespace {
+
+// A 1025 x 1025 synthetic map (10 m) in tiles of 16: 4096 level-0 tiles, 7.3 MB of them, paged
+// through a cache of 1 MB.
+struct PagedFixture {
+    TerrainMap map;
+    std::string path;
+    PagedFixture() : map(makeSyntheticTerrain(1024, 3)) {
+        path = vig_test::testTmpPath("paged_terrain", "map_" + std::to_string(::getpid()) + ".db");
+        auto source = mapRowSource(map);
+        DbBuildOptions o;
+        o.tileSize = 16;
+        buildTerrainDb(*source, path, o);
+    }
+    ~PagedFixture() { std::filesystem::remove(path); }
+};
+
+const PagedFixture& fixture() {
+    static const PagedFixture f;
+    return f;
+}
+
+PagedTerrain::Options smallBudget() {
+    PagedTerrain::Options o;
+    o.cache.budgetBytes = std::size_t{1} << 20;
+    return o;
+}
+
+const Intrinsics kView = Intrinsics::fromFov(64, 40, 50.0 * M_PI / 180.0);
+
+// Low poses over the map, looking down 22..47 degrees (the top of the image below the horizon) in
+// every direction: a frame's footprint is a few hundred tiles, the sweep's union most of the map.
+std::vector<Pose> lowSweep(const TerrainMap& map, int count) {
+    std::vector<Pose> poses;
+    for (int i = 0; i < count; ++i) {
+        const double f = (i + 0.5) / count;
+        Pose p;
+        p.position.x = map.extentX() * (0.15 + 0.7 * std::fmod(f * 3.7, 1.0));
+        p.position.y = map.extentY() * (0.15 + 0.7 * f);
+        p.position.z = map.surfaceHeight(p.position.x, p.position.y) + 30.0 + 400.0 * f;
+        p.yaw = 2.0 * M_PI * std::fmod(f * 5.3, 1.0);
+        p.pitch = -(22.0 + 25.0 * std::fmod(f * 2.9, 1.0)) * M_PI / 180.0;
+        poses.push_back(p);
+    }
+    return poses;
+}
+
+void expectSameImage(const RenderedFrame& a, const RenderedFrame& b, const std::string& what) {
+    ASSERT_EQ(a.color.size(), b.color.size());
+    std::size_t diff = 0;
+    for (std::size_t i = 0; i < a.color.size(); ++i)
+        diff += !(a.color[i] == b.color[i]) || a.depth[i] != b.depth[i];
+    EXPECT_EQ(diff, 0u) << what << ": pixels differ";
+}
+
+TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain paged(db, smallBudget());
+    EXPECT_EQ(paged.map().maxHeight(), f.map.maxHeight());
+    EXPECT_EQ(paged.map().minHeight(), f.map.minHeight());
+    for (const CasterKind kind : {CasterKind::Reference, CasterKind::Naive}) {
+        const auto inMemory = makeCaster(kind, f.map);
+        const auto fromCache = makeCaster(kind, paged.map());
+        int pose = 0;
+        for (const Pose& p : lowSweep(f.map, 24)) {
+            const Camera camera(p, kView);
+            const PagedFrameStats st = paged.prepare(camera, true);
+            EXPECT_GT(st.required, 0u);
+            EXPECT_EQ(st.substituted, 0u) << "pose " << pose << " of " << st.required << " tiles";
+            const RenderedFrame a = renderFrame(*inMemory, f.map, p, kView);
+            const RenderedFrame b = renderFrame(*fromCache, paged.map(), p, kView);
+            expectSameImage(a, b, std::string(casterName(kind)) + " pose " + std::to_string(pose));
+            // Only the frame's tiles stay placed, and the map's memory follows them.
+            EXPECT_EQ(paged.placedTiles(), st.required);
+            EXPECT_LE(paged.residentMapBytes(), paged.placedBytes());
+            EXPECT_GT(paged.residentMapBytes(), 0u);
+            ++pose;
+        }
+    }
+    // The map's arrays take 7 bytes a sample, 7.4 MB: the pages of one frame's tiles stay.
+    const std::size_t wholeMap = static_cast<std::size_t>(f.map.width()) * f.map.height() * 7;
+    std::printf("map pages resident after the sweep: %zu bytes for %zu tiles (whole map %zu)\n",
+                paged.residentMapBytes(), paged.placedTiles(), wholeMap);
+    EXPECT_LT(paged.residentMapBytes(), wholeMap / 4)
+        << paged.residentMapBytes() << " bytes resident";
+    const TileCacheStats s = paged.cache().stats();
+    EXPECT_GT(s.evictions, 0u) << "the sweep must page";
+    EXPECT_GT(s.bytesRead, paged.cache().budgetBytes());
+    EXPECT_LE(paged.cache().residentBytes(), paged.cache().budgetBytes());
+    EXPECT_EQ(s.failures, 0u);
+}
+
+// The slow twin of a stand-in: level-0 tile (tx, ty) of `map` replaced by the bilinear
+// upsampling of pyramid level k (global sample positions), its edge samples shared with
+// `exactAround` tiles left as they are.
+TerrainMap withStandIn(const TerrainMap& map, const TerrainPyramid& pyr, int k, int tx, int ty,
+                       int tile) {
+    TerrainMap out = map;
+    const PyramidLevel& lv = pyr.level(k);
+    const int x0 = tx * tile, y0 = ty * tile;
+    const int x1 = std::min(x0 + tile, map.width() - 1), y1 = std::min(y0 + tile, map.height() - 1);
+    for (int y = y0; y <= y1; ++y) {
+        for (int x = x0; x <= x1; ++x) {
+            if (x == x0 || y == y0 || x == x1 || y == y1) continue;  // shared with neighbours
+            const double u = std::ldexp(static_cast<double>(x), -k);
+            const double v = std::ldexp(static_cast<double>(y), -k);
+            const int i = std::min(static_cast<int>(u), lv.width - 2);
+            const int j = std::min(static_cast<int>(v), lv.height - 2);
+            const double fu = u - i, fv = v - j;
+            auto at = [&](int a, int b) { return lv.raw(a, b); };
+            const double h = (at(i, j) * (1 - fu) + at(i + 1, j) * fu) * (1 - fv) +
+                             (at(i, j + 1) * (1 - fu) + at(i + 1, j + 1) * fu) * fv;
+            out.setRaw(x, y, static_cast<std::uint16_t>(std::lround(h)));
+            const Rgb8 c00 = lv.colors[lv.index(i, j)], c10 = lv.colors[lv.index(i + 1, j)];
+            const Rgb8 c01 = lv.colors[lv.index(i, j + 1)];
+            const Rgb8 c11 = lv.colors[lv.index(i + 1, j + 1)];
+            auto ch = [&](double a, double b, double c, double d) {
+                return static_cast<std::uint8_t>(
+                    std::lround((a * (1 - fu) + b * fu) * (1 - fv) + (c * (1 - fu) + d * fu) * fv));
+            };
+            out.setColor(x, y,
+                         Rgb8{ch(c00.r, c10.r, c01.r, c11.r), ch(c00.g, c10.g, c01.g, c11.g),
+                              ch(c00.b, c10.b, c01.b, c11.b)});
+        }
+    }
+    out.updateRange();
+    return out;
+}
+
+// The level-0 tile under the image's centre.
+std::pair<int, int> centreTile(const RenderedFrame& frame, const Camera& camera, int tile,
+                               const TerrainMap& map) {
+    const Intrinsics& in = camera.intrinsics();
+    const std::size_t c = static_cast<std::size_t>(in.height / 2) * in.width + in.width / 2;
+    const glm::dvec3 d =
+        glm::normalize(camera.rayDirection(in.width / 2 + 0.5, in.height / 2 + 0.5));
+    const glm::dvec3 p = camera.pose().position + static_cast<double>(frame.depth[c]) * d;
+    return {static_cast<int>(p.x / map.spacingX()) / tile,
+            static_cast<int>(p.y / map.spacingY()) / tile};
+}
+
+Pose lookingDown(const TerrainMap& map) {
+    Pose p;
+    p.position = {0.45 * map.extentX(), 0.4 * map.extentY(), 0.0};
+    p.position.z = map.surfaceHeight(p.position.x, p.position.y) + 250.0;
+    p.yaw = 0.3;
+    p.pitch = -40.0 * M_PI / 180.0;
+    return p;
+}
+
+TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    const Pose pose = lookingDown(f.map);
+    const Camera camera(pose, kView);
+    const auto inMemory = makeCaster(CasterKind::Reference, f.map);
+    const RenderedFrame full = renderFrame(*inMemory, f.map, pose, kView);
+    const auto [tx, ty] = centreTile(full, camera, 16, f.map);
+
+    PagedTerrain paged(db, smallBudget());
+    const TileKey withheld{TileKind::Display, 0, tx, ty};
+    paged.cache().setWithheld([&](const TileKey& k) { return k == withheld; });
+    const PagedFrameStats st = paged.prepare(camera, true);  // returns: the tile never comes
+    EXPECT_EQ(st.substituted, 1u);
+    EXPECT_EQ(st.failed, 0u);
+    EXPECT_EQ(paged.substitutedTiles(), 1u);
+    const auto sub = paged.cache().findOrCoarser(withheld);
+    ASSERT_TRUE(sub);
+    const int k = sub->key.level;
+    EXPECT_GT(k, 0);
+    const RenderedFrame got =
+        renderFrame(*makeCaster(CasterKind::Reference, paged.map()), paged.map(), pose, kView);
+
+    // Exactly the image of the map with that tile taken from level k.
+    const TerrainPyramid pyr(f.map);
+    const TerrainMap twin = withStandIn(f.map, pyr, k, tx, ty, 16);
+    const RenderedFrame expected =
+        renderFrame(*makeCaster(CasterKind::Reference, twin), twin, pose, kView);
+    expectSameImage(got, expected, "stand-in");
+
+    // And near the full image: the tile shows, coarser, and the rest is unchanged.
+    std::size_t differ = 0;
+    double sum = 0.0;
+    for (std::size_t i = 0; i < full.color.size(); ++i) {
+        const int d = std::abs(full.color[i].r - got.color[i].r) +
+                      std::abs(full.color[i].g - got.color[i].g) +
+                      std::abs(full.color[i].b - got.color[i].b);
+        differ += d > 0;
+        sum += d / 3.0;
+    }
+    std::printf(
+        "withheld tile (%d, %d) from level %d: %zu of %zu pixels differ, mean colour "
+        "error %.3f levels\n",
+        tx, ty, k, differ, full.color.size(), sum / full.color.size());
+    EXPECT_GT(differ, 0u) << "the withheld tile is in view";
+    EXPECT_LT(sum / full.color.size(), 4.0) << "mean colour error over the frame, levels";
+
+    // The tile arrives: the next frame is the full image again.
+    paged.cache().setWithheld(nullptr);
+    const PagedFrameStats again = paged.prepare(camera, true);
+    EXPECT_EQ(again.substituted, 0u);
+    EXPECT_EQ(again.copied, 1u) << "only the stand-in is replaced";
+    const RenderedFrame back =
+        renderFrame(*makeCaster(CasterKind::Reference, paged.map()), paged.map(), pose, kView);
+    expectSameImage(back, full, "after the tile arrived");
+}
+
+TEST(PagedTerrain, CorruptTileInFlightIsAReportedHoleAndFramesGoOn) {
+    const PagedFixture& f = fixture();
+    const std::string path =
+        vig_test::testTmpPath("paged_terrain", "corrupt_" + std::to_string(::getpid()) + ".db");
+    const Pose pose = lookingDown(f.map);
+    const Camera camera(pose, kView);
+    const auto inMemory = makeCaster(CasterKind::Reference, f.map);
+    const RenderedFrame full = renderFrame(*inMemory, f.map, pose, kView);
+    const auto [tx, ty] = centreTile(full, camera, 16, f.map);
+    const TileKey bad{TileKind::Display, 0, tx, ty};
+    {
+        std::vector<char> bytes;
+        std::ifstream in(f.path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        std::uint64_t io = 0, off = 0;
+        std::memcpy(&io, bytes.data() + 88, 8);
+        const TerrainDb db = TerrainDb::open(f.path);
+        std::memcpy(&off, bytes.data() + io + db.layout().entryIndex(bad) * 24, 8);
+        bytes[off + 40] ^= 0x11;
+        std::ofstream(path, std::ios::binary)
+            .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    }
+    const TerrainDb db = TerrainDb::open(path);
+    PagedTerrain paged(db, smallBudget());
+    const auto caster = makeCaster(CasterKind::Reference, paged.map());
+    // A flight that never waits: the frames go on whatever the loaders have done.
+    std::size_t reported = 0, failedFrames = 0;
+    for (int frame = 0; frame < 40; ++frame) {
+        const PagedFrameStats st = paged.prepare(camera, false);
+        for (const std::string& m : st.failures) {
+            ++reported;
+            EXPECT_NE(m.find("display tile (level 0, " + std::to_string(tx) + ", " +
+                             std::to_string(ty) + ")"),
+                      std::string::npos)
+                << m;
+            EXPECT_NE(m.find(path), std::string::npos) << m;
+        }
+        failedFrames += st.failed > 0;
+        const RenderedFrame img = renderFrame(*caster, paged.map(), pose, kView);
+        EXPECT_EQ(img.color.size(), full.color.size());
+        if (frame == 20) paged.cache().waitIdle();
+    }
+    EXPECT_EQ(reported, 1u) << "reported once";
+    EXPECT_GT(failedFrames, 0u);
+    EXPECT_EQ(paged.cache().stats().failures, 1u) << "never read again";
+    // Once the rest has arrived the frame is the full image but for the hole's tile, which is
+    // the coarser level's.
+    paged.cache().waitIdle();
+    const PagedFrameStats last = paged.prepare(camera, true);
+    EXPECT_EQ(last.substituted, 1u);
+    EXPECT_EQ(last.failed, 1u);
+    const int k = paged.cache().findOrCoarser(bad)->key.level;
+    const TerrainPyramid pyr(f.map);
+    const TerrainMap twin = withStandIn(f.map, pyr, k, tx, ty, 16);
+    const RenderedFrame expected =
+        renderFrame(*makeCaster(CasterKind::Reference, twin), twin, pose, kView);
+    expectSameImage(renderFrame(*caster, paged.map(), pose, kView), expected, "hole");
+    std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace ig
