@@ -157,8 +157,6 @@ __attribute__((target("avx2"))) inline void gatherPairs(const float* rows, __m25
                               _MM_SHUFFLE(3, 1, 2, 0)));
 }
 
-}  // namespace
-
 // G groups of eight pixels from x on, their steps interleaved: each group's chain of gathers,
 // square roots and divisions is serial, so independent groups keep the core busy.
 template <int G>
@@ -309,6 +307,8 @@ __attribute__((target("avx2"))) inline int gatherGroups(const DepthProjection& p
     }
     return count;
 }
+
+}  // namespace
 
 __attribute__((target("avx2"))) int gatherLineAvx2(const DepthProjection& p, const GatherLine& l,
                                                    const float* depth, int width, int height,
