@@ -14,6 +14,7 @@
 #include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/object_pass.hpp"
 #include "ig/shading.hpp"
 #include "ig/surface_hit.hpp"
 
@@ -1137,7 +1138,14 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         throw InputError(
             "pose: stereo renders roll = 0 (the post-rendering processor applies roll)");
     }
-    const auto caster = makeCaster(CasterKind::Fast, map, renderOptions);
+    // With voxel objects the reprojection works on the terrain alone: the left eye is cast
+    // without them, the right eye reprojected from that, and the objects' footprint pass then
+    // draws them over each eye exactly as over a mono frame (docs/design/stereo.md, "Objects").
+    const bool objects =
+        !renderOptions.objects.empty() && options.method == RightEyeMethod::Reproject;
+    RenderOptions terrainOptions = renderOptions;
+    if (objects) terrainOptions.objects.clear();
+    const auto caster = makeCaster(CasterKind::Fast, map, terrainOptions);
     StereoFrame out;
     out.left = renderFrame(*caster, map, pose, intrinsics);
     out.stats.leftMs = out.left.stats.renderMs;
@@ -1153,6 +1161,22 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
     }
     out.right = reprojectRightEye(map, out.left, options, renderOptions, out.source, out.stats,
                                   caster.get());
+    if (objects) {
+        const auto draw = [&](RenderedFrame& frame) {
+            const auto start = Clock::now();
+            runWithThreads(renderOptions.threads, [&] {
+                drawObjectsOverTerrain(renderOptions.objects, renderOptions.sky,
+                                       Camera(frame.pose, frame.intrinsics), frame);
+            });
+            return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        };
+        const double leftObjectsMs = draw(out.left);
+        out.left.stats.renderMs += leftObjectsMs;
+        out.stats.leftMs = out.left.stats.renderMs;
+        out.stats.objectsMs = draw(out.right);
+        out.stats.rightMs += out.stats.objectsMs;
+        out.right.stats.renderMs = out.stats.rightMs;
+    }
     return out;
 }
 

@@ -49,7 +49,8 @@ struct StereoStats {
     double leftMs = 0.0;       // left eye by the fast caster
     double reprojectMs = 0.0;  // reprojection pass
     double castMs = 0.0;       // second pass over the marked pixels
-    double rightMs = 0.0;      // reprojectMs + castMs, or the full cast of the right eye
+    double objectsMs = 0.0;    // voxel objects' footprint pass over the right eye
+    double rightMs = 0.0;      // reprojectMs + castMs + objectsMs, or the full cast
     // CPU time of the calling thread over the reprojection and second pass: all of the work
     // when RenderOptions::threads == 1, immune to other processes' load.
     double rightCpuMs = 0.0;
@@ -80,8 +81,10 @@ double stereoDisparity(const Intrinsics& intrinsics, int x, int y, double depth,
                        double eyeSeparation);
 
 // Renders a stereo pair: the left eye by the fast caster (roll must be 0), the right eye as
-// `options` say (reprojected, or fully cast by the fast caster). Throws InputError for bad
-// options, a rolled pose, or either eye on or below the terrain.
+// `options` say (reprojected, or fully cast by the fast caster). With renderOptions.objects,
+// the reprojection takes the left eye's terrain alone and the objects' footprint pass draws
+// the objects over each eye afterwards, as over a mono frame: both eyes carry object ids. Throws
+// InputError for bad options, a rolled pose, or either eye on or below the terrain.
 StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
                          const StereoOptions& options, const RenderOptions& renderOptions = {});
 
