@@ -1132,7 +1132,8 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
 }
 
 StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
-                         const StereoOptions& options, const RenderOptions& renderOptions) {
+                         const StereoOptions& options, const RenderOptions& renderOptions,
+                         double time) {
     validateStereoOptions(options);
     if (pose.roll != 0.0) {
         throw InputError(
@@ -1147,7 +1148,7 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
     if (objects) terrainOptions.objects.clear();
     const auto caster = makeCaster(CasterKind::Fast, map, terrainOptions);
     StereoFrame out;
-    out.left = renderFrame(*caster, map, pose, intrinsics);
+    out.left = renderFrame(*caster, map, pose, intrinsics, time);
     out.stats.leftMs = out.left.stats.renderMs;
     if (options.method == RightEyeMethod::Raycast) {
         out.right = renderFrame(*caster, map, rightEyePose(pose, options.eyeSeparation), intrinsics,

@@ -85,8 +85,10 @@ double stereoDisparity(const Intrinsics& intrinsics, int x, int y, double depth,
 // the reprojection takes the left eye's terrain alone and the objects' footprint pass draws
 // the objects over each eye afterwards, as over a mono frame: both eyes carry object ids. Throws
 // InputError for bad options, a rolled pose, or either eye on or below the terrain.
+// `time`: the frames' simulation time (the sun's).
 StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
-                         const StereoOptions& options, const RenderOptions& renderOptions = {});
+                         const StereoOptions& options, const RenderOptions& renderOptions = {},
+                         double time = 0.0);
 
 // The right eye reprojected from a rendered left frame (pose.roll == 0), gaps cast over `map`.
 // Fills `source` (per right pixel) and the right-eye fields of `stats`. With `caster` (over

@@ -57,9 +57,10 @@ constexpr const char* kConventions = R"(Conventions:
   The fast and span casters render roll = 0 (the post-rendering processor applies roll as a 2D
   rotation); the naive and reference casters honour any roll. The span caster hands steep frames
   to the fast caster (its JSON "path" says which drew the frame).
-  Objects (--scene, every caster; not with --stereo): --objects-out writes each pixel's object id
-  as a 16-bit grey PNG (0: terrain or sky); --json lists each visible object's pixel count and
-  box [x0, y0, x1, y1] (inclusive). Moving objects are placed at --time (default: the earliest
+  Objects (--scene, every caster): --objects-out writes each pixel's object id as a 16-bit grey
+  PNG (0: terrain or sky); --json lists each visible object's pixel count and box [x0, y0, x1,
+  y1] (inclusive). With --stereo the objects are drawn over both eyes (--objects-out-left,
+  --objects-out-right; --json "objects" and "objects_right"). Moving objects are placed at --time (default: the earliest
   trajectory start).
   Batch times (--poses): frame k of a pose list is at --time + k * --time-step (k from 0, the
   k-th pose, comments not counted; --time defaults as above, --time-step to 0); a trajectory
@@ -75,6 +76,7 @@ struct StereoFlags {
     bool noAbuffer = false;
     double gapThreshold = 2.0;
     std::string outLeft, outRight, outSbs, outAnaglyph, outMask;
+    std::string idsLeft, idsRight;  // object-id PNGs (with --scene)
 
     bool enabled() const { return separation.has_value(); }
 };
@@ -99,6 +101,20 @@ void addStereoFlags(CLI::App& app, StereoFlags& s) {
     app.add_option("--out-anaglyph", s.outAnaglyph, "Stereo: red-cyan anaglyph PNG");
     app.add_option("--out-raycast-mask", s.outMask,
                    "Stereo: the right eye in grey with its ray-cast pixels in red");
+    app.add_option("--objects-out-left", s.idsLeft,
+                   "Stereo with --scene: the left eye's object ids, 16-bit grey PNG");
+    app.add_option("--objects-out-right", s.idsRight,
+                   "Stereo with --scene: the right eye's object ids, 16-bit grey PNG");
+}
+
+nlohmann::json objectsJson(const ig::RenderedFrame& frame);
+
+void writeIds(const std::string& path, const std::string& flag, const ig::RenderedFrame& frame) {
+    if (path.empty()) return;
+    std::string error;
+    if (io::writePng16(path, frame.width(), frame.height(), frame.objectId, &error) != 0) {
+        throw ig::InputError(flag + " " + error);
+    }
 }
 
 void writeRgb(const std::string& path, const std::string& flag, int w, int h,
@@ -113,7 +129,7 @@ void writeRgb(const std::string& path, const std::string& flag, int w, int h,
 
 // Renders and writes the stereo outputs; fills the stereo fields of `j`.
 void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& pose,
-               const ig::Intrinsics& intr, const ig::RenderOptions& options,
+               const ig::Intrinsics& intr, const ig::RenderOptions& options, double time,
                const std::string& depthPath, nlohmann::json& j) {
     if (s.outLeft.empty() || s.outRight.empty()) {
         throw ig::InputError("--stereo: give --out-left and --out-right");
@@ -133,7 +149,7 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
     }
     so.abuffer = !s.noAbuffer;
     so.gapThreshold = s.gapThreshold;
-    const ig::StereoFrame f = ig::renderStereo(map, pose, intr, so, options);
+    const ig::StereoFrame f = ig::renderStereo(map, pose, intr, so, options, time);
     const int w = f.left.width(), h = f.left.height();
     writeRgb(s.outLeft, "--out-left", w, h, f.left.color);
     writeRgb(s.outRight, "--out-right", w, h, f.right.color);
@@ -144,6 +160,13 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
     }
     if (!s.outMask.empty()) {
         writeRgb(s.outMask, "--out-raycast-mask", w, h, ig::rayCastMask(f.right, f.source));
+    }
+    if (!options.objects.empty()) {
+        writeIds(s.idsLeft, "--objects-out-left", f.left);
+        writeIds(s.idsRight, "--objects-out-right", f.right);
+        j["objects"] = objectsJson(f.left);
+        j["objects_right"] = objectsJson(f.right);
+        j["objects_ms"] = f.stats.objectsMs;
     }
     std::string error;
     if (!depthPath.empty() && io::writePfm(depthPath, w, h, f.left.depth, &error) != 0) {
@@ -176,8 +199,8 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
 // The --stereo path of main: the pair, its images and its JSON.
 int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::TerrainMap& map,
                      const ig::Pose& pose, const ig::Intrinsics& intr,
-                     const ig::RenderOptions& options, const std::string& depthPath,
-                     const std::string& jsonPath) {
+                     const ig::RenderOptions& options, double time, const std::string& depthPath,
+                     const std::string& jsonPath, const nlohmann::json& scene) {
     if (kind != ig::CasterKind::Fast) {
         throw ig::InputError("--stereo: the pair is rendered by the fast caster; drop --caster");
     }
@@ -189,7 +212,8 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
     j["focal_px"] = intr.focal;
     j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
-    runStereo(s, map, pose, intr, options, depthPath, j);
+    if (!scene.is_null()) j["scene"] = scene;
+    runStereo(s, map, pose, intr, options, time, depthPath, j);
     if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
     return 0;
 }
@@ -612,7 +636,9 @@ int main(int argc, char** argv) {
                            {"--out-right", stereo.outRight, out},
                            {"--out-sbs", stereo.outSbs, out},
                            {"--out-anaglyph", stereo.outAnaglyph, out},
-                           {"--out-raycast-mask", stereo.outMask, out}});
+                           {"--out-raycast-mask", stereo.outMask, out},
+                           {"--objects-out-left", stereo.idsLeft, out},
+                           {"--objects-out-right", stereo.idsRight, out}});
         if (!(fovDeg > 0.0 && fovDeg < 179.0)) {
             throw ig::InputError("--fov: must be between 0 and 179 degrees");
         }
@@ -628,8 +654,15 @@ int main(int argc, char** argv) {
         }
         if (sceneTime && !std::isfinite(*sceneTime))
             throw ig::InputError("--time: not a finite number");
-        if (!scenePath.empty() && stereo.enabled()) {
-            throw ig::InputError("--scene: objects are drawn in single frames; drop --stereo");
+        if (!objectsOut.empty() && stereo.enabled()) {
+            throw ig::InputError(
+                "--objects-out: with --stereo give --objects-out-left and --objects-out-right");
+        }
+        if ((!stereo.idsLeft.empty() || !stereo.idsRight.empty()) &&
+            (!stereo.enabled() || scenePath.empty())) {
+            throw ig::InputError(
+                std::string(stereo.idsLeft.empty() ? "--objects-out-right" : "--objects-out-left") +
+                ": needs --stereo and a --scene to draw objects from");
         }
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
@@ -676,8 +709,6 @@ int main(int argc, char** argv) {
                                  ": only the fast caster has kernels; drop --kernel or use "
                                  "--caster fast");
         }
-        if (stereo.enabled())
-            return renderStereoPair(stereo, kind, map, pose, intr, options, depthPath, jsonPath);
         // The scene: the static layer, and the moving objects stamped at the frame's time.
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;
@@ -691,6 +722,17 @@ int main(int argc, char** argv) {
             // Every caster draws the objects over its terrain by their own walk (the fast ones
             // by the objects' screen footprint), so the terrain's bounds stay as they are.
             options.objects = {&*scene->staticLayer, &*moving};
+        }
+        if (stereo.enabled()) {
+            nlohmann::json sceneJson;
+            if (scene) {
+                sceneJson = {{"file", scenePath},
+                             {"time", time},
+                             {"static_objects", scene->staticLayer->objects().size()},
+                             {"moving_objects", scene->moving.size()}};
+            }
+            return renderStereoPair(stereo, kind, map, pose, intr, options, time, depthPath,
+                                    jsonPath, sceneJson);
         }
         const auto caster = ig::makeCaster(kind, map, options);
         if (batchMode) {
