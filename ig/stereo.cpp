@@ -1131,6 +1131,21 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     return right;
 }
 
+double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, RenderedFrame& right) {
+    const auto draw = [&](RenderedFrame& frame) {
+        const auto start = Clock::now();
+        runWithThreads(options.threads, [&] {
+            drawObjectsOverTerrain(options.objects, options.sky,
+                                   Camera(frame.pose, frame.intrinsics), frame);
+        });
+        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        frame.stats.renderMs += ms;
+        return ms;
+    };
+    draw(left);
+    return draw(right);
+}
+
 StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
                          const StereoOptions& options, const RenderOptions& renderOptions,
                          double time) {
@@ -1163,18 +1178,8 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
     out.right = reprojectRightEye(map, out.left, options, renderOptions, out.source, out.stats,
                                   caster.get());
     if (objects) {
-        const auto draw = [&](RenderedFrame& frame) {
-            const auto start = Clock::now();
-            runWithThreads(renderOptions.threads, [&] {
-                drawObjectsOverTerrain(renderOptions.objects, renderOptions.sky,
-                                       Camera(frame.pose, frame.intrinsics), frame);
-            });
-            return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-        };
-        const double leftObjectsMs = draw(out.left);
-        out.left.stats.renderMs += leftObjectsMs;
+        out.stats.objectsMs = drawStereoObjects(renderOptions, out.left, out.right);
         out.stats.leftMs = out.left.stats.renderMs;
-        out.stats.objectsMs = draw(out.right);
         out.stats.rightMs += out.stats.objectsMs;
         out.right.stats.renderMs = out.stats.rightMs;
     }

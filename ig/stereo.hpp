@@ -100,6 +100,12 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
                                 std::vector<RightPixelSource>& source, StereoStats& stats,
                                 const Caster* caster = nullptr);
 
+// Draws options.objects over both eyes of a pair that holds terrain alone (the right eye
+// reprojected from the left's terrain) by the objects' footprint pass, as over a mono frame
+// (ig/object_pass.hpp): each eye gets its object ids. Adds each eye's pass time to its
+// stats.renderMs and returns the right eye's, milliseconds.
+double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, RenderedFrame& right);
+
 // Composite images, RGB8 rows top first.
 // Left and right side by side (2W x H).
 std::vector<Rgb8> sideBySide(const RenderedFrame& left, const RenderedFrame& right);

@@ -4,6 +4,7 @@
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/scene.hpp"
+#include "ig/stereo.hpp"
 #include "ig/sticks.hpp"
 #include "io/contact_sheet.hpp"
 #include "io/field_clock.hpp"
@@ -21,6 +22,7 @@
 #include "sim/pose_source.hpp"
 #include "sim/scenario.hpp"
 #include "sim/scene_motion.hpp"
+#include "sim/stereo_output.hpp"
 #include "sim/trajectory.hpp"
 #include "sim/trajectory_poses.hpp"
 #include "sim/truth.hpp"
@@ -42,6 +44,49 @@
 #include <string>
 
 namespace {
+
+// Stereo pairs with a scene's objects: the left eye's terrain by the fast caster, the right eye
+// reprojected from it (gaps cast by the same caster), then the objects (the moving ones and
+// the host's extras stamped at the frame's instant) drawn over both eyes by the footprint pass,
+// as over a mono frame (ig::drawStereoObjects): each eye carries its object ids.
+sim::FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map,
+                                           const sim::RenderGeometry& geometry, double separation,
+                                           const ig::RenderOptions& options, const ig::Scene& scene,
+                                           const sim::SceneMotion& motion,
+                                           sim::ExtraObjects extra) {
+    ig::StereoOptions stereo;
+    stereo.eyeSeparation = separation;
+    ig::validateStereoOptions(stereo);
+    // The moving layer is replaced before each render; the options hold its address.
+    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime()));
+    ig::RenderOptions withObjects = options;
+    withObjects.objects = {scene.staticLayer.get(), moving.get()};
+    ig::RenderOptions terrainOnly = options;
+    terrainOnly.objects.clear();
+    std::shared_ptr<const ig::Caster> caster =
+        ig::makeCaster(ig::CasterKind::Fast, map, terrainOnly);
+    auto objects = std::make_shared<std::vector<sim::ExtraObject>>();
+    return [caster, moving, objects, extra, &map, &motion, geometry, stereo, terrainOnly,
+            withObjects](const ig::Pose& pose, double time, std::uint64_t sequence) {
+        if (extra) extra(time, *objects);
+        *moving = motion.stamp(time, *objects);
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        const ig::Pose left = sim::eyePoses(level, stereo.eyeSeparation).left;
+        ig::RenderedFrame frame = ig::renderFrame(
+            *caster, map, left, sim::renderIntrinsics(geometry, pose), time, sequence);
+        std::vector<ig::RightPixelSource> source;
+        ig::StereoStats stats;
+        auto right = std::make_shared<ig::RenderedFrame>(
+            ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats, caster.get()));
+        const double objectsMs = ig::drawStereoObjects(withObjects, frame, *right);
+        right->sequence = sequence;
+        right->time = time;
+        frame.stats.renderMs += stats.rightMs + objectsMs;
+        frame.right = std::move(right);
+        return frame;
+    };
+}
 
 constexpr const char* kDefaultOut = "y4m:out/flythrough.y4m";
 constexpr const char* kDefaultContact = "out/flythrough_contact.png";
@@ -475,10 +520,9 @@ int main(int argc, char** argv) {
         if (!truthPath.empty() && scenePath.empty()) {
             throw ig::InputError("--truth: give a --scene whose objects it describes");
         }
-        if (!scenePath.empty() && stereoSeparation) {
+        if (!truthPath.empty() && stereoSeparation) {
             throw ig::InputError(
-                "--scene: not with --stereo (the stereo renderer draws no "
-                "objects)");
+                "--truth: not with --stereo (the truth describes one eye's fields)");
         }
         if (stereoSeparation && casterKind != ig::CasterKind::Fast) {
             throw ig::InputError(
@@ -757,15 +801,24 @@ int main(int argc, char** argv) {
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
         sim::FrameRenderer renderer =
-            stereo  ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene ? sim::makeSceneRenderer(
-                          map, geometry, casterKind, renderOptions, *scene, *motion,
+            stereo && scene
+                ? makeStereoSceneRenderer(
+                      map, geometry, stereo->separation, renderOptions, *scene, *motion,
+                      cigiSource && !cigiEntities.empty()
+                          ? sim::ExtraObjects(
+                                [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
+                                    cigiSource->objectsAt(t, out);
+                                })
+                          : sim::ExtraObjects{})
+            : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+            : scene  ? sim::makeSceneRenderer(
+                           map, geometry, casterKind, renderOptions, *scene, *motion,
                           cigiSource && !cigiEntities.empty()
-                              ? sim::ExtraObjects(
+                               ? sim::ExtraObjects(
                                     [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
                                         cigiSource->objectsAt(t, out);
                                     })
-                              : sim::ExtraObjects{})
+                               : sim::ExtraObjects{})
                     : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
