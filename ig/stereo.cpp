@@ -14,6 +14,7 @@
 #include "ig/coherence.hpp"
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/haze_pass.hpp"
 #include "ig/object_pass.hpp"
 #include "ig/shading.hpp"
 #include "ig/surface_hit.hpp"
@@ -1134,10 +1135,19 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
 double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, RenderedFrame& right) {
     const auto draw = [&](RenderedFrame& frame) {
         const auto start = Clock::now();
+        const Camera camera(frame.pose, frame.intrinsics);
         runWithThreads(options.threads, [&] {
-            drawObjectsOverTerrain(options.objects, options.sky,
-                                   Camera(frame.pose, frame.intrinsics), frame);
+            drawObjectsOverTerrain(options.objects, options.sky, camera, frame);
         });
+        // The terrain is finished (lit, hazed); the casters draw objects before the finishing
+        // passes, whose light leaves object pixels as they are but whose height haze does
+        // not: the object pixels take theirs through a copy.
+        if (deferredHaze(options.sky) && !frame.objectId.empty()) {
+            RenderedFrame hazed = frame;
+            hazeFrame(options.sky, camera, hazed, options.threads);
+            for (std::size_t i = 0; i < frame.color.size(); ++i)
+                if (frame.objectId[i] != 0) frame.color[i] = hazed.color[i];
+        }
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
         frame.stats.renderMs += ms;
         return ms;
