@@ -124,7 +124,7 @@ its entity id as its object id.
 
 Objects: --scene FILE draws a scene's voxel objects (every caster, over its terrain), the moving
 ones stamped at each frame's instant; every field carries the object ids warped with its
-colour. --truth FILE writes one JSON line per field: each object in view or in
+colour. With --stereo the objects are drawn over both eyes (not with --truth). --truth FILE writes one JSON line per field: each object in view or in
 the frustum with its visible pixels, box and centroid in the field (output pixels, y the frame
 line), its range, the box of its exact 3-D placement projected at the field's pose, and the
 fraction hidden (docs/design/objects.md, "Ground truth"). On the wall clock a field whose truth
