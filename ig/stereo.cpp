@@ -1166,7 +1166,8 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
     }
     // With voxel objects the reprojection works on the terrain alone: the left eye is cast
     // without them, the right eye reprojected from that, and the objects' footprint pass then
-    // draws them over each eye exactly as over a mono frame (docs/design/stereo.md, "Objects").
+    // draws them over each eye exactly as over a mono frame (docs/design/stereo.md, "Voxel objects
+    // in the pair").
     const bool objects =
         !renderOptions.objects.empty() && options.method == RightEyeMethod::Reproject;
     RenderOptions terrainOptions = renderOptions;
@@ -1185,7 +1186,7 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         out.stats.restarts = out.right.stats.restarts;
         return out;
     }
-    out.right = reprojectRightEye(map, out.left, options, renderOptions, out.source, out.stats,
+    out.right = reprojectRightEye(map, out.left, options, terrainOptions, out.source, out.stats,
                                   caster.get());
     if (objects) {
         out.stats.objectsMs = drawStereoObjects(renderOptions, out.left, out.right);
