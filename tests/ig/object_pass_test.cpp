@@ -10,6 +10,8 @@
 #include "ig/terrain_io.hpp"
 #include "ig/vox.hpp"
 
+#include "common/objects_in_view.hpp"
+
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
@@ -34,51 +36,8 @@ const TerrainMap& goleta() {
     return map;
 }
 
-// The shipped models: opaque textured (conifer), semi-transparent (broadleaf), glass and a
-// doorway of cavities (house), thin floating runs (mast).
-const std::vector<ObjectModel>& shippedModels() {
-    static const std::vector<ObjectModel> models = [] {
-        std::vector<ObjectModel> m;
-        for (const char* name : {"conifer", "broadleaf", "house", "mast"}) {
-            const std::string path = std::string(VIG_DATA_DIR) + "/models/" + name + ".vox";
-            m.push_back(objectModelFromVox(readVox(path), 0, path));
-        }
-        return m;
-    }();
-    return models;
-}
-
-// Objects where a view looks: one on the ground under each pixel of a 6 x 5 grid whose centre
-// ray meets the terrain, about 30 pixels tall at the distance of the nearest such hit, headings
-// varied. Null when the view sees no ground.
-std::unique_ptr<ObjectLayer> objectsInView(const TerrainMap& map, const Pose& pose,
-                                           const Intrinsics& in) {
-    const Camera camera(pose, in);
-    std::vector<glm::dvec3> at;
-    double nearest = INFINITY;
-    for (int j = 0; j < 5; ++j) {
-        for (int i = 0; i < 6; ++i) {
-            const glm::dvec3 d = glm::normalize(
-                camera.rayDirection((i + 0.5) * in.width / 6.0, (j + 0.7) * in.height / 5.0));
-            const RayHit hit = intersectTerrain(map, pose.position, d);
-            if (!hit.hit) continue;
-            at.push_back(hit.point);
-            nearest = std::min(nearest, hit.distance);
-        }
-    }
-    if (at.empty()) return nullptr;
-    const double tall = nearest * 30.0 / in.focal;  // metres
-    const double scale = std::clamp(tall / 32.0, 0.01, 1000.0);
-    auto layer = std::make_unique<ObjectLayer>(map, std::max(scale, map.spacingX() / 4000.0));
-    for (std::size_t i = 0; i < at.size(); ++i) {
-        const ObjectModel& m = shippedModels()[i % 4];
-        layer->place(
-            m, Placement{static_cast<std::uint16_t>(1 + i), at[i].x, at[i].y,
-                         map.surfaceHeight(at[i].x, at[i].y), 0.7 * static_cast<double>(i), scale});
-    }
-    layer->finish();
-    return layer;
-}
+using vig_test::objectsInView;
+using vig_test::shippedModels;
 
 RenderedFrame renderWith(const TerrainMap& map, RenderOptions options, CasterKind kind,
                          const ObjectLayer* layer, const Pose& pose, const Intrinsics& in) {

@@ -9,6 +9,8 @@
 #include "ig/terrain_io.hpp"
 #include "ig/vox.hpp"
 
+#include "common/objects_in_view.hpp"
+
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
@@ -28,48 +30,8 @@ const TerrainMap& puget() {
     return map;
 }
 
-// The shipped models: opaque (conifer), semi-transparent (broadleaf), cavities (house), thin
-// (mast).
-const std::vector<ObjectModel>& shippedModels() {
-    static const std::vector<ObjectModel> models = [] {
-        std::vector<ObjectModel> m;
-        for (const char* name : {"conifer", "broadleaf", "house", "mast"}) {
-            const std::string path = std::string(VIG_DATA_DIR) + "/models/" + name + ".vox";
-            m.push_back(objectModelFromVox(readVox(path), 0, path));
-        }
-        return m;
-    }();
-    return models;
-}
-
-// Objects on the ground under a 6 x 5 grid of the view's pixels, about 30 pixels tall at the
-// nearest; null when the view sees no ground. `nearest` gets that distance.
-std::unique_ptr<ObjectLayer> objectsInView(const TerrainMap& map, const Pose& pose,
-                                           const Intrinsics& in, double& nearest) {
-    const Camera camera(pose, in);
-    std::vector<glm::dvec3> at;
-    nearest = INFINITY;
-    for (int j = 0; j < 5; ++j) {
-        for (int i = 0; i < 6; ++i) {
-            const glm::dvec3 d = glm::normalize(
-                camera.rayDirection((i + 0.5) * in.width / 6.0, (j + 0.7) * in.height / 5.0));
-            const RayHit hit = intersectTerrain(map, pose.position, d);
-            if (!hit.hit) continue;
-            at.push_back(hit.point);
-            nearest = std::min(nearest, hit.distance);
-        }
-    }
-    if (at.empty()) return nullptr;
-    const double scale = std::clamp(nearest * 30.0 / in.focal / 32.0, 0.01, 1000.0);
-    auto layer = std::make_unique<ObjectLayer>(map, std::max(scale, map.spacingX() / 4000.0));
-    for (std::size_t i = 0; i < at.size(); ++i) {
-        layer->place(shippedModels()[i % 4], Placement{static_cast<std::uint16_t>(1 + i), at[i].x,
-                                                       at[i].y, map.surfaceHeight(at[i].x, at[i].y),
-                                                       0.7 * static_cast<double>(i), scale});
-    }
-    layer->finish();
-    return layer;
-}
+using vig_test::objectsInView;
+using vig_test::shippedModels;
 
 // How a right eye's objects compare with a truly rendered one's.
 struct Agreement {
@@ -107,7 +69,7 @@ TEST(StereoObjects, RightEyeAgreesWithTrulyRenderedRightEye) {
     int views = 0;
     for (const Pose& pose : sweepPoses(map, 8)) {
         double nearest = 0.0;
-        const auto layer = objectsInView(map, pose, in, nearest);
+        const auto layer = objectsInView(map, pose, in, &nearest);
         if (!layer) continue;
         ++views;
         RenderOptions options;
@@ -149,7 +111,7 @@ TEST(StereoObjects, LeftEyeUnderHeightHazeIsTheMonoFrame) {
     double errSum = 0.0;
     for (const Pose& pose : sweepPoses(map, 4)) {
         double nearest = 0.0;
-        const auto layer = objectsInView(map, pose, in, nearest);
+        const auto layer = objectsInView(map, pose, in, &nearest);
         if (!layer) continue;
         RenderOptions options;
         options.objects = {layer.get()};
@@ -186,7 +148,7 @@ TEST(StereoObjects, ZeroSeparationGivesIdenticalEyes) {
     std::size_t objectPixels = 0;
     for (const Pose& pose : sweepPoses(map, 4)) {
         double nearest = 0.0;
-        const auto layer = objectsInView(map, pose, in, nearest);
+        const auto layer = objectsInView(map, pose, in, &nearest);
         if (!layer) continue;
         RenderOptions options;
         options.objects = {layer.get()};
@@ -210,7 +172,7 @@ TEST(StereoObjects, FullyCastRightEyeCarriesIds) {
     double nearest = 0.0;
     std::unique_ptr<ObjectLayer> layer;
     for (const Pose& p : sweepPoses(map, 4)) {
-        layer = objectsInView(map, p, in, nearest);
+        layer = objectsInView(map, p, in, &nearest);
         pose = p;
         if (layer) break;
     }
