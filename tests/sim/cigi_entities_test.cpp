@@ -12,6 +12,8 @@
 #include "sim/pipeline.hpp"
 #include "sim/scene_motion.hpp"
 
+#include "common/cigi_host.hpp"
+
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
@@ -30,25 +32,11 @@ namespace {
 
 namespace cigi = io::cigi;
 
-constexpr std::uint32_t kLoopback = 0x7f000001;
+using vig_test::kLoopback;
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kPeriod = 1001.0 / 60000.0;
 
-struct Host {
-    io::UdpSocket socket;
-    io::UdpEndpoint ig;
-    std::uint32_t frame = 0;
-
-    Host() { EXPECT_EQ(socket.open({kLoopback, 0}), 0); }
-    void sendRaw(const std::vector<std::uint8_t>& bytes) { ASSERT_EQ(socket.sendTo(bytes, ig), 0); }
-    void send(std::vector<cigi::Packet> packets) {
-        cigi::IgControl control;
-        control.igMode = cigi::IgMode::Operate;
-        control.hostFrameNumber = ++frame;
-        packets.insert(packets.begin(), control);
-        sendRaw(cigi::encodeMessage(packets, cigi::ByteOrder::Big));
-    }
-};
+using Host = vig_test::CigiHost;
 
 // A flat map 100 m high (65 x 65 samples, 10 m apart).
 ig::TerrainMap flatMap() {

@@ -11,6 +11,8 @@
 #include "sim/trajectory.hpp"
 #include "sim/trajectory_poses.hpp"
 
+#include "common/cigi_host.hpp"
+
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -32,52 +34,11 @@ namespace {
 
 namespace cigi = io::cigi;
 
-constexpr std::uint32_t kLoopback = 0x7f000001;
+using vig_test::kLoopback;
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kPeriod = 1001.0 / 60000.0;
 
-// A host on loopback: sends messages (IG Control first) and reads what the image generator sent.
-struct Host {
-    io::UdpSocket socket;
-    io::UdpEndpoint ig;
-    std::uint32_t frame = 0;
-
-    Host() { EXPECT_EQ(socket.open({kLoopback, 0}), 0); }
-
-    void sendRaw(const std::vector<std::uint8_t>& bytes) { ASSERT_EQ(socket.sendTo(bytes, ig), 0); }
-    std::vector<std::uint8_t> encode(std::vector<cigi::Packet> packets,
-                                     cigi::IgMode mode = cigi::IgMode::Operate) {
-        cigi::IgControl control;
-        control.igMode = mode;
-        control.hostFrameNumber = ++frame;
-        control.timestamp = frame * 1000;
-        control.timestampValid = true;
-        packets.insert(packets.begin(), control);
-        return cigi::encodeMessage(packets, cigi::ByteOrder::Big);
-    }
-    void send(std::vector<cigi::Packet> packets, cigi::IgMode mode = cigi::IgMode::Operate) {
-        sendRaw(encode(std::move(packets), mode));
-    }
-    // Every datagram waiting (loopback delivers before sendto returns).
-    std::vector<cigi::Message> receiveAll() {
-        std::vector<cigi::Message> out;
-        std::vector<std::uint8_t> buffer(65536);
-        while (true) {
-            const long n = socket.receive(buffer);
-            if (n == -EAGAIN) break;
-            EXPECT_GT(n, 0);
-            if (n <= 0) break;
-            cigi::Message m;
-            std::string error;
-            EXPECT_TRUE(cigi::decodeMessage(
-                std::span<const std::uint8_t>(buffer.data(), static_cast<std::size_t>(n)),
-                cigi::Sender::ImageGenerator, m, &error))
-                << error;
-            out.push_back(std::move(m));
-        }
-        return out;
-    }
-};
+using Host = vig_test::CigiHost;
 
 // A 3.8 km square of synthetic terrain placed at 47 N, 122 W.
 struct World {
