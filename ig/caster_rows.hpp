@@ -349,8 +349,9 @@ class RowBatches {
         cellColors(mv, kMajorX ? cm : cn, kMajorX ? cn : cm, kMajorX ? fm : fn, kMajorX ? fn : fm,
                    rgb);
         const V t = uHit * len * inv;
-        if (vmask(hitLane) == kAll && !(sky_.hazeDistance > 0.0)) {
-            // All lanes hit, no haze (the common case): quantize on the lanes, as quantizeColor().
+        if (vmask(hitLane) == kAll && !hazeInKernel(sky_)) {
+            // All lanes hit, no haze drawn here (the common case): quantize on the lanes, as
+            // quantizeColor().
             quantizeLanes(rgb, c);
             std::memcpy(tHit, &t, sizeof t);
             st.prevU = uHit[kTop];

@@ -7,6 +7,7 @@
 
 #include "base/check.hpp"
 #include "ig/caster_impl.hpp"
+#include "ig/shading.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -232,8 +233,7 @@ void lightFrame(const SunLighting& lighting, const SkyModel& sky, const LevelBan
     const CameraBasis& basis = camera.basis();
     const glm::dvec3 eye = camera.pose().position;
     // With a height fall-off the caster drew no haze (hazeFrame adds it after the light).
-    const double invHaze =
-        sky.hazeDistance > 0.0 && !deferredHaze(sky) ? 1.0 / sky.hazeDistance : 0.0;
+    const double invHaze = hazeInKernel(sky) ? 1.0 / sky.hazeDistance : 0.0;
     // Level 0 at every distance: no horizontal distance needed.
     const bool banded = !lighting.levelZeroNormals && bands.topLevel > 0 &&
                         bands.d0 < std::numeric_limits<double>::infinity();
@@ -282,9 +282,7 @@ void lightFrameReference(const SunLighting& lighting, const SkyModel& sky, const
             const glm::dvec3 hit = camera.pose().position + depth * dir;
             const double horizontal = depth * std::hypot(dir.x, dir.y);
             const double light = lightFactor(lighting, bands, sun, hit.x, hit.y, horizontal);
-            const double f = sky.hazeDistance > 0.0 && !deferredHaze(sky)
-                                 ? 1.0 - std::exp(-depth / sky.hazeDistance)
-                                 : 0.0;
+            const double f = hazeInKernel(sky) ? 1.0 - std::exp(-depth / sky.hazeDistance) : 0.0;
             Rgb8& c = frame.color[i];
             auto mix = [&](std::uint8_t v, std::uint8_t h) {
                 const double hf = h * f;

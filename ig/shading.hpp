@@ -20,11 +20,16 @@ inline Rgb8 skyColor(const SkyModel& sky, double dz) {
                 mix(sky.horizon.b, sky.zenith.b)};
 }
 
+// Whether the casters draw the haze themselves: it is on and has no height fall-off (with one,
+// the haze pass applies it from the depth).
+[[gnu::always_inline]] inline bool hazeInKernel(const SkyModel& sky) {
+    return sky.hazeDistance > 0.0 && !(sky.hazeFalloff > 0.0);
+}
+
 // Distance haze: blends a colour (0..255 per channel) seen from `distance` metres toward the
-// horizon colour by 1 - exp(-distance / hazeDistance); no change when haze is off or deferred
-// (a height fall-off: the haze pass applies it from the depth).
+// horizon colour by 1 - exp(-distance / hazeDistance); no change unless hazeInKernel().
 [[gnu::always_inline]] inline void applyHaze(const SkyModel& sky, float rgb[3], double distance) {
-    if (sky.hazeDistance > 0.0 && !(sky.hazeFalloff > 0.0)) {
+    if (hazeInKernel(sky)) {
         const float k = static_cast<float>(1.0 - std::exp(-distance / sky.hazeDistance));
         rgb[0] += (sky.horizon.r - rgb[0]) * k;
         rgb[1] += (sky.horizon.g - rgb[1]) * k;
