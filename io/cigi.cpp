@@ -450,6 +450,103 @@ void decode(const Reader& b, LosExtendedResponse& p) {
     p.normalElevationDeg = b.f32(52);
 }
 
+void encode(const SensorControl& p, Writer& b) {
+    b.u16(2, p.viewId);
+    b.u8(4, p.sensorId);
+    b.u8(5, static_cast<std::uint8_t>(flag(p.sensorOn, 0) | flag(p.blackHot, 1) |
+                                      flag(p.lineDropout, 2) | flag(p.autoGain, 3) |
+                                      flag(p.trackBlack, 4) | field(raw(p.trackMode), 5)));
+    b.u8(6, flag(p.extendedResponse, 0));
+    b.f32(8, p.gain);
+    b.f32(12, p.level);
+    b.f32(16, p.acCoupling);
+    b.f32(20, p.noise);
+}
+void decode(const Reader& b, SensorControl& p) {
+    p.viewId = b.u16(2);
+    p.sensorId = b.u8(4);
+    const std::uint8_t f = b.u8(5);
+    p.sensorOn = bit(f, 0);
+    p.blackHot = bit(f, 1);
+    p.lineDropout = bit(f, 2);
+    p.autoGain = bit(f, 3);
+    p.trackBlack = bit(f, 4);
+    p.trackMode = static_cast<SensorTrackMode>(f >> 5);
+    p.extendedResponse = bit(b.u8(6), 0);
+    p.gain = b.f32(8);
+    p.level = b.f32(12);
+    p.acCoupling = b.f32(16);
+    p.noise = b.f32(20);
+}
+
+void encode(const ComponentControl& p, Writer& b) {
+    b.u16(2, p.componentId);
+    b.u16(4, p.instanceId);
+    b.u8(6, p.componentClass);
+    b.u8(7, p.componentState);
+    for (std::size_t i = 0; i < 6; ++i)
+        b.u32(8 + 4 * i, p.data[i]);
+}
+void decode(const Reader& b, ComponentControl& p) {
+    p.componentId = b.u16(2);
+    p.instanceId = b.u16(4);
+    p.componentClass = b.u8(6) & 0x3f;
+    p.componentState = b.u8(7);
+    for (std::size_t i = 0; i < 6; ++i)
+        p.data[i] = b.u32(8 + 4 * i);
+}
+
+void encode(const SensorResponse& p, Writer& b) {
+    b.u16(2, p.viewId);
+    b.u8(4, p.sensorId);
+    b.u8(5, field(raw(p.status), 0));
+    b.u16(8, p.gateXSize);
+    b.u16(10, p.gateYSize);
+    b.f32(12, p.gateXDeg);
+    b.f32(16, p.gateYDeg);
+    b.u32(20, p.frameCounter);
+}
+void decode(const Reader& b, SensorResponse& p) {
+    p.viewId = b.u16(2);
+    p.sensorId = b.u8(4);
+    p.status = static_cast<SensorStatus>(b.u8(5) & 0x03);
+    p.gateXSize = b.u16(8);
+    p.gateYSize = b.u16(10);
+    p.gateXDeg = b.f32(12);
+    p.gateYDeg = b.f32(16);
+    p.frameCounter = b.u32(20);
+}
+
+void encode(const SensorExtendedResponse& p, Writer& b) {
+    b.u16(2, p.viewId);
+    b.u8(4, p.sensorId);
+    b.u8(5, static_cast<std::uint8_t>(field(raw(p.status), 0) | flag(p.entityIdValid, 2)));
+    b.u16(6, p.entityId);
+    b.u16(8, p.gateXSize);
+    b.u16(10, p.gateYSize);
+    b.f32(12, p.gateXDeg);
+    b.f32(16, p.gateYDeg);
+    b.u32(20, p.frameCounter);
+    b.f64(24, p.latDeg);
+    b.f64(32, p.lonDeg);
+    b.f64(40, p.altM);
+}
+void decode(const Reader& b, SensorExtendedResponse& p) {
+    p.viewId = b.u16(2);
+    p.sensorId = b.u8(4);
+    p.status = static_cast<SensorStatus>(b.u8(5) & 0x03);
+    p.entityIdValid = bit(b.u8(5), 2);
+    p.entityId = b.u16(6);
+    p.gateXSize = b.u16(8);
+    p.gateYSize = b.u16(10);
+    p.gateXDeg = b.f32(12);
+    p.gateYDeg = b.f32(16);
+    p.frameCounter = b.u32(20);
+    p.latDeg = b.f64(24);
+    p.lonDeg = b.f64(32);
+    p.altM = b.f64(40);
+}
+
 // --- Field checks
 
 // Collects the first problem; later checks do nothing once one is found. Builds no string
@@ -593,6 +690,29 @@ void check(const LosExtendedResponse& p, Checker& c) {
     c.range("normal elevation", p.normalElevationDeg, -90, 90, "degrees");
 }
 
+void check(const SensorControl& p, Checker& c) {
+    c.range("gain", p.gain, 0, 1, "(a fraction of full gain)");
+    c.finite("level", p.level);
+    c.finite("AC coupling", p.acCoupling);
+    c.finite("noise", p.noise);
+}
+void check(const ComponentControl& p, Checker& c) {
+    c.bits("component class", p.componentClass, 6);
+    c.oneOf("component class", p.componentClass, 16,
+            "0-15 (entity, view, view group, sensor, ... symbol); 16-63 are reserved");
+}
+void gate(float x, float y, Checker& c) {
+    c.range("gate x position", x, -180, 180, "degrees");
+    c.range("gate y position", y, -90, 90, "degrees");
+}
+void check(const SensorResponse& p, Checker& c) {
+    gate(p.gateXDeg, p.gateYDeg, c);
+}
+void check(const SensorExtendedResponse& p, Checker& c) {
+    gate(p.gateXDeg, p.gateYDeg, c);
+    c.position(true, "track point ", p.latDeg, p.lonDeg, p.altM);
+}
+
 template <typename T>
 constexpr bool kFromHost = T::kId < 100;
 
@@ -614,6 +734,14 @@ template <>
 constexpr std::string_view kName<LosSegmentRequest> = "Line of Sight Segment Request (id 25)";
 template <>
 constexpr std::string_view kName<LosVectorRequest> = "Line of Sight Vector Request (id 26)";
+template <>
+constexpr std::string_view kName<SensorControl> = "Sensor Control (id 17)";
+template <>
+constexpr std::string_view kName<ComponentControl> = "Component Control (id 4)";
+template <>
+constexpr std::string_view kName<SensorResponse> = "Sensor Response (id 106)";
+template <>
+constexpr std::string_view kName<SensorExtendedResponse> = "Sensor Extended Response (id 107)";
 template <>
 constexpr std::string_view kName<StartOfFrame> = "Start of Frame (id 101)";
 template <>
@@ -785,6 +913,18 @@ bool Decoder::run() {
                 break;
             case LosExtendedResponse::kId:
                 ok = packet<LosExtendedResponse>(offset, size);
+                break;
+            case SensorControl::kId:
+                ok = packet<SensorControl>(offset, size);
+                break;
+            case ComponentControl::kId:
+                ok = packet<ComponentControl>(offset, size);
+                break;
+            case SensorResponse::kId:
+                ok = packet<SensorResponse>(offset, size);
+                break;
+            case SensorExtendedResponse::kId:
+                ok = packet<SensorExtendedResponse>(offset, size);
                 break;
             default:
                 ++m_.skippedPackets;

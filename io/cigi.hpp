@@ -86,6 +86,45 @@ struct ViewControl {  // id 16, 32 bytes
     bool operator==(const ViewControl&) const = default;
 };
 
+// Track modes 5-7 are the image generator's own; this one knows none of them.
+enum class SensorTrackMode : std::uint8_t {
+    Off = 0,
+    ForceCorrelate = 1,
+    Scene = 2,
+    Target = 3,
+    Ship = 4
+};
+
+struct SensorControl {  // id 17, 24 bytes
+    static constexpr std::uint8_t kId = 17, kSize = 24;
+    std::uint16_t viewId = 0;
+    std::uint8_t sensorId = 0;
+    bool sensorOn = false;
+    bool blackHot = false;  // polarity: false white hot
+    bool lineDropout = false;
+    bool autoGain = false;
+    bool trackBlack = false;  // track polarity: false tracks white
+    SensorTrackMode trackMode = SensorTrackMode::Off;
+    bool extendedResponse = false;  // answer with Sensor Extended Response (else Sensor Response)
+    float gain = 0;                 // [0, 1]
+    float level = 0, acCoupling = 0, noise = 0;
+    bool operator==(const SensorControl&) const = default;
+};
+
+// Component classes 0-15 (6 bits on the wire, 16-63 reserved); 3 is a sensor, the instance
+// its sensor id.
+inline constexpr std::uint8_t kComponentClassSensor = 3;
+
+struct ComponentControl {  // id 4, 32 bytes
+    static constexpr std::uint8_t kId = 4, kSize = 32;
+    std::uint16_t componentId = 0;  // which component of the instance (IG-defined)
+    std::uint16_t instanceId = 0;   // the entity, view, sensor ... it belongs to
+    std::uint8_t componentClass = 0;
+    std::uint8_t componentState = 0;
+    std::uint32_t data[6] = {0, 0, 0, 0, 0, 0};  // IG-defined words
+    bool operator==(const ComponentControl&) const = default;
+};
+
 enum class MirrorMode : std::uint8_t { None = 0, Horizontal = 1, Vertical = 2, Both = 3 };
 
 struct ViewDefinition {  // id 21, 32 bytes
@@ -220,10 +259,45 @@ struct LosExtendedResponse {  // id 105, 56 bytes
     bool operator==(const LosExtendedResponse&) const = default;
 };
 
+enum class SensorStatus : std::uint8_t {
+    Searching = 0,
+    Tracking = 1,
+    ImpendingBreaklock = 2,
+    Breaklock = 3  // the target is lost
+};
+
+// The gate: its size in pixels (raster lines vertically) and its centre's direction from the
+// view's axis, yaw right and pitch up in degrees.
+struct SensorResponse {  // id 106, 24 bytes
+    static constexpr std::uint8_t kId = 106, kSize = 24;
+    std::uint16_t viewId = 0;
+    std::uint8_t sensorId = 0;
+    SensorStatus status = SensorStatus::Searching;
+    std::uint16_t gateXSize = 0, gateYSize = 0;
+    float gateXDeg = 0, gateYDeg = 0;  // [-180, 180], [-90, 90]
+    std::uint32_t frameCounter = 0;    // the IG frame the gate was worked out for
+    bool operator==(const SensorResponse&) const = default;
+};
+
+struct SensorExtendedResponse {  // id 107, 48 bytes
+    static constexpr std::uint8_t kId = 107, kSize = 48;
+    std::uint16_t viewId = 0;
+    std::uint8_t sensorId = 0;
+    SensorStatus status = SensorStatus::Searching;
+    bool entityIdValid = false;  // the target is an entity (entityId)
+    std::uint16_t entityId = 0;
+    std::uint16_t gateXSize = 0, gateYSize = 0;
+    float gateXDeg = 0, gateYDeg = 0;
+    std::uint32_t frameCounter = 0;
+    double latDeg = 0, lonDeg = 0, altM = 0;  // the track point, geodetic
+    bool operator==(const SensorExtendedResponse&) const = default;
+};
+
 using Packet =
     std::variant<IgControl, EntityControl, RateControl, ViewControl, ViewDefinition, HatHotRequest,
                  LosSegmentRequest, LosVectorRequest, StartOfFrame, HatHotResponse,
-                 HatHotExtendedResponse, LosResponse, LosExtendedResponse>;
+                 HatHotExtendedResponse, LosResponse, LosExtendedResponse, SensorControl,
+                 ComponentControl, SensorResponse, SensorExtendedResponse>;
 
 // "Entity Control (id 2)".
 std::string_view packetName(const Packet& packet);

@@ -22,16 +22,16 @@ if grep -Eq "^(Errors|Warnings|Notes) " <<<"$expert"; then
     echo "FAIL: tshark expert information:"; echo "$expert"; fail=1
 fi
 packets=$(grep -c "Packet ID:" <<<"$text")
-if [ "$packets" -ne 28 ]; then echo "FAIL: $packets CIGI packets decoded, expected 28"; fail=1; fi
+if [ "$packets" -ne 36 ]; then echo "FAIL: $packets CIGI packets decoded, expected 36"; fail=1; fi
 
 expect() {  # a line tshark must print, and how many times (both byte orders)
     local count; count=$(grep -cF -- "$1" <<<"$text")
     if [ "$count" -ne "$2" ]; then echo "FAIL: '$1' printed $count times, expected $2"; fail=1; fi
 }
 # The size byte of every packet (the dissector itself reads fixed layouts).
-expect "Packet Size (bytes): 24" 4
-expect "Packet Size (bytes): 48" 4
-expect "Packet Size (bytes): 32" 8
+expect "Packet Size (bytes): 24" 8
+expect "Packet Size (bytes): 48" 6
+expect "Packet Size (bytes): 32" 10
 expect "Packet Size (bytes): 64" 2
 expect "Packet Size (bytes): 56" 4
 expect "Packet Size (bytes): 16" 4
@@ -71,11 +71,35 @@ expect "Normal Vector Elevation (degrees): 80.5" 2
 expect "Range (m): 15000.5" 2
 expect "Range (m): 812.25" 2
 expect "Blue: 30" 2
+expect "Track Mode: Target (3)" 2
+expect "Polarity: Black hot" 2
+expect "Line-by-Line Dropout Enable: Disabled" 2
+expect "Track White/Black: Black" 2
+expect "Response Type: Extended" 2
+expect "Gain: 0.75" 2
+expect "AC Coupling (microseconds): 2.5" 2
+expect "Component Class: Sensor (3)" 2
+expect "Component State: 2" 2
+# The dissector prints the component data words as raw bytes; the standard (and the CIGI Class
+# Library) swaps them as 32-bit words, so the little-endian frame shows them reversed.
+expect "Component Data 1: 00001235" 1
+expect "Component Data 1: 35120000" 1
+expect "Component Data 6: cafef00d" 1
+expect "Sensor Status: Tracking target (1)" 2
+expect "Sensor Status: Breaklock (3)" 2
+expect "Entity ID: 4661" 8
+expect "Gate X Position (degrees): -3.25" 2
+expect "Gate Y Position (degrees): -6.5" 2
+expect "Gate Y Size (pixels or raster lines): 30" 2
+expect "Frame Counter: 3000000000" 2
+expect "Track Point Longitude (degrees): -122.375" 2
+expect "Track Point Altitude (m): 450.5" 2
 
 # Frames 1 and 3 (host) and 2 and 4 (image generator) differ only in byte order.
 cigi() {  # the CIGI part of one frame, byte-swap line removed
     "${decode[@]}" -V -Y "frame.number == $1" 2>/dev/null |
-        sed -n '/^Common Image Generator Interface/,$p' | grep -v "Byte Swap:" | tail -n +2
+        sed -n '/^Common Image Generator Interface/,$p' | grep -v "Byte Swap:\|Component Data" |
+        tail -n +2
 }
 for pair in "1 3" "2 4"; do
     set -- $pair

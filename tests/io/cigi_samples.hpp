@@ -158,6 +158,30 @@ inline std::vector<Packet> sampleHostPackets() {
     lv.materialMask = 0x0000ffff;
     lv.updatePeriod = 1;
     v.emplace_back(lv);
+
+    SensorControl sc;
+    sc.viewId = 2;
+    sc.sensorId = 7;
+    sc.sensorOn = true;
+    sc.blackHot = true;
+    sc.autoGain = true;
+    sc.trackBlack = true;
+    sc.trackMode = SensorTrackMode::Target;
+    sc.extendedResponse = true;
+    sc.gain = 0.75f;
+    sc.level = -0.5f;
+    sc.acCoupling = 2.5f;
+    sc.noise = 0.125f;
+    v.emplace_back(sc);
+
+    ComponentControl cc;
+    cc.componentId = 1;
+    cc.instanceId = 7;
+    cc.componentClass = kComponentClassSensor;
+    cc.componentState = 2;
+    cc.data[0] = 4661;
+    cc.data[5] = 0xcafef00d;
+    v.emplace_back(cc);
     return v;
 }
 
@@ -215,6 +239,33 @@ inline std::vector<Packet> sampleIgPackets() {
     le.normalAzimuthDeg = 45.0f;
     le.normalElevationDeg = 60.0f;
     v.emplace_back(le);
+
+    SensorResponse sr;
+    sr.viewId = 2;
+    sr.sensorId = 7;
+    sr.status = SensorStatus::Tracking;
+    sr.gateXSize = 24;
+    sr.gateYSize = 18;
+    sr.gateXDeg = -3.25f;
+    sr.gateYDeg = 1.5f;
+    sr.frameCounter = 3000000000u;
+    v.emplace_back(sr);
+
+    SensorExtendedResponse sx;
+    sx.viewId = 2;
+    sx.sensorId = 7;
+    sx.status = SensorStatus::Breaklock;
+    sx.entityIdValid = true;
+    sx.entityId = 4661;
+    sx.gateXSize = 40;
+    sx.gateYSize = 30;
+    sx.gateXDeg = 12.75f;
+    sx.gateYDeg = -6.5f;
+    sx.frameCounter = 99;
+    sx.latDeg = 47.625;
+    sx.lonDeg = -122.375;
+    sx.altM = 450.5;
+    v.emplace_back(sx);
     return v;
 }
 

@@ -71,11 +71,12 @@ TEST(CigiCodec, EveryPacketRoundTripsInBothByteOrders) {
 
 TEST(CigiCodec, PacketSizesAreTheStandards) {
     const std::pair<Packet, std::size_t> sizes[] = {
-        {IgControl{}, 24},          {EntityControl{}, 48},          {RateControl{}, 32},
-        {ViewControl{}, 32},        {ViewDefinition{}, 32},         {HatHotRequest{}, 32},
-        {LosSegmentRequest{}, 64},  {LosVectorRequest{}, 56},       {StartOfFrame{}, 24},
-        {HatHotResponse{}, 16},     {HatHotExtendedResponse{}, 40}, {LosResponse{}, 16},
-        {LosExtendedResponse{}, 56}};
+        {IgControl{}, 24},           {EntityControl{}, 48},          {RateControl{}, 32},
+        {ViewControl{}, 32},         {ViewDefinition{}, 32},         {HatHotRequest{}, 32},
+        {LosSegmentRequest{}, 64},   {LosVectorRequest{}, 56},       {StartOfFrame{}, 24},
+        {HatHotResponse{}, 16},      {HatHotExtendedResponse{}, 40}, {LosResponse{}, 16},
+        {LosExtendedResponse{}, 56}, {SensorControl{}, 24},          {ComponentControl{}, 32},
+        {SensorResponse{}, 24},      {SensorExtendedResponse{}, 48}};
     for (const auto& [p, size] : sizes) {
         Bytes out;
         encodePacket(p, ByteOrder::Big, out);
@@ -239,6 +240,64 @@ TEST(CigiCodec, HandWrittenStartOfFrameAndHatHotResponseLittleEndian) {
     EXPECT_EQ(h.heightM, 100.0);
 }
 
+TEST(CigiCodec, HandWrittenSensorControlAndComponentControl) {
+    Bytes d = kIgControlBig;
+    const Bytes sensor = {0x11, 0x18, 0x00, 0x02,  // id 17, 24 bytes, view 2
+                          0x07, 0x7b, 0x01, 0x00,  // sensor 7; on | black hot | auto gain | track
+                                                   // black | target (3 << 5); extended response
+                          0x3f, 0x40, 0x00, 0x00,     // gain 0.75
+                          0xbf, 0x00, 0x00, 0x00,     // level -0.5
+                          0x40, 0x20, 0x00, 0x00,     // AC coupling 2.5
+                          0x3e, 0x00, 0x00, 0x00};    // noise 0.125
+    const Bytes component = {0x04, 0x20, 0x00, 0x01,  // id 4, 32 bytes, component 1
+                             0x00, 0x07, 0x03, 0x02,  // instance 7, class 3 (sensor), state 2
+                             0x00, 0x00, 0x12, 0x35,  // data word 1: 4661
+                             0,    0,    0,    0,    0, 0, 0,    0,    0,    0,
+                             0,    0,    0,    0,    0, 0, 0xca, 0xfe, 0xf0, 0x0d};  // data word 6
+    d.insert(d.end(), sensor.begin(), sensor.end());
+    d.insert(d.end(), component.begin(), component.end());
+    const Message m = decodeOk(d, Sender::Host);
+    ASSERT_EQ(m.packets.size(), 3u);
+    const auto samples = test::sampleHostPackets();
+    const auto& s = std::get<SensorControl>(m.packets[1]);
+    EXPECT_TRUE(m.packets[1] == samples[samples.size() - 2]);
+    EXPECT_EQ(s.trackMode, SensorTrackMode::Target);
+    EXPECT_FALSE(s.lineDropout);
+    EXPECT_TRUE(m.packets[2] == samples.back());
+    EXPECT_EQ(encodeMessage(m.packets, ByteOrder::Big), d);
+}
+
+TEST(CigiCodec, HandWrittenSensorResponsesLittleEndian) {
+    Bytes d = encodeMessage(std::vector<Packet>{test::sampleStartOfFrame()}, ByteOrder::Little);
+    const Bytes response = {0x6a, 0x18, 0x02, 0x00,   // id 106, 24 bytes, view 2
+                            0x07, 0x01, 0x00, 0x00,   // sensor 7, tracking
+                            0x18, 0x00, 0x12, 0x00,   // gate 24 x 18
+                            0x00, 0x00, 0x50, 0xc0,   // gate x -3.25
+                            0x00, 0x00, 0xc0, 0x3f,   // gate y 1.5
+                            0x00, 0x5e, 0xd0, 0xb2};  // frame 3000000000
+    const Bytes extended = {
+        0x6b, 0x30, 0x02, 0x00,  // id 107, 48 bytes, view 2
+        0x07, 0x07, 0x35, 0x12,  // sensor 7, breaklock (3) | entity id valid; entity 4661
+        0x28, 0x00, 0x1e, 0x00,  // gate 40 x 30
+        0x00, 0x00, 0x4c, 0x41,  // gate x 12.75
+        0x00, 0x00, 0xd0, 0xc0,  // gate y -6.5
+        0x63, 0x00, 0x00, 0x00,  // frame 99
+        0x00, 0x00, 0x00, 0x00, 0x00, 0xd0, 0x47, 0x40,   // latitude 47.625
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x98, 0x5e, 0xc0,   // longitude -122.375
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x28, 0x7c, 0x40};  // altitude 450.5
+    d.insert(d.end(), response.begin(), response.end());
+    d.insert(d.end(), extended.begin(), extended.end());
+    const Message m = decodeOk(d, Sender::ImageGenerator);
+    ASSERT_EQ(m.packets.size(), 3u);
+    const auto samples = test::sampleIgPackets();
+    EXPECT_TRUE(m.packets[1] == samples[samples.size() - 2]);
+    EXPECT_TRUE(m.packets[2] == samples.back());
+    const auto& x = std::get<SensorExtendedResponse>(m.packets[2]);
+    EXPECT_EQ(x.status, SensorStatus::Breaklock);
+    EXPECT_EQ(x.altM, 450.5);
+    EXPECT_EQ(encodeMessage(m.packets, ByteOrder::Little), d);
+}
+
 // --- Refusals
 
 TEST(CigiCodec, EmptyAndTinyDatagramsAreRefused) {
@@ -340,9 +399,9 @@ TEST(CigiCodec, SizeZeroOrOneIsRefusedNotLoopedOn) {
 
 TEST(CigiCodec, UnknownPacketsAreSkippedBySize) {
     Bytes d = kIgControlBig;
-    // Component Control (id 4, 32 bytes) and a user-defined packet (id 201, 12 bytes).
+    // Articulated Part Control (id 6, 32 bytes) and a user-defined packet (id 201, 12 bytes).
     Bytes unknown(32, 0x5a);
-    unknown[0] = 4;
+    unknown[0] = 6;
     unknown[1] = 32;
     d.insert(d.end(), unknown.begin(), unknown.end());
     d.insert(d.end(), {201, 12, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
@@ -455,6 +514,23 @@ TEST(CigiCodec, NonFiniteAndOutOfRangeNumbersAreRefused) {
     EXPECT_EQ(problem(animated),
               "animation state 4 is not one of 0 (stop), 1 (pause), 2 (play), "
               "3 (continue)");
+    SensorControl sc;
+    sc.gain = 1.5f;
+    EXPECT_EQ(problem(sc), "gain 1.5 is outside [0, 1] (a fraction of full gain)");
+    sc = {};
+    sc.noise = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_EQ(problem(sc), "noise is nan, not a finite number");
+    ComponentControl cc;
+    cc.componentClass = 16;
+    EXPECT_EQ(problem(cc),
+              "component class 16 is not one of 0-15 (entity, view, view group, sensor, ... "
+              "symbol); 16-63 are reserved");
+    SensorResponse sr;
+    sr.gateXDeg = 181;
+    EXPECT_EQ(problem(sr), "gate x position 181 is outside [-180, 180] degrees");
+    SensorExtendedResponse sx;
+    sx.latDeg = -90.5;
+    EXPECT_EQ(problem(sx), "track point latitude -90.5 is outside [-90, 90] degrees");
     StartOfFrame s;
     s.igMode = static_cast<IgMode>(4);
     EXPECT_EQ(problem(s),
