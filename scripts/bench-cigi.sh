@@ -65,6 +65,15 @@ doc = {"what": "CIGI over loopback: host message to field, flood, decoding",
        "runs": runs,
        "decode_packets_per_second": per_second("BM_DecodeHostMessage"),
        "session_datagrams_per_second": per_second("BM_SessionPollFlood")}
+# A "before" measurement kept in the file (a structural change measured against the last run
+# before it) travels on.
+if os.path.exists(out):
+    try:
+        old = json.load(open(out))
+        if "before" in old:
+            doc["before"] = old["before"]
+    except (OSError, ValueError):
+        pass
 os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
 json.dump(doc, open(out, "w"), indent=1)
 for name, r in runs.items():
@@ -74,7 +83,8 @@ for name, r in runs.items():
           f"(read p50 {rd.get('p50', float('nan')):.2f} p99 {rd.get('p99', float('nan')):.2f}) "
           f"({r['host']['steps_seen']} steps); lateness {r['lateness_ms']}; "
           f"missed {r['missed_deadlines']} of {r['fields']}; datagrams {r['cigi']['datagrams']}, "
-          f"longest poll {r['cigi']['max_poll_ms']:.2f} ms")
+          f"longest poll {r['cigi']['max_poll_ms']:.2f} ms, "
+          f"{r['cigi'].get('max_poll_datagrams', '?')} datagrams at most in one")
 print("decode: %.1f M packets/s; session: %.0f k datagrams/s" % (
     statistics.median(doc["decode_packets_per_second"]) / 1e6,
     statistics.median(doc["session_datagrams_per_second"]) / 1e3))

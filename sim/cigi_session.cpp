@@ -202,6 +202,8 @@ CigiSession::CigiSession(const ig::TerrainMap& map, const CigiOptions& options)
     stats_.outages.reserve(CigiStats::kReportedOutages);
     ownship_.time = options_.startTime;
     ownship_.pose = options_.startPose;
+    sensors_.reserve(256);
+    sensorScratch_.reserve(options_.maxEntities);
 }
 
 int CigiSession::open(std::string* error) {
@@ -437,6 +439,131 @@ void CigiSession::applyEntityRates(const cigi::RateControl& r, double t) {
     rebaseRates(entity->motion, r, t, entity->attached);
 }
 
+SensorState* CigiSession::findSensor(std::uint8_t id) {
+    for (SensorState& s : sensors_)
+        if (s.id == id) return &s;
+    return nullptr;
+}
+
+void CigiSession::applySensor(const cigi::SensorControl& c) {
+    if (c.viewId != options_.viewId) {
+        ++stats_.ignoredPackets;  // another image generator's view
+        return;
+    }
+    ++stats_.sensorControls;
+    SensorState* s = findSensor(c.sensorId);
+    if (!s) {
+        s = &sensors_.emplace_back();  // at most 256: ids are 8 bits (reserved)
+        s->id = c.sensorId;
+    }
+    s->on = c.sensorOn;
+    s->trackMode = c.trackMode;
+    s->extended = c.extendedResponse;
+    if (c.sensorOn && c.trackMode != cigi::SensorTrackMode::Off &&
+        c.trackMode != cigi::SensorTrackMode::Target) {
+        noteError("Sensor Control for view " + std::to_string(c.viewId) + ", sensor " +
+                  std::to_string(c.sensorId) + ": track mode " +
+                  std::to_string(static_cast<unsigned>(c.trackMode)) +
+                  " is not taken (only 3, target, on an entity named by Component Control); "
+                  "the sensor answers searching");
+    }
+}
+
+void CigiSession::applyComponent(const cigi::ComponentControl& c) {
+    if (c.componentClass != cigi::kComponentClassSensor || c.componentId != 0) {
+        ++stats_.ignoredPackets;  // no other component is this image generator's
+        return;
+    }
+    const auto refuse = [&](const std::string& why) {
+        ++stats_.sensorTargetsRefused;
+        noteError("Component Control for sensor " + std::to_string(c.instanceId) + ": " + why);
+    };
+    if (c.instanceId > 255) {
+        refuse("sensor ids are 0..255");
+        return;
+    }
+    const std::uint32_t target = c.data[0];
+    if (target == 0 || target > 0xffff || !findEntity(static_cast<std::uint16_t>(target))) {
+        refuse("entity " + std::to_string(target) + " is not an entity the host has placed");
+        return;
+    }
+    ++stats_.sensorTargets;
+    SensorState* s = findSensor(static_cast<std::uint8_t>(c.instanceId));
+    if (!s) {
+        s = &sensors_.emplace_back();
+        s->id = static_cast<std::uint8_t>(c.instanceId);
+    }
+    s->hasTarget = true;
+    s->target = static_cast<std::uint16_t>(target);
+}
+
+SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
+                    int width, int height, double hfov) {
+    SensorSight s;
+    const ig::CameraBasis b = ig::CameraBasis::fromPose(eye);
+    const glm::dvec3 d = point - eye.position;
+    const double x = glm::dot(d, b.right), y = glm::dot(d, b.up), z = glm::dot(d, b.forward);
+    s.rangeM = glm::length(d);
+    s.gateXDeg = std::atan2(x, z) / kDeg;
+    s.gateYDeg = std::atan2(y, std::hypot(x, z)) / kDeg;
+    s.inFront = z > 0.0;
+    if (s.inFront) {
+        // The window's edges: half its width at the focal length that gives hfov.
+        const double focal = 0.5 * width / std::tan(0.5 * hfov);
+        s.inWindow =
+            std::abs(x / z) * focal <= 0.5 * width && std::abs(y / z) * focal <= 0.5 * height;
+    }
+    // The terrain between: the first hit of the exact surface along the segment, short of the
+    // point by more than half a metre (a ground-clamped entity's base is on the surface).
+    if (s.rangeM > 0.0 && std::isfinite(s.rangeM)) {
+        const ig::TerrainRay ray(map, eye.position, d / s.rangeM);
+        const double hit = ig::exactHitInRange(map, ray, 0.0, s.rangeM);
+        s.unoccluded = !(hit >= 0.0 && hit < s.rangeM - 0.5);
+    }
+    return s;
+}
+
+cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
+    cigi::SensorExtendedResponse r;
+    r.viewId = static_cast<std::uint16_t>(options_.viewId);
+    r.sensorId = sensor.id;
+    r.frameCounter = igFrame_;
+    r.status = cigi::SensorStatus::Searching;
+    if (sensor.trackMode == cigi::SensorTrackMode::Target && sensor.hasTarget) {
+        r.entityIdValid = true;
+        r.entityId = sensor.target;
+        r.status = cigi::SensorStatus::Breaklock;  // until it is seen
+        entityPosesAt(entities_, ownship_, t, sensorScratch_);
+        const auto it = std::find_if(sensorScratch_.begin(), sensorScratch_.end(),
+                                     [&](const EntityPose& e) { return e.id == sensor.target; });
+        if (it != sensorScratch_.end()) {
+            const ig::Pose eye = eyePose(ownship_.at(t), view_);
+            const double hfov = frozenHfov_ > 0.0 ? frozenHfov_ : viewHfov_;
+            const SensorSight s =
+                sightOf(map_, eye, it->pose.position, options_.windowWidth, options_.windowHeight,
+                        hfov > 0.0 ? hfov : 0.5 * std::numbers::pi);
+            if (s.seen()) r.status = cigi::SensorStatus::Tracking;
+            if (s.inFront) {
+                r.gateXDeg = static_cast<float>(s.gateXDeg);
+                r.gateYDeg = static_cast<float>(s.gateYDeg);
+            }
+            const glm::dvec3 g = geo_.geodeticFromWorld(it->pose.position);
+            r.latDeg = g.x;
+            r.lonDeg = g.y;
+            r.altM = g.z;
+        }
+    }
+    if (sensor.extended) return r;
+    cigi::SensorResponse b;
+    b.viewId = r.viewId;
+    b.sensorId = r.sensorId;
+    b.status = r.status;
+    b.gateXDeg = r.gateXDeg;
+    b.gateYDeg = r.gateYDeg;
+    b.frameCounter = r.frameCounter;
+    return b;
+}
+
 void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn) {
     const bool operating = igMode_ != cigi::IgMode::Reset;
     if (const auto* ig = std::get_if<cigi::IgControl>(&packet)) {
@@ -459,6 +586,7 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             repeating_.clear();
             stats_.entitiesDestroyed += entities_.size();
             entities_.clear();
+            sensors_.clear();
         }
         igMode_ = ig->igMode;
     } else if (const auto* e = std::get_if<cigi::EntityControl>(&packet)) {
@@ -554,6 +682,18 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
         view_.yaw = yaw * kDeg;
         view_.pitch = v.pitchDeg * kDeg;
         view_.roll = v.rollDeg * kDeg;
+    } else if (const auto* sc = std::get_if<cigi::SensorControl>(&packet)) {
+        if (!operating) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        applySensor(*sc);
+    } else if (const auto* cc = std::get_if<cigi::ComponentControl>(&packet)) {
+        if (!operating) {
+            ++stats_.ignoredPackets;
+            return;
+        }
+        applyComponent(*cc);
     } else if (const auto* vd = std::get_if<cigi::ViewDefinition>(&packet)) {
         if (vd->viewId != options_.viewId) {
             ++stats_.ignoredPackets;
@@ -762,6 +902,7 @@ void CigiSession::poll(double t) {
             apply(packet, t, lsn);
     }
     if (taken == options_.maxDatagramsPerField) ++stats_.cappedPolls;
+    stats_.maxPollDatagrams = std::max(stats_.maxPollDatagrams, static_cast<std::uint64_t>(taken));
     stats_.droppedByKernel = socket_.droppedByKernel();
     watch(t);
 
@@ -789,6 +930,12 @@ void CigiSession::poll(double t) {
         if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
         cigi::encodePacket(answer(r.request, lastLsn, t), cigi::ByteOrder::Big, out_);
         ++stats_.answers;
+    }
+    // Each sensor that is on answers every field.
+    for (const SensorState& sensor : sensors_) {
+        if (!sensor.on || igMode_ == cigi::IgMode::Reset) continue;
+        cigi::encodePacket(sensorResponse(sensor, t), cigi::ByteOrder::Big, out_);
+        ++stats_.sensorResponses;
     }
     ++igFrame_;
     stats_.maxPollMs = std::max(stats_.maxPollMs, (io::monotonicNs() - pollStart) * 1e-6);
@@ -895,7 +1042,12 @@ nlohmann::json toJson(const CigiStats& c) {
     return {{"datagrams", c.datagrams},
             {"bad_datagrams", c.badDatagrams},
             {"dropped_by_kernel", c.droppedByKernel},
+            {"sensor_controls", c.sensorControls},
+            {"sensor_targets", c.sensorTargets},
+            {"sensor_targets_refused", c.sensorTargetsRefused},
+            {"sensor_responses", c.sensorResponses},
             {"capped_polls", c.cappedPolls},
+            {"max_poll_datagrams", c.maxPollDatagrams},
             {"max_poll_ms", c.maxPollMs},
             {"receive_buffer_bytes", c.receiveBufferBytes},
             {"skipped_packets", c.skippedPackets},

@@ -136,6 +136,32 @@ struct EntityPose {
 void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
                    std::vector<EntityPose>& out);
 
+// --- Sensors
+
+// A sensor of this view (Sensor Control) and the entity it tracks (Component Control, class
+// Sensor, component 0: data word 1 is the entity id).
+struct SensorState {
+    std::uint8_t id = 0;
+    bool on = false;
+    io::cigi::SensorTrackMode trackMode = io::cigi::SensorTrackMode::Off;
+    bool extended = false;
+    bool hasTarget = false;
+    std::uint16_t target = 0;
+};
+
+// Where an entity is in a view: the direction of its reference point from the view's axis
+// (yaw right, pitch up, degrees) and whether the view sees it there (in front of the eye,
+// inside the window, and no terrain between). The window is `width` x `height` pixels wide
+// `hfov` radians.
+struct SensorSight {
+    bool inFront = false, inWindow = false, unoccluded = false;
+    double gateXDeg = 0.0, gateYDeg = 0.0;
+    double rangeM = 0.0;
+    bool seen() const { return inFront && inWindow && unoccluded; }
+};
+SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
+                    int width, int height, double hfov);
+
 // --- Session
 
 struct CigiOptions {
@@ -145,7 +171,10 @@ struct CigiOptions {
     ig::Pose startPose;      // held until the first Entity Control for entity 0
     double startTime = 0.0;  // simulation time of the first field (Start of Frame timestamp 0)
     int viewId = 0;          // the view this image generator shows (View Control, Definition)
-    int maxDatagramsPerField = 256;  // more wait for the next field (or the kernel drops them)
+    // Each field drains the socket; this bounds one poll beyond what the kernel's receive
+    // buffer can hold (about 2,000 small datagrams in 2 MiB), so it is never reached in
+    // practice. Beyond it datagrams wait for the next field.
+    int maxDatagramsPerField = 8192;
     // One-time HAT/HOT and LOS answers in one Start of Frame datagram (the rest wait); requests
     // with an update period (at most 64) are answered on top.
     int maxAnswersPerField = 64;
@@ -161,6 +190,8 @@ struct CigiOptions {
     std::vector<EntityTypeModel> entityTypes;
     std::size_t maxEntities = 256;
     std::vector<std::uint16_t> reservedIds;
+    // The view's window in pixels (sensor gates are worked out in it).
+    int windowWidth = 720, windowHeight = 486;
 };
 
 // One silence of a host that had been heard: from its last good datagram to the next one (or
@@ -177,14 +208,15 @@ struct HostOutage {
 struct CigiStats {
     static constexpr std::size_t kReportedErrors = 4;
     static constexpr std::size_t kReportedOutages = 16;
-    std::uint64_t datagrams = 0;        // received
-    std::uint64_t droppedByKernel = 0;  // lost for want of receive-buffer room (flood)
-    std::uint64_t cappedPolls = 0;      // fields that took maxDatagramsPerField (more waited)
-    double maxPollMs = 0.0;             // wall time of the longest poll
-    int receiveBufferBytes = 0;         // granted by the system
-    std::uint64_t badDatagrams = 0;     // refused by the codec, or cut (longer than 64 KiB)
-    std::uint64_t skippedPackets = 0;   // of ids the codec does not know
-    std::uint64_t ignoredPackets = 0;   // known but not acted on (other entities or views, Reset)
+    std::uint64_t datagrams = 0;         // received
+    std::uint64_t droppedByKernel = 0;   // lost for want of receive-buffer room (flood)
+    std::uint64_t cappedPolls = 0;       // fields that took maxDatagramsPerField (more waited)
+    std::uint64_t maxPollDatagrams = 0;  // the most datagrams one field took
+    double maxPollMs = 0.0;              // wall time of the longest poll
+    int receiveBufferBytes = 0;          // granted by the system
+    std::uint64_t badDatagrams = 0;      // refused by the codec, or cut (longer than 64 KiB)
+    std::uint64_t skippedPackets = 0;    // of ids the codec does not know
+    std::uint64_t ignoredPackets = 0;    // known but not acted on (other entities or views, Reset)
     std::uint64_t igControls = 0, entityUpdates = 0, rateUpdates = 0;
     std::uint64_t hatHotRequests = 0, losRequests = 0;
     std::uint64_t answers = 0, droppedRequests = 0;
@@ -196,6 +228,10 @@ struct CigiStats {
     std::uint64_t entityControls = 0;             // for entities other than the ownship, applied
     std::uint64_t entitiesRefused = 0;  // unknown type or parent, a parent loop, a reserved id
     std::uint64_t entitiesCreated = 0, entitiesDestroyed = 0;
+    std::uint64_t sensorControls = 0;        // for this view, applied
+    std::uint64_t sensorTargets = 0;         // Component Controls naming a sensor's target
+    std::uint64_t sensorTargetsRefused = 0;  // naming an unknown entity, or not a sensor's
+    std::uint64_t sensorResponses = 0;       // sent
     bool hostSeen = false;
     std::uint32_t lastHostFrame = 0, lastHostTimestamp = 0;
     std::vector<std::string> firstErrors;  // the first kReportedErrors problems, as messages
@@ -239,6 +275,13 @@ class CigiSession {
         frozenFar_ = farM;
         farFrozen_ = true;
     }
+    // This view's sensors, as the host last set them.
+    const std::vector<SensorState>& sensors() const { return sensors_; }
+    // The response of one sensor at time t (the field's instant): the tracked entity's
+    // direction from the view's eye; Breaklock when the view does not see it (behind the eye,
+    // outside the window, hidden by the terrain, inactive or destroyed), Searching when no
+    // target is named. Public for tests.
+    io::cigi::Packet sensorResponse(const SensorState& sensor, double t);
     io::cigi::IgMode igMode() const { return igMode_; }
     std::uint32_t igFrame() const { return igFrame_; }
     const CigiStats& stats() const { return stats_; }
@@ -271,6 +314,9 @@ class CigiSession {
     void setRates(double t);
     void applyEntity(const io::cigi::EntityControl& e, double t);
     void applyEntityRates(const io::cigi::RateControl& r, double t);
+    void applySensor(const io::cigi::SensorControl& c);
+    void applyComponent(const io::cigi::ComponentControl& c);
+    SensorState* findSensor(std::uint8_t id);
     HostEntity* findEntity(std::uint16_t id);
     void noteError(const std::string& message);
 
@@ -283,6 +329,8 @@ class CigiSession {
     std::vector<Pending> pending_;
     std::vector<Repeating> repeating_;
     std::vector<HostEntity> entities_;
+    std::vector<SensorState> sensors_;       // at most 256 (ids are 8 bits), reserved
+    std::vector<EntityPose> sensorScratch_;  // entity poses for the sensors
     DeadReckoning ownship_;
     io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;

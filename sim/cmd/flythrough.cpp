@@ -627,6 +627,8 @@ int main(int argc, char** argv) {
             cigiOptions.startPose.position = start.position;
             cigiOptions.startPose.yaw = start.heading;
             cigiOptions.startTime = 0.0;
+            cigiOptions.windowWidth = width;  // sensor gates are worked out in the output window
+            cigiOptions.windowHeight = height;
             if (!cigiEntities.empty()) {
                 if (!scene) throw ig::InputError("--cigi-entity: needs a --scene with the models");
                 if (rendererText != "thread") {

@@ -471,3 +471,173 @@ TEST(CigiView, FarPlaneIsTheDrawDistance) {
 }
 
 }  // namespace
+
+namespace {
+
+// The flat map with a ridge 200 m high across it at y = 320 m.
+ig::TerrainMap ridgeMap() {
+    ig::TerrainMap map = flatMap();
+    for (int ix = 0; ix < 65; ++ix)
+        map.setRaw(ix, 32, 3000);
+    map.updateRange();
+    return map;
+}
+
+// The sensor responses of one Start of Frame datagram.
+std::vector<cigi::Packet> sensorPackets(Host& host) {
+    std::vector<cigi::Packet> out;
+    for (const cigi::Message& m : host.receiveAll()) {
+        for (const cigi::Packet& p : m.packets) {
+            if (std::holds_alternative<cigi::SensorResponse>(p) ||
+                std::holds_alternative<cigi::SensorExtendedResponse>(p)) {
+                out.push_back(p);
+            }
+        }
+    }
+    return out;
+}
+
+cigi::ComponentControl sensorTarget(std::uint8_t sensor, std::uint32_t entity) {
+    cigi::ComponentControl c;
+    c.componentClass = cigi::kComponentClassSensor;
+    c.instanceId = sensor;
+    c.componentId = 0;
+    c.data[0] = entity;
+    return c;
+}
+
+TEST(CigiSensors, TrackedEntityIsWhereTheFieldsCameraProjectsIt) {
+    const ig::TerrainMap map = ridgeMap();
+    Host host;
+    sim::CigiOptions options = optionsFor(host);
+    options.windowWidth = 720;
+    options.windowHeight = 486;
+    sim::CigiSession session(map, options);
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    const double hfov = 60.0 * kDeg;
+    session.freezeFieldOfView(hfov);
+    const sim::GeoFrame& geo = session.geo();
+
+    // The ownship 50 m above the plain, looking north at the ridge; entity 5 on the plain in
+    // front of it, 6 behind it, both clamped to the ground; sensor 2 tracks 5 (extended
+    // answers), sensor 3 tracks 6 (short answers).
+    cigi::EntityControl own = entityAt(geo, 0, 0, {320.0, 100.0, 150.0}, 0.0f);
+    own.pitchDeg = -5.0f;
+    cigi::EntityControl e5 = entityAt(geo, 5, 10, {347.0, 250.0, 100.0}, 0.0f);
+    cigi::EntityControl e6 = entityAt(geo, 6, 10, {320.0, 500.0, 100.0}, 0.0f);
+    cigi::SensorControl s2;
+    s2.viewId = 0;
+    s2.sensorId = 2;
+    s2.sensorOn = true;
+    s2.trackMode = cigi::SensorTrackMode::Target;
+    s2.extendedResponse = true;
+    cigi::SensorControl s3 = s2;
+    s3.sensorId = 3;
+    s3.extendedResponse = false;
+    cigi::RateControl rate;  // entity 5 drives east at 5 m/s
+    rate.entityId = 5;
+    rate.yRate = 5.0f;
+    host.send({own, e5, e6, rate, s2, s3, sensorTarget(2, 5), sensorTarget(3, 6)});
+    session.poll(0.0);
+    ASSERT_EQ(session.stats().sensorTargets, 2u)
+        << (session.stats().firstErrors.empty() ? "" : session.stats().firstErrors.front());
+    (void)host.receiveAll();
+
+    for (int n = 1; n <= 10; ++n) {
+        const double t = n * kPeriod;
+        session.poll(t);
+        const std::vector<cigi::Packet> got = sensorPackets(host);
+        ASSERT_EQ(got.size(), 2u);
+        const auto* x = std::get_if<cigi::SensorExtendedResponse>(&got[0]);
+        const auto* s = std::get_if<cigi::SensorResponse>(&got[1]);
+        ASSERT_TRUE(x && s);
+        // Entity 5: tracked, where the field's camera projects it (an independent path: the
+        // pixel from ig::Camera, turned back into angles from the axis).
+        const ig::Pose eye = session.ownship().at(t);
+        const glm::dvec3 p5{347.0 + 5.0 * t, 250.0, 100.0};
+        const ig::Camera camera(eye, ig::Intrinsics::fromFov(720, 486, hfov));
+        const auto px = camera.project(p5);
+        ASSERT_TRUE(px.has_value());
+        const double f = camera.intrinsics().focal;
+        const double dx = px->x - camera.intrinsics().cx(), dy = camera.intrinsics().cy() - px->y;
+        EXPECT_EQ(x->status, cigi::SensorStatus::Tracking);
+        EXPECT_TRUE(x->entityIdValid);
+        EXPECT_EQ(x->entityId, 5);
+        EXPECT_EQ(x->sensorId, 2);
+        EXPECT_EQ(x->frameCounter, session.igFrame() - 1);
+        EXPECT_NEAR(x->gateXDeg, std::atan(dx / f) / kDeg, 1e-4);
+        EXPECT_NEAR(x->gateYDeg, std::atan(dy / std::hypot(f, dx)) / kDeg, 1e-4);
+        EXPECT_GT(x->gateXDeg, 0.5f);  // right of the axis, below it
+        EXPECT_LT(x->gateYDeg, -5.0f);
+        const glm::dvec3 g = geo.geodeticFromWorld(p5);
+        EXPECT_NEAR(x->latDeg, g.x, 1e-9);
+        EXPECT_NEAR(x->lonDeg, g.y, 1e-9);
+        EXPECT_NEAR(x->altM, g.z, 1e-6);
+        // Entity 6: in front of the eye and inside the window, but behind the ridge: lost.
+        EXPECT_EQ(s->sensorId, 3);
+        EXPECT_EQ(s->status, cigi::SensorStatus::Breaklock);
+        const sim::SensorSight sight =
+            sim::sightOf(map, eye, {320.0, 500.0, 100.0}, 720, 486, hfov);
+        EXPECT_TRUE(sight.inFront && sight.inWindow && !sight.unoccluded);
+    }
+
+    // An unknown entity is refused and reported; the sensor keeps its target.
+    host.send({sensorTarget(2, 77)});
+    session.poll(11 * kPeriod);
+    EXPECT_EQ(session.stats().sensorTargetsRefused, 1u);
+    ASSERT_FALSE(session.stats().firstErrors.empty());
+    EXPECT_NE(session.stats().firstErrors.back().find(
+                  "Component Control for sensor 2: entity 77 is not an entity the host has placed"),
+              std::string::npos)
+        << session.stats().firstErrors.back();
+    std::vector<cigi::Packet> got = sensorPackets(host);
+    ASSERT_EQ(got.size(), 2u);
+    EXPECT_EQ(std::get<cigi::SensorExtendedResponse>(got[0]).entityId, 5);
+
+    // Destroyed, the target is lost; a sensor switched off answers no more.
+    cigi::EntityControl destroy;
+    destroy.entityId = 5;
+    destroy.entityState = cigi::EntityState::Destroyed;
+    s3.sensorOn = false;
+    host.send({destroy, s3});
+    session.poll(12 * kPeriod);
+    got = sensorPackets(host);
+    ASSERT_EQ(got.size(), 1u);
+    EXPECT_EQ(std::get<cigi::SensorExtendedResponse>(got[0]).status, cigi::SensorStatus::Breaklock);
+
+    // Sensor Control for another view is not this image generator's.
+    s2.viewId = 1;
+    const std::uint64_t ignored = session.stats().ignoredPackets;
+    host.send({s2});
+    session.poll(13 * kPeriod);
+    EXPECT_EQ(session.stats().ignoredPackets, ignored + 1);
+}
+
+TEST(CigiSensors, SightOfPointsBehindAndOutsideTheWindow) {
+    const ig::TerrainMap map = flatMap();
+    ig::Pose eye;
+    eye.position = {320.0, 320.0, 200.0};
+    const double hfov = 60.0 * kDeg;
+    // Behind the eye (looking north): not in front.
+    sim::SensorSight s = sim::sightOf(map, eye, {320.0, 200.0, 150.0}, 720, 486, hfov);
+    EXPECT_FALSE(s.inFront);
+    EXPECT_FALSE(s.seen());
+    // 40 degrees right of the axis with a 60-degree field: outside the window.
+    s = sim::sightOf(map, eye, {320.0 + 100.0 * std::tan(40.0 * kDeg), 420.0, 200.0}, 720, 486,
+                     hfov);
+    EXPECT_TRUE(s.inFront);
+    EXPECT_FALSE(s.inWindow);
+    EXPECT_NEAR(s.gateXDeg, 40.0, 1e-9);
+    EXPECT_NEAR(s.gateYDeg, 0.0, 1e-9);
+    // 29 degrees right: inside; straight down the axis: the origin.
+    s = sim::sightOf(map, eye, {320.0 + 100.0 * std::tan(29.0 * kDeg), 420.0, 200.0}, 720, 486,
+                     hfov);
+    EXPECT_TRUE(s.seen());
+    s = sim::sightOf(map, eye, {320.0, 520.0, 200.0}, 720, 486, hfov);
+    EXPECT_NEAR(s.gateXDeg, 0.0, 1e-12);
+    EXPECT_NEAR(s.rangeM, 200.0, 1e-9);
+}
+
+}  // namespace
