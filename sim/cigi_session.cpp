@@ -523,6 +523,30 @@ SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::d
     return s;
 }
 
+bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int width, int height,
+             double hfov, double box[4]) {
+    const ig::CameraBasis b = ig::CameraBasis::fromPose(eye);
+    const double focal = 0.5 * width / std::tan(0.5 * hfov);
+    box[0] = box[1] = std::numeric_limits<double>::infinity();
+    box[2] = box[3] = -box[0];
+    for (const glm::dvec3& q : corners) {
+        const glm::dvec3 d = q - eye.position;
+        const double z = glm::dot(d, b.forward);
+        if (!(z > 0.0)) return false;
+        const double px = 0.5 * width + focal * glm::dot(d, b.right) / z;
+        const double py = 0.5 * height - focal * glm::dot(d, b.up) / z;
+        box[0] = std::min(box[0], px);
+        box[1] = std::min(box[1], py);
+        box[2] = std::max(box[2], px);
+        box[3] = std::max(box[3], py);
+    }
+    box[0] = std::clamp(box[0], 0.0, static_cast<double>(width));
+    box[2] = std::clamp(box[2], 0.0, static_cast<double>(width));
+    box[1] = std::clamp(box[1], 0.0, static_cast<double>(height));
+    box[3] = std::clamp(box[3], 0.0, static_cast<double>(height));
+    return true;
+}
+
 cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
     cigi::SensorExtendedResponse r;
     r.viewId = static_cast<std::uint16_t>(options_.viewId);
@@ -538,16 +562,47 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
                                      [&](const EntityPose& e) { return e.id == sensor.target; });
         if (it != sensorScratch_.end()) {
             const ig::Pose eye = eyePose(ownship_.at(t), view_);
-            const double hfov = frozenHfov_ > 0.0 ? frozenHfov_ : viewHfov_;
-            const SensorSight s =
-                sightOf(map_, eye, it->pose.position, options_.windowWidth, options_.windowHeight,
-                        hfov > 0.0 ? hfov : 0.5 * std::numbers::pi);
+            double hfov = frozenHfov_ > 0.0 ? frozenHfov_ : viewHfov_;
+            if (!(hfov > 0.0)) hfov = 0.5 * std::numbers::pi;
+            const int w = options_.windowWidth, h = options_.windowHeight;
+            // Where the renderer stands it: a ground-clamped base on the terrain under it.
+            glm::dvec3 base = it->pose.position;
+            if (it->onGround && onMap(map_, base.x, base.y))
+                base.z = map_.surfaceHeight(base.x, base.y);
+            // The track point: the middle of the model's box when its size is known (what a
+            // tracker centres its gate on), else the base point.
+            const HostEntity* entity = findEntity(sensor.target);
+            const EntityTypeModel* type = nullptr;
+            for (const EntityTypeModel& m : options_.entityTypes)
+                if (entity && m.type == entity->type) type = &m;
+            std::array<glm::dvec3, 8> corners{};
+            const bool sized = type && type->sizeX > 0 && type->sizeY > 0 && type->sizeZ > 0;
+            glm::dvec3 point = base;
+            if (sized) {
+                // Model (u across, v along the heading) -> world, as the renderer places it.
+                const double sn = std::sin(it->pose.yaw), cs = std::cos(it->pose.yaw);
+                const double k = it->scale;
+                for (int c = 0; c < 8; ++c) {
+                    const double u = ((c & 1) ? 0.5 : -0.5) * type->sizeX;
+                    const double v = ((c & 2) ? 0.5 : -0.5) * type->sizeY;
+                    const double z = (c & 4) ? type->sizeZ : 0.0;
+                    corners[static_cast<std::size_t>(c)] =
+                        base + k * glm::dvec3(u * cs + v * sn, -u * sn + v * cs, z);
+                }
+                point.z += 0.5 * k * type->sizeZ;
+            }
+            const SensorSight s = sightOf(map_, eye, point, w, h, hfov);
             if (s.seen()) r.status = cigi::SensorStatus::Tracking;
             if (s.inFront) {
                 r.gateXDeg = static_cast<float>(s.gateXDeg);
                 r.gateYDeg = static_cast<float>(s.gateYDeg);
             }
-            const glm::dvec3 g = geo_.geodeticFromWorld(it->pose.position);
+            double box[4];
+            if (sized && gateBox(eye, corners, w, h, hfov, box)) {
+                r.gateXSize = static_cast<std::uint16_t>(std::lround(box[2] - box[0]));
+                r.gateYSize = static_cast<std::uint16_t>(std::lround(box[3] - box[1]));
+            }
+            const glm::dvec3 g = geo_.geodeticFromWorld(point);
             r.latDeg = g.x;
             r.lonDeg = g.y;
             r.altM = g.z;
@@ -558,6 +613,8 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
     b.viewId = r.viewId;
     b.sensorId = r.sensorId;
     b.status = r.status;
+    b.gateXSize = r.gateXSize;
+    b.gateYSize = r.gateYSize;
     b.gateXDeg = r.gateXDeg;
     b.gateYDeg = r.gateYDeg;
     b.frameCounter = r.frameCounter;

@@ -14,6 +14,7 @@
 #include <glm/vec3.hpp>
 #include <nlohmann/json_fwd.hpp>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -97,6 +98,9 @@ struct EntityTypeModel {
     std::uint16_t type = 0;
     int model = 0;
     double scale = 1.0;
+    // The model's grid in voxels (x across, y along its heading, z up; 0: unknown): a sensor's
+    // gate is this box as the view sees it.
+    int sizeX = 0, sizeY = 0, sizeZ = 0;
 };
 
 // "TYPE=MODEL[:SCALE]" against the scene's model names; throws base::InputError naming `flag`,
@@ -159,6 +163,10 @@ struct SensorSight {
     double rangeM = 0.0;
     bool seen() const { return inFront && inWindow && unoccluded; }
 };
+// The window pixels [x0, x1] x [y0, y1] the box with these 8 corners covers (clipped to the
+// window), or false when a corner is not in front of the eye.
+bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int width, int height,
+             double hfov, double box[4]);
 SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
                     int width, int height, double hfov);
 

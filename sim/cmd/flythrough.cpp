@@ -637,8 +637,14 @@ int main(int argc, char** argv) {
                         "told about host entities)");
                 }
                 for (const std::string& text : cigiEntities) {
-                    cigiOptions.entityTypes.push_back(
-                        sim::parseEntityTypeModel(text, "--cigi-entity", scene->modelNames));
+                    sim::EntityTypeModel m =
+                        sim::parseEntityTypeModel(text, "--cigi-entity", scene->modelNames);
+                    const ig::VoxModel& grid =
+                        scene->models[static_cast<std::size_t>(m.model)]->grid;
+                    m.sizeX = grid.sizeX;  // the sensors' gates
+                    m.sizeY = grid.sizeY;
+                    m.sizeZ = grid.sizeZ;
+                    cigiOptions.entityTypes.push_back(m);
                 }
                 for (const ig::MovingObject& m : scene->moving)
                     cigiOptions.reservedIds.push_back(m.id);

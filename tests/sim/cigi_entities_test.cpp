@@ -512,6 +512,9 @@ TEST(CigiSensors, TrackedEntityIsWhereTheFieldsCameraProjectsIt) {
     sim::CigiOptions options = optionsFor(host);
     options.windowWidth = 720;
     options.windowHeight = 486;
+    options.entityTypes[0].sizeX = 4;  // type 10: the box model at scale 4 (16 x 8 x 12 m)
+    options.entityTypes[0].sizeY = 2;
+    options.entityTypes[0].sizeZ = 3;
     sim::CigiSession session(map, options);
     std::string error;
     ASSERT_EQ(session.open(&error), 0) << error;
@@ -553,11 +556,27 @@ TEST(CigiSensors, TrackedEntityIsWhereTheFieldsCameraProjectsIt) {
         const auto* x = std::get_if<cigi::SensorExtendedResponse>(&got[0]);
         const auto* s = std::get_if<cigi::SensorResponse>(&got[1]);
         ASSERT_TRUE(x && s);
-        // Entity 5: tracked, where the field's camera projects it (an independent path: the
-        // pixel from ig::Camera, turned back into angles from the axis).
+        // Entity 5: tracked, the middle of its box where the field's camera projects it (an
+        // independent path: the pixel from ig::Camera, turned back into angles from the axis),
+        // the gate the pixels its box's corners project to.
         const ig::Pose eye = session.ownship().at(t);
-        const glm::dvec3 p5{347.0 + 5.0 * t, 250.0, 100.0};
+        const glm::dvec3 base5{347.0 + 5.0 * t, 250.0, 100.0};
+        const glm::dvec3 p5 = base5 + glm::dvec3(0.0, 0.0, 6.0);
         const ig::Camera camera(eye, ig::Intrinsics::fromFov(720, 486, hfov));
+        double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+        for (int c = 0; c < 8; ++c) {
+            const auto q =
+                camera.project(base5 + glm::dvec3((c & 1) ? 8.0 : -8.0, (c & 2) ? 4.0 : -4.0,
+                                                  (c & 4) ? 12.0 : 0.0));
+            ASSERT_TRUE(q.has_value());
+            x0 = std::min(x0, q->x);
+            x1 = std::max(x1, q->x);
+            y0 = std::min(y0, q->y);
+            y1 = std::max(y1, q->y);
+        }
+        EXPECT_EQ(x->gateXSize, std::lround(x1 - x0));
+        EXPECT_EQ(x->gateYSize, std::lround(y1 - y0));
+        EXPECT_GT(x->gateXSize, 10);
         const auto px = camera.project(p5);
         ASSERT_TRUE(px.has_value());
         const double f = camera.intrinsics().focal;
