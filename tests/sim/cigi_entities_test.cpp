@@ -11,6 +11,7 @@
 #include "io/udp_socket.hpp"
 #include "sim/pipeline.hpp"
 #include "sim/scene_motion.hpp"
+#include "sim/truth.hpp"
 
 #include "common/cigi_host.hpp"
 
@@ -548,6 +549,8 @@ TEST(CigiSensors, TrackedEntityIsWhereTheFieldsCameraProjectsIt) {
         << (session.stats().firstErrors.empty() ? "" : session.stats().firstErrors.front());
     (void)host.receiveAll();
 
+    ig::ObjectModel model432;
+    model432.grid = ig::VoxModel(4, 2, 3);
     for (int n = 1; n <= 10; ++n) {
         const double t = n * kPeriod;
         session.poll(t);
@@ -590,6 +593,21 @@ TEST(CigiSensors, TrackedEntityIsWhereTheFieldsCameraProjectsIt) {
         EXPECT_NEAR(x->gateYDeg, std::atan(dy / std::hypot(f, dx)) / kDeg, 1e-4);
         EXPECT_GT(x->gateXDeg, 0.5f);  // right of the axis, below it
         EXPECT_LT(x->gateYDeg, -5.0f);
+        // The same point as the truth's: the middle of the box whose corners the truth writer
+        // projects (sim::objectCorners, the centre its range_m measures to).
+        sim::TruthObject truth;
+        truth.model = &model432;
+        truth.x = base5.x;
+        truth.y = base5.y;
+        truth.z = base5.z;
+        truth.scale = 4.0;
+        truth.hi[0] = 4;
+        truth.hi[1] = 2;
+        truth.hi[2] = 3;
+        glm::dvec3 centre{0.0};
+        for (const glm::dvec3& q : sim::objectCorners(truth))
+            centre += 0.125 * q;
+        EXPECT_NEAR(glm::length(centre - p5), 0.0, 1e-9);
         const glm::dvec3 g = geo.geodeticFromWorld(p5);
         EXPECT_NEAR(x->latDeg, g.x, 1e-9);
         EXPECT_NEAR(x->lonDeg, g.y, 1e-9);
