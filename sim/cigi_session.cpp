@@ -313,10 +313,10 @@ HostEntity* CigiSession::findEntity(std::uint16_t id) {
 }
 
 void CigiSession::applyEntity(const cigi::EntityControl& e, double t) {
-    const std::string who = "Entity Control for entity " + std::to_string(e.entityId);
+    // Worded only for a refusal: a good Entity Control allocates nothing.
     const auto refuse = [&](const std::string& why) {
         ++stats_.entitiesRefused;
-        noteError(who + ": " + why);
+        noteError("Entity Control for entity " + std::to_string(e.entityId) + ": " + why);
     };
     HostEntity* entity = findEntity(e.entityId);
     if (e.entityState == cigi::EntityState::Destroyed) {

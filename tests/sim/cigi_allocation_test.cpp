@@ -30,13 +30,15 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     options.host = host.localEndpoint();
     options.origin = {47.0, -122.0, 0.0};
     options.startPose.position = {100.0, 100.0, map.maxHeight() + 100.0};
+    options.entityTypes = {{10, 0, 2.0, 4, 2, 3}};
     sim::CigiPoseSource source(map, options);
     std::string error;
     ASSERT_EQ(source.open(&error), 0) << error;
     const io::UdpEndpoint ig = source.session().localEndpoint();
     const sim::GeoFrame& geo = source.session().geo();
 
-    // What the host sends every field: ownship, rates, a HAT/HOT and a LOS question. (A refused
+    // What the host sends every field: ownship, rates, a HAT/HOT and a LOS question, an entity
+    // and a sensor tracking it. (A refused
     // datagram does allocate: the codec words its refusal as it finds it, and the session asks
     // for the wording of the first four only, so the rest cost a few small strings each.)
     const glm::dvec3 g = geo.geodeticFromWorld({900.0, 800.0, map.maxHeight() + 50.0});
@@ -58,7 +60,22 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     los.sourceLatOrX = g.x;
     los.sourceLonOrY = g.y;
     los.sourceAltOrZ = g.z;
-    const std::vector<cigi::Packet> packets{control, e, r, hat, los};
+    // An entity ahead, tracked by an extended sensor.
+    cigi::EntityControl other = e;
+    other.entityId = 5;
+    other.entityType = 10;
+    const glm::dvec3 g5 = geo.geodeticFromWorld({900.0, 1200.0, map.maxHeight()});
+    other.latOrX = g5.x;
+    other.lonOrY = g5.y;
+    other.altOrZ = g5.z;
+    cigi::SensorControl sensor;
+    sensor.sensorOn = true;
+    sensor.trackMode = cigi::SensorTrackMode::Target;
+    sensor.extendedResponse = true;
+    cigi::ComponentControl target;
+    target.componentClass = cigi::kComponentClassSensor;
+    target.data[0] = 5;
+    const std::vector<cigi::Packet> packets{control, e, r, hat, los, other, sensor, target};
     const std::vector<std::uint8_t> good = cigi::encodeMessage(packets, cigi::ByteOrder::Big);
     const std::vector<std::uint8_t> bad(good.begin(), good.begin() + 30);
     std::vector<std::uint8_t> answers(65536);
@@ -84,6 +101,7 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     EXPECT_EQ(stats.entityUpdates, 110u);
     EXPECT_EQ(stats.answers, 220u);
     EXPECT_EQ(stats.badDatagrams, 0u);
+    EXPECT_EQ(stats.sensorResponses, 110u);
 
     // Refused datagrams are counted whatever they cost.
     sendBad = true;
