@@ -242,18 +242,21 @@ TEST(CigiCodec, HandWrittenStartOfFrameAndHatHotResponseLittleEndian) {
 
 TEST(CigiCodec, HandWrittenSensorControlAndComponentControl) {
     Bytes d = kIgControlBig;
-    const Bytes sensor = {0x11, 0x18, 0x00, 0x02,  // id 17, 24 bytes, view 2
-                          0x07, 0x7b, 0x01, 0x00,  // sensor 7; on | black hot | auto gain | track
-                                                   // black | target (3 << 5); extended response
-                          0x3f, 0x40, 0x00, 0x00,     // gain 0.75
-                          0xbf, 0x00, 0x00, 0x00,     // level -0.5
-                          0x40, 0x20, 0x00, 0x00,     // AC coupling 2.5
-                          0x3e, 0x00, 0x00, 0x00};    // noise 0.125
-    const Bytes component = {0x04, 0x20, 0x00, 0x01,  // id 4, 32 bytes, component 1
-                             0x00, 0x07, 0x03, 0x02,  // instance 7, class 3 (sensor), state 2
-                             0x00, 0x00, 0x12, 0x35,  // data word 1: 4661
-                             0,    0,    0,    0,    0, 0, 0,    0,    0,    0,
-                             0,    0,    0,    0,    0, 0, 0xca, 0xfe, 0xf0, 0x0d};  // data word 6
+    const Bytes sensor = {0x11, 0x18, 0x00, 0x02,   // id 17, 24 bytes, view 2
+                          0x07, 0x7b, 0x01, 0x00,   // sensor 7; on | black hot | auto gain | track
+                                                    // black | target (3 << 5); extended response
+                          0x3f, 0x40, 0x00, 0x00,   // gain 0.75
+                          0xbf, 0x00, 0x00, 0x00,   // level -0.5
+                          0x40, 0x20, 0x00, 0x00,   // AC coupling 2.5
+                          0x3e, 0x00, 0x00, 0x00};  // noise 0.125
+    const Bytes component = {0x04, 0x20, 0x00, 0x01,   // id 4, 32 bytes, component 1
+                             0x00, 0x07, 0x03, 0x02,   // instance 7, class 3 (sensor), state 2
+                             0x00, 0x00, 0x12, 0x35,   // data word 1: 4661
+                             0x00, 0x00, 0x00, 0x00,   // data word 2
+                             0x00, 0x00, 0x00, 0x00,   // data word 3
+                             0x00, 0x00, 0x00, 0x00,   // data word 4
+                             0x00, 0x00, 0x00, 0x00,   // data word 5
+                             0xca, 0xfe, 0xf0, 0x0d};  // data word 6
     d.insert(d.end(), sensor.begin(), sensor.end());
     d.insert(d.end(), component.begin(), component.end());
     const Message m = decodeOk(d, Sender::Host);
