@@ -17,8 +17,10 @@
 #include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
+#include "ig/span_resample.hpp"
 
 #include <tbb/combinable.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -57,6 +59,11 @@ inline double columnAt(const SpanFrame& sf, int x, double stretch) {
 
 // Per-frame buffers (column-major colour and depth), reused across frames.
 struct SpanBuffers {
+    std::vector<std::uint32_t> color;
+    std::vector<float> depth;
+};
+// Per-thread scratch of the resample: a strip of plane rows, row-major.
+struct SpanScratch {
     std::vector<std::uint32_t> color;
     std::vector<float> depth;
 };
@@ -231,6 +238,7 @@ class SpanCaster final : public Caster {
     Fallback fallback_;
     mutable std::mutex poolMutex_;
     mutable std::vector<std::unique_ptr<SpanBuffers>> pool_;
+    mutable tbb::enumerable_thread_specific<SpanScratch> scratch_;
 };
 
 SpanFrame SpanCaster::setUp(const Camera& camera) const {
@@ -618,43 +626,36 @@ void SpanCaster::renderSpans(const Camera& camera, RenderedFrame& frame,
                               }
                               samples.local() += s;
                           });
-        // Rows, in strips whose column runs stay in cache: each output pixel reads the two
-        // vertical-plane columns either side of where it falls (one at pitch 0).
+        // Rows, in strips of 16: the strip's rows of the columns its pixels read, transposed
+        // into a row-major scratch that stays in cache, then each output row from its plane
+        // row (a copy where the row's columns are the image's).
         constexpr int kStrip = 16;
         tbb::parallel_for(0, (H + kStrip - 1) / kStrip, [&](int strip) {
-            const int y1 = std::min(H, (strip + 1) * kStrip);
-            for (int y = strip * kStrip; y < y1; ++y) {
-                Rgb8* __restrict__ outC = frame.color.data() + static_cast<std::size_t>(y) * W;
-                float* __restrict__ outD = frame.depth.data() + static_cast<std::size_t>(y) * W;
-                const double s = sf.stretch[y];
-                for (int x = 0; x < W; ++x) {
-                    // jf >= 0 (the plane's padding), so truncation is its floor.
-                    const double jf = columnAt(sf, x, s);
-                    const int j0 = std::min(static_cast<int>(jf), sf.columns - 2);
-                    const float w = static_cast<float>(std::min(jf - j0, 1.0));
-                    const std::size_t a = static_cast<std::size_t>(j0) * H + y, b = a + H;
-                    const std::uint32_t ca = colColor[a], cb = colColor[b];
-                    const float da = colDepth[a], db = colDepth[b];
-                    if (w == 0.0f) {
-                        outC[x] =
-                            Rgb8{static_cast<std::uint8_t>(ca), static_cast<std::uint8_t>(ca >> 8),
-                                 static_cast<std::uint8_t>(ca >> 16)};
-                        outD[x] = da;
-                        continue;
-                    }
-                    // Colour: 8-bit weights, two channels per 32-bit lane pair.
-                    const std::uint32_t w8 = static_cast<std::uint32_t>(w * 256.0f + 0.5f);
-                    const std::uint32_t rb =
-                        ((ca & 0xff00ffu) * (256u - w8) + (cb & 0xff00ffu) * w8 + 0x800080u) >> 8;
-                    const std::uint32_t g =
-                        (((ca >> 8) & 0xffu) * (256u - w8) + ((cb >> 8) & 0xffu) * w8 + 0x80u) >> 8;
-                    outC[x] = Rgb8{static_cast<std::uint8_t>(rb), static_cast<std::uint8_t>(g),
-                                   static_cast<std::uint8_t>(rb >> 16)};
-                    // Depth: linear on a smooth surface, the nearer column's across an edge.
-                    const float lo = std::min(da, db), hi = std::max(da, db);
-                    outD[x] = lo < kSkyDepth && hi <= 1.05f * lo ? da + (db - da) * w
-                                                                 : (w < 0.5f ? da : db);
-                }
+            const int y0 = strip * kStrip, y1 = std::min(H, y0 + kStrip);
+            // Columns read: from the first pixel's (rounded down) to the last pixel's right
+            // neighbour (+1 for the rounding of positions to 1/256 of a column).
+            double first = kInf, last = -kInf;
+            for (int y = y0; y < y1; ++y) {
+                first = std::min(first, columnAt(sf, 0, sf.stretch[y]));
+                last = std::max(last, columnAt(sf, W - 1, sf.stretch[y]));
+            }
+            const int jLo = std::max(0, static_cast<int>(std::floor(first)));
+            const int jHi = std::min(sf.columns, static_cast<int>(std::floor(last)) + 3);
+            const int stride = jHi - jLo;
+            SpanScratch& scratch = scratch_.local();
+            const std::size_t need = static_cast<std::size_t>(stride) * kStrip;
+            if (scratch.color.size() < need) {
+                scratch.color.resize(need);
+                scratch.depth.resize(need);
+            }
+            spanTranspose(colColor, H, jLo, jHi, y0, y1, scratch.color.data(), stride);
+            spanTranspose(colDepth, H, jLo, jHi, y0, y1, scratch.depth.data(), stride);
+            for (int y = y0; y < y1; ++y) {
+                const std::size_t o = static_cast<std::size_t>(y - y0) * stride;
+                spanResampleRow(scratch.color.data() + o, scratch.depth.data() + o,
+                                spanRowMap(columnAt(sf, 0, sf.stretch[y]) - jLo, sf.stretch[y]), W,
+                                frame.color.data() + static_cast<std::size_t>(y) * W,
+                                frame.depth.data() + static_cast<std::size_t>(y) * W);
             }
         });
     });

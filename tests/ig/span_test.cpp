@@ -7,6 +7,7 @@
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
+#include "ig/span_resample.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
@@ -18,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <random>
 #include <vector>
 
 namespace {
@@ -233,6 +235,58 @@ TEST(SpanCaster, FrameStreamGivesRenderFramesImages) {
     Pose rolled = poses[0];
     rolled.roll = 0.1;
     EXPECT_THROW(stream.submit(rolled, in), ig::InputError);
+}
+
+// The resample's blocked transpose is the plain loop's, for any block shape and offsets.
+TEST(SpanResample, TransposeIsThePlainLoops) {
+    constexpr int kH = 37, kCols = 23;
+    std::vector<std::uint32_t> plane(kH * kCols);
+    for (std::size_t i = 0; i < plane.size(); ++i)
+        plane[i] = static_cast<std::uint32_t>(i * 2654435761u);
+    for (int j0 : {0, 1, 5})
+        for (int j1 : {j0 + 1, j0 + 4, j0 + 7, kCols})
+            for (int y0 : {0, 3, 16})
+                for (int y1 : {y0 + 1, y0 + 4, y0 + 13, kH}) {
+                    const int stride = j1 - j0 + 2;
+                    std::vector<std::uint32_t> a((y1 - y0) * stride, 7u), b = a;
+                    ig::spanTranspose(plane.data(), kH, j0, j1, y0, y1, a.data(), stride);
+                    ig::spanTransposeReference(plane.data(), kH, j0, j1, y0, y1, b.data(), stride);
+                    ASSERT_EQ(a, b) << j0 << " " << j1 << " " << y0 << " " << y1;
+                }
+}
+
+// The resample row (fixed-point positions, two channels per word, the copy at stretch 1) is
+// the per-channel loop's, over stretches from 1 to 2 and offsets, on smooth depths, edges and
+// sky; the copy is the plane row itself.
+TEST(SpanResample, RowIsThePerChannelLoops) {
+    constexpr int kCols = 400, kW = 300;
+    std::mt19937 rng(5);
+    std::vector<std::uint32_t> color(kCols);
+    std::vector<float> depth(kCols);
+    for (int j = 0; j < kCols; ++j) {
+        color[j] = rng() & 0xffffffu;
+        depth[j] = j % 17 == 0  ? ig::kSkyDepth
+                   : j % 5 == 0 ? 100.0f + static_cast<float>(rng() % 100)
+                                : 100.0f + 0.01f * static_cast<float>(rng() % 100);
+    }
+    for (double stretch : {1.0, 1.0 + 1.0 / 3.0, 1.08, 1.42, 2.0}) {
+        for (double first : {0.0, 3.0, 0.25, 7.7}) {
+            const ig::SpanRowMap map = ig::spanRowMap(first, stretch);
+            std::vector<ig::Rgb8> a(kW), b(kW);
+            std::vector<float> da(kW), db(kW);
+            ig::spanResampleRow(color.data(), depth.data(), map, kW, a.data(), da.data());
+            ig::spanResampleRowReference(color.data(), depth.data(), map, kW, b.data(), db.data());
+            ASSERT_TRUE(a == b) << stretch << " " << first;
+            ASSERT_EQ(0, std::memcmp(da.data(), db.data(), kW * sizeof(float)));
+            if (stretch == 1.0 && first == 3.0) {
+                for (int x = 0; x < kW; ++x) {
+                    ASSERT_EQ(a[x].r, color[x + 3] & 255u);
+                    ASSERT_EQ(a[x].b, color[x + 3] >> 16 & 255u);
+                    ASSERT_EQ(da[x], depth[x + 3]);
+                }
+            }
+        }
+    }
 }
 
 TEST(SpanCaster, RefusesWhatItCannotDraw) {
