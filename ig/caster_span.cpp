@@ -138,6 +138,40 @@ struct ColorSource {
     }
 };
 
+// A straight segment of the surface along a column between two samples (ground distance, height
+// over the eye, colour 0..255 per channel).
+struct SpanSegment {
+    float pd, ph, d, h;
+    float ca[3], cb[3];
+};
+
+// Fills rows yb, yb - 1, ... down to yLo while the row's ray passes under the segment's far
+// end (up[y] d <= lim, the y-buffer test, in double): each row's ray meets the segment at
+// w = (t pd - ph) / ((t pd - ph) - (t d - h)) with t = up[y] / L (one division), which gives its
+// colour (linear between the ends) and its distance ((pd + w (d - pd)) sqrt(1 + t^2)). Returns
+// the first row left unfilled.
+inline int fillSegment(const SpanSegment& s, const double* __restrict__ up, int yb, int yLo,
+                       double d, double lim, float invL, std::uint32_t* __restrict__ color,
+                       float* __restrict__ depth) {
+    // Colours biased by one half (rounding to nearest by truncation), with the differences.
+    const float r0 = s.ca[0] + 0.5f, g0 = s.ca[1] + 0.5f, b0 = s.ca[2] + 0.5f;
+    const float dr = s.cb[0] - s.ca[0], dg = s.cb[1] - s.ca[1], db = s.cb[2] - s.ca[2];
+    const float dd = s.d - s.pd, dh = s.h - s.ph;
+    do {
+        const float t = static_cast<float>(up[yb]) * invL;
+        const float ga = t * s.pd - s.ph;
+        const float den = dh - t * dd;  // ga - (t d - h)
+        const float w = den > 0.0f ? std::clamp(ga / den, 0.0f, 1.0f) : 1.0f;
+        depth[yb] = (s.pd + w * dd) * std::sqrt(1.0f + t * t);
+        // Every colour is a convex mix of 0..255 values: no clamp.
+        color[yb] = static_cast<std::uint32_t>(r0 + dr * w) |
+                    static_cast<std::uint32_t>(g0 + dg * w) << 8 |
+                    static_cast<std::uint32_t>(b0 + db * w) << 16;
+        --yb;
+    } while (yb >= yLo && up[yb] * d <= lim);
+    return yb;
+}
+
 class SpanCaster final : public Caster {
   public:
     SpanCaster(const TerrainMap& map, const RenderOptions& options) : map_(map), options_(options) {
@@ -364,27 +398,18 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             ColorSource& last = slot[prev];
             last.resolve();
             cur.resolve();
-            // Float from here: colours and depths need no more (the y-buffer test above is
-            // double); every colour is a convex mix of 0..255 values, so no clamp.
-            const float fpd = static_cast<float>(pd), fph = static_cast<float>(ph);
-            const float fd = static_cast<float>(d), fh = static_cast<float>(h);
-            const float fInvL = static_cast<float>(invL);
-            do {
-                const float t = static_cast<float>(up[yb]) * fInvL;
-                const float ga = t * fpd - fph, gb = t * fd - fh;
-                const float den = ga - gb;
-                const float w = den > 0.0f ? std::clamp(ga / den, 0.0f, 1.0f) : 1.0f;
-                const float dist = (fpd + w * (fd - fpd)) * std::sqrt(1.0f + t * t);
-                float rgb[3] = {last.rgb[0] + (cur.rgb[0] - last.rgb[0]) * w,
-                                last.rgb[1] + (cur.rgb[1] - last.rgb[1]) * w,
-                                last.rgb[2] + (cur.rgb[2] - last.rgb[2]) * w};
-                applyHaze(sky, rgb, dist);
-                color[yb] = static_cast<std::uint32_t>(rgb[0] + 0.5f) |
-                            static_cast<std::uint32_t>(rgb[1] + 0.5f) << 8 |
-                            static_cast<std::uint32_t>(rgb[2] + 0.5f) << 16;
-                depth[yb] = dist;
-                --yb;
-            } while (yb >= yLo && up[yb] * d <= lim);
+            SpanSegment seg{static_cast<float>(pd), static_cast<float>(ph), static_cast<float>(d),
+                            static_cast<float>(h)};
+            for (int i = 0; i < 3; ++i) {
+                seg.ca[i] = last.rgb[i];
+                seg.cb[i] = cur.rgb[i];
+            }
+            if (hazeInKernel(sky)) {
+                // The endpoints hazed at their own distances, linear between them.
+                applyHaze(sky, seg.ca, std::sqrt(pd * pd + ph * ph));
+                applyHaze(sky, seg.cb, std::sqrt(d * d + h * h));
+            }
+            yb = fillSegment(seg, up, yb, yLo, d, lim, static_cast<float>(invL), color, depth);
         }
         pd = d;
         ph = h;
