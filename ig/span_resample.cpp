@@ -143,6 +143,60 @@ void spanResampleRow(const std::uint32_t* __restrict__ color, const float* __res
         return;
     }
     std::int64_t pos = map.first;
+    int x0 = 0;
+#if defined(__SSE2__)
+    // Four pixels at a time: their columns and weights, the gathered pairs, then the mixes on
+    // 16-bit lanes (the products fit: 255 * 256 + 128 < 2^16) and the depths by masks.
+    const __m128i zero = _mm_setzero_si128(), round = _mm_set1_epi16(128);
+    const __m128i w256 = _mm_set1_epi16(256);
+    const __m128 kStep = _mm_set1_ps(0x1p-8f), kNear = _mm_set1_ps(1.05f);
+    const __m128 kSky = _mm_set1_ps(kSkyDepth);
+    const __m128i half = _mm_set1_epi32(128);
+    alignas(16) std::uint32_t packed[4];
+    for (; x0 + 5 <= width; x0 += 4) {
+        int j[4];
+        std::uint32_t w[4];
+        for (int i = 0; i < 4; ++i) {
+            columnWeight(pos, j[i], w[i]);
+            pos += map.step;
+        }
+        const __m128i ca =
+            _mm_set_epi32(static_cast<int>(color[j[3]]), static_cast<int>(color[j[2]]),
+                          static_cast<int>(color[j[1]]), static_cast<int>(color[j[0]]));
+        const __m128i cb =
+            _mm_set_epi32(static_cast<int>(color[j[3] + 1]), static_cast<int>(color[j[2] + 1]),
+                          static_cast<int>(color[j[1] + 1]), static_cast<int>(color[j[0] + 1]));
+        const __m128i wv = _mm_set_epi32(static_cast<int>(w[3]), static_cast<int>(w[2]),
+                                         static_cast<int>(w[1]), static_cast<int>(w[0]));
+        // Each pixel's weight on its four 16-bit channel lanes.
+        const __m128i w16 = _mm_packs_epi32(wv, wv);       // w0 w1 w2 w3 w0 w1 w2 w3
+        const __m128i wLo = _mm_unpacklo_epi16(w16, w16);  // w0 w0 w1 w1 w2 w2 w3 w3
+        const __m128i wA = _mm_unpacklo_epi32(wLo, wLo);   // w0 x4, w1 x4
+        const __m128i wB = _mm_unpackhi_epi32(wLo, wLo);   // w2 x4, w3 x4
+        auto mix = [&](__m128i a, __m128i b, __m128i wt) {
+            const __m128i p =
+                _mm_add_epi16(_mm_mullo_epi16(a, _mm_sub_epi16(w256, wt)), _mm_mullo_epi16(b, wt));
+            return _mm_srli_epi16(_mm_add_epi16(p, round), 8);
+        };
+        const __m128i lo = mix(_mm_unpacklo_epi8(ca, zero), _mm_unpacklo_epi8(cb, zero), wA);
+        const __m128i hi = mix(_mm_unpackhi_epi8(ca, zero), _mm_unpackhi_epi8(cb, zero), wB);
+        _mm_store_si128(reinterpret_cast<__m128i*>(packed), _mm_packus_epi16(lo, hi));
+        for (int i = 0; i < 4; ++i)
+            put(x0 + i, packed[i]);
+        const __m128 da = _mm_set_ps(depth[j[3]], depth[j[2]], depth[j[1]], depth[j[0]]);
+        const __m128 db =
+            _mm_set_ps(depth[j[3] + 1], depth[j[2] + 1], depth[j[1] + 1], depth[j[0] + 1]);
+        const __m128 dmin = _mm_min_ps(da, db), dmax = _mm_max_ps(da, db);
+        const __m128 smooth =
+            _mm_and_ps(_mm_cmplt_ps(dmin, kSky), _mm_cmple_ps(dmax, _mm_mul_ps(kNear, dmin)));
+        const __m128 lerp =
+            _mm_add_ps(da, _mm_mul_ps(_mm_sub_ps(db, da), _mm_mul_ps(_mm_cvtepi32_ps(wv), kStep)));
+        const __m128 far = _mm_castsi128_ps(_mm_cmplt_epi32(wv, half));  // w < 128: j's
+        const __m128 nearer = _mm_or_ps(_mm_and_ps(far, da), _mm_andnot_ps(far, db));
+        _mm_storeu_ps(outDepth + x0,
+                      _mm_or_ps(_mm_and_ps(smooth, lerp), _mm_andnot_ps(smooth, nearer)));
+    }
+#endif
     auto pixel = [&](int x) {
         int j;
         std::uint32_t w;
@@ -156,7 +210,7 @@ void spanResampleRow(const std::uint32_t* __restrict__ color, const float* __res
         outDepth[x] = w == 0 ? depth[j] : depthMix(depth[j], depth[j + 1], w);
         return rb | g;
     };
-    for (int x = 0; x + 1 < width; ++x)
+    for (int x = x0; x + 1 < width; ++x)
         put(x, pixel(x));
     putLast(width - 1, pixel(width - 1));
 }

@@ -259,7 +259,7 @@ TEST(SpanResample, TransposeIsThePlainLoops) {
 // the per-channel loop's, over stretches from 1 to 2 and offsets, on smooth depths, edges and
 // sky; the copy is the plane row itself.
 TEST(SpanResample, RowIsThePerChannelLoops) {
-    constexpr int kCols = 400, kW = 300;
+    constexpr int kCols = 640, kW = 300;  // 7.7 + 299 * 2 + 2 columns read at most
     std::mt19937 rng(5);
     std::vector<std::uint32_t> color(kCols);
     std::vector<float> depth(kCols);
