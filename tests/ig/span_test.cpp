@@ -7,6 +7,7 @@
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
+#include "ig/shading.hpp"
 #include "ig/span_resample.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
@@ -45,10 +46,11 @@ const TerrainMap& goleta() {
 }
 
 std::unique_ptr<ig::Caster> makeWith(CasterKind kind, const TerrainMap& map, int levels,
-                                     int threads = 0) {
+                                     int threads = 0, const ig::SkyModel& sky = {}) {
     ig::RenderOptions o;
     o.levels = levels;
     o.threads = threads;
+    o.sky = sky;
     return ig::makeCaster(kind, map, o);
 }
 
@@ -62,11 +64,12 @@ struct SweepError {
     int spanFrames = 0;
 };
 
-SweepError sweepError(const TerrainMap& map, int poses, int w, int h) {
+SweepError sweepError(const TerrainMap& map, int poses, int w, int h,
+                      const ig::SkyModel& sky = {}) {
     constexpr int kF = 4;
-    const auto reference = ig::makeCaster(CasterKind::Reference, map);
-    const auto span = makeWith(CasterKind::Span, map, ig::kLevelsAuto);
-    const auto multi = makeWith(CasterKind::Fast, map, ig::kLevelsAuto);
+    const auto reference = makeWith(CasterKind::Reference, map, 0, 0, sky);
+    const auto span = makeWith(CasterKind::Span, map, ig::kLevelsAuto, 0, sky);
+    const auto multi = makeWith(CasterKind::Fast, map, ig::kLevelsAuto, 0, sky);
     const Intrinsics in = Intrinsics::fromFov(w, h, ig::degToRad(60));
     const Intrinsics fine = Intrinsics::fromFov(w * kF, h * kF, ig::degToRad(60));
     SweepError e;
@@ -120,6 +123,14 @@ TEST(SpanCaster, NearTheMultiresCasterAgainstSupersampledReferenceGoleta) {
 
 TEST(SpanCaster, NearTheMultiresCasterAgainstSupersampledReferenceSynthetic) {
     expectQuality("synthetic 512^2", sweepError(synthetic512(), 12, 64, 40));
+}
+
+// With the casters' distance haze: the span caster hazes a segment's two ends and interpolates.
+TEST(SpanCaster, NearTheMultiresCasterUnderDistanceHaze) {
+    ig::SkyModel sky;
+    sky.hazeDistance = 2000.0;
+    ASSERT_TRUE(ig::hazeInKernel(sky));
+    expectQuality("synthetic 512^2, haze 2 km", sweepError(synthetic512(), 12, 64, 40, sky));
 }
 
 // A flat green map with one raised red sample: the needle is drawn at every pitch, with the
