@@ -9,8 +9,9 @@
 // between consecutive samples (the surface is piecewise linear along the column, exact on the
 // grid lines). The rows of the vertical plane are not its own pixel rows but the pitched image's
 // rows: a rotation about the camera's horizontal axis maps rows to rows, so each output row has
-// one elevation per vertical column and only a horizontal resample remains (linear, identity at
-// pitch 0). Where that stretch is too large (steep views) the frame goes to the fast caster.
+// one elevation per vertical column and only a horizontal resample remains (linear, a copy at
+// pitch 0: ig/span_resample.cpp). Where that stretch is too large (steep views) the frame goes
+// to the fast caster.
 #include "base/check.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
