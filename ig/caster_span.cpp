@@ -9,16 +9,19 @@
 // between consecutive samples (the surface is piecewise linear along the column, exact on the
 // grid lines). The rows of the vertical plane are not its own pixel rows but the pitched image's
 // rows: a rotation about the camera's horizontal axis maps rows to rows, so each output row has
-// one elevation per vertical column and only a horizontal resample remains (linear, identity at
-// pitch 0). Where that stretch is too large (steep views) the frame goes to the fast caster.
+// one elevation per vertical column and only a horizontal resample remains (linear, a copy at
+// pitch 0: ig/span_resample.cpp). Where that stretch is too large (steep views) the frame goes
+// to the fast caster.
 #include "base/check.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
 #include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
+#include "ig/span_resample.hpp"
 
 #include <tbb/combinable.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -57,6 +60,11 @@ inline double columnAt(const SpanFrame& sf, int x, double stretch) {
 
 // Per-frame buffers (column-major colour and depth), reused across frames.
 struct SpanBuffers {
+    std::vector<std::uint32_t> color;
+    std::vector<float> depth;
+};
+// Per-thread scratch of the resample: a strip of plane rows, row-major.
+struct SpanScratch {
     std::vector<std::uint32_t> color;
     std::vector<float> depth;
 };
@@ -130,6 +138,40 @@ struct ColorSource {
         l = nullptr;
     }
 };
+
+// A straight segment of the surface along a column between two samples (ground distance, height
+// over the eye, colour 0..255 per channel).
+struct SpanSegment {
+    float pd, ph, d, h;
+    float ca[3], cb[3];
+};
+
+// Fills rows yb, yb - 1, ... down to yLo while the row's ray passes under the segment's far
+// end (up[y] d <= lim, the y-buffer test, in double): each row's ray meets the segment at
+// w = (t pd - ph) / ((t pd - ph) - (t d - h)) with t = up[y] / L (one division), which gives its
+// colour (linear between the ends) and its distance ((pd + w (d - pd)) sqrt(1 + t^2)). Returns
+// the first row left unfilled.
+inline int fillSegment(const SpanSegment& s, const double* __restrict__ up, int yb, int yLo,
+                       double d, double lim, float invL, std::uint32_t* __restrict__ color,
+                       float* __restrict__ depth) {
+    // Colours biased by one half (rounding to nearest by truncation), with the differences.
+    const float r0 = s.ca[0] + 0.5f, g0 = s.ca[1] + 0.5f, b0 = s.ca[2] + 0.5f;
+    const float dr = s.cb[0] - s.ca[0], dg = s.cb[1] - s.ca[1], db = s.cb[2] - s.ca[2];
+    const float dd = s.d - s.pd, dh = s.h - s.ph;
+    do {
+        const float t = static_cast<float>(up[yb]) * invL;
+        const float ga = t * s.pd - s.ph;
+        const float den = dh - t * dd;  // ga - (t d - h)
+        const float w = den > 0.0f ? std::clamp(ga / den, 0.0f, 1.0f) : 1.0f;
+        depth[yb] = (s.pd + w * dd) * std::sqrt(1.0f + t * t);
+        // Every colour is a convex mix of 0..255 values: no clamp.
+        color[yb] = static_cast<std::uint32_t>(r0 + dr * w) |
+                    static_cast<std::uint32_t>(g0 + dg * w) << 8 |
+                    static_cast<std::uint32_t>(b0 + db * w) << 16;
+        --yb;
+    } while (yb >= yLo && up[yb] * d <= lim);
+    return yb;
+}
 
 class SpanCaster final : public Caster {
   public:
@@ -231,6 +273,7 @@ class SpanCaster final : public Caster {
     Fallback fallback_;
     mutable std::mutex poolMutex_;
     mutable std::vector<std::unique_ptr<SpanBuffers>> pool_;
+    mutable tbb::enumerable_thread_specific<SpanScratch> scratch_;
 };
 
 SpanFrame SpanCaster::setUp(const Camera& camera) const {
@@ -356,27 +399,18 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
             ColorSource& last = slot[prev];
             last.resolve();
             cur.resolve();
-            // Float from here: colours and depths need no more (the y-buffer test above is
-            // double); every colour is a convex mix of 0..255 values, so no clamp.
-            const float fpd = static_cast<float>(pd), fph = static_cast<float>(ph);
-            const float fd = static_cast<float>(d), fh = static_cast<float>(h);
-            const float fInvL = static_cast<float>(invL);
-            do {
-                const float t = static_cast<float>(up[yb]) * fInvL;
-                const float ga = t * fpd - fph, gb = t * fd - fh;
-                const float den = ga - gb;
-                const float w = den > 0.0f ? std::clamp(ga / den, 0.0f, 1.0f) : 1.0f;
-                const float dist = (fpd + w * (fd - fpd)) * std::sqrt(1.0f + t * t);
-                float rgb[3] = {last.rgb[0] + (cur.rgb[0] - last.rgb[0]) * w,
-                                last.rgb[1] + (cur.rgb[1] - last.rgb[1]) * w,
-                                last.rgb[2] + (cur.rgb[2] - last.rgb[2]) * w};
-                applyHaze(sky, rgb, dist);
-                color[yb] = static_cast<std::uint32_t>(rgb[0] + 0.5f) |
-                            static_cast<std::uint32_t>(rgb[1] + 0.5f) << 8 |
-                            static_cast<std::uint32_t>(rgb[2] + 0.5f) << 16;
-                depth[yb] = dist;
-                --yb;
-            } while (yb >= yLo && up[yb] * d <= lim);
+            SpanSegment seg{static_cast<float>(pd), static_cast<float>(ph), static_cast<float>(d),
+                            static_cast<float>(h)};
+            for (int i = 0; i < 3; ++i) {
+                seg.ca[i] = last.rgb[i];
+                seg.cb[i] = cur.rgb[i];
+            }
+            if (hazeInKernel(sky)) {
+                // The endpoints hazed at their own distances, linear between them.
+                applyHaze(sky, seg.ca, std::sqrt(pd * pd + ph * ph));
+                applyHaze(sky, seg.cb, std::sqrt(d * d + h * h));
+            }
+            yb = fillSegment(seg, up, yb, yLo, d, lim, static_cast<float>(invL), color, depth);
         }
         pd = d;
         ph = h;
@@ -618,43 +652,36 @@ void SpanCaster::renderSpans(const Camera& camera, RenderedFrame& frame,
                               }
                               samples.local() += s;
                           });
-        // Rows, in strips whose column runs stay in cache: each output pixel reads the two
-        // vertical-plane columns either side of where it falls (one at pitch 0).
+        // Rows, in strips of 16: the strip's rows of the columns its pixels read, transposed
+        // into a row-major scratch that stays in cache, then each output row from its plane
+        // row (a copy where the row's columns are the image's).
         constexpr int kStrip = 16;
         tbb::parallel_for(0, (H + kStrip - 1) / kStrip, [&](int strip) {
-            const int y1 = std::min(H, (strip + 1) * kStrip);
-            for (int y = strip * kStrip; y < y1; ++y) {
-                Rgb8* __restrict__ outC = frame.color.data() + static_cast<std::size_t>(y) * W;
-                float* __restrict__ outD = frame.depth.data() + static_cast<std::size_t>(y) * W;
-                const double s = sf.stretch[y];
-                for (int x = 0; x < W; ++x) {
-                    // jf >= 0 (the plane's padding), so truncation is its floor.
-                    const double jf = columnAt(sf, x, s);
-                    const int j0 = std::min(static_cast<int>(jf), sf.columns - 2);
-                    const float w = static_cast<float>(std::min(jf - j0, 1.0));
-                    const std::size_t a = static_cast<std::size_t>(j0) * H + y, b = a + H;
-                    const std::uint32_t ca = colColor[a], cb = colColor[b];
-                    const float da = colDepth[a], db = colDepth[b];
-                    if (w == 0.0f) {
-                        outC[x] =
-                            Rgb8{static_cast<std::uint8_t>(ca), static_cast<std::uint8_t>(ca >> 8),
-                                 static_cast<std::uint8_t>(ca >> 16)};
-                        outD[x] = da;
-                        continue;
-                    }
-                    // Colour: 8-bit weights, two channels per 32-bit lane pair.
-                    const std::uint32_t w8 = static_cast<std::uint32_t>(w * 256.0f + 0.5f);
-                    const std::uint32_t rb =
-                        ((ca & 0xff00ffu) * (256u - w8) + (cb & 0xff00ffu) * w8 + 0x800080u) >> 8;
-                    const std::uint32_t g =
-                        (((ca >> 8) & 0xffu) * (256u - w8) + ((cb >> 8) & 0xffu) * w8 + 0x80u) >> 8;
-                    outC[x] = Rgb8{static_cast<std::uint8_t>(rb), static_cast<std::uint8_t>(g),
-                                   static_cast<std::uint8_t>(rb >> 16)};
-                    // Depth: linear on a smooth surface, the nearer column's across an edge.
-                    const float lo = std::min(da, db), hi = std::max(da, db);
-                    outD[x] = lo < kSkyDepth && hi <= 1.05f * lo ? da + (db - da) * w
-                                                                 : (w < 0.5f ? da : db);
-                }
+            const int y0 = strip * kStrip, y1 = std::min(H, y0 + kStrip);
+            // Columns read: from the first pixel's (rounded down) to the last pixel's right
+            // neighbour (+1 for the rounding of positions to 1/256 of a column).
+            double first = kInf, last = -kInf;
+            for (int y = y0; y < y1; ++y) {
+                first = std::min(first, columnAt(sf, 0, sf.stretch[y]));
+                last = std::max(last, columnAt(sf, W - 1, sf.stretch[y]));
+            }
+            const int jLo = std::max(0, static_cast<int>(std::floor(first)));
+            const int jHi = std::min(sf.columns, static_cast<int>(std::floor(last)) + 3);
+            const int stride = jHi - jLo;
+            SpanScratch& scratch = scratch_.local();
+            const std::size_t need = static_cast<std::size_t>(stride) * kStrip;
+            if (scratch.color.size() < need) {
+                scratch.color.resize(need);
+                scratch.depth.resize(need);
+            }
+            spanTranspose(colColor, H, jLo, jHi, y0, y1, scratch.color.data(), stride);
+            spanTranspose(colDepth, H, jLo, jHi, y0, y1, scratch.depth.data(), stride);
+            for (int y = y0; y < y1; ++y) {
+                const std::size_t o = static_cast<std::size_t>(y - y0) * stride;
+                spanResampleRow(scratch.color.data() + o, scratch.depth.data() + o,
+                                spanRowMap(columnAt(sf, 0, sf.stretch[y]) - jLo, sf.stretch[y]), W,
+                                frame.color.data() + static_cast<std::size_t>(y) * W,
+                                frame.depth.data() + static_cast<std::size_t>(y) * W);
             }
         });
     });

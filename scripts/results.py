@@ -397,6 +397,30 @@ def span(p):
               f"{t['repeat']} each)", "—",
               f"{spread(tr, 2, '×')}; images {'identical' if t['identical'] else 'DIFFER'}",
               NO_TARGET, p.command("span_bench", "span-threads"))
+    cg = p.load("span_callgrind.json")
+    if cg and cg.get("runs"):
+        main = cg["runs"][0]["view"]  # the view of the before/after pair
+        runs = {(r["caster"], r["revision"]): r for r in cg["runs"] if r["view"] == main}
+
+        def per_px(r, key="instructions"):
+            return fmt(r[key] / r["pixels"], 0)
+
+        parts = []
+        before, after = runs.get(("span", "before")), runs.get(("span", "after"))
+        if before and after:
+            parts.append(f"span {per_px(before)} → {per_px(after)} (columns "
+                         f"{per_px(before, 'columns')} → {per_px(after, 'columns')}, resample "
+                         f"{per_px(before, 'resample')} → {per_px(after, 'resample')})")
+        fast = runs.get(("fast", "after"))
+        if fast and after:
+            parts.append(f"multiresolution fast caster {per_px(fast)} "
+                         f"(span / fast {fmt(after['instructions'] / fast['instructions'], 2)})")
+        for r in cg["runs"]:
+            if r["revision"] == "after" and r["caster"] == "span" and r["view"] != main:
+                parts.append(f"{r['view']}: span {per_px(r)} (resample {per_px(r, 'resample')})")
+        p.row(f"Span caster instructions per pixel (callgrind), {main}, "
+              f"{cg['camera'].replace('x', '×')}, {cg['map']}", "—", "; ".join(parts), NO_TARGET,
+              f"`{cg['command']}`")
     lines = ["| view | path | span ns/px | samples/px | peer ns/px | peer samples/px | span / peer | "
              "multires ns/px | MAE span % | MAE multires % | MAE peer % |",
              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]

@@ -63,10 +63,34 @@ class ResultsPage(unittest.TestCase):
         self.assertGreater(rows, 20)
 
     def test_no_callgrind_file_no_row(self):
-        path = os.path.join(self.data, "caster_callgrind.json")
-        if os.path.exists(path):
-            os.remove(path)
+        for name in ("caster_callgrind.json", "span_callgrind.json"):
+            path = os.path.join(self.data, name)
+            if os.path.exists(path):
+                os.remove(path)
         self.assertNotIn("callgrind", self.write_page())
+
+    def test_span_callgrind_file_gives_a_row(self):
+        doc = {"machine": "test", "camera": "1920x1080", "map": "synthetic 4096",
+               "command": "valgrind --tool=callgrind ...",
+               "runs": [{"caster": "span", "revision": "before", "view": "issue camera",
+                         "instructions": 800000000, "columns": 600000000,
+                         "resample": 150000000, "pixels": 2000000},
+                        {"caster": "span", "revision": "after", "view": "issue camera",
+                         "instructions": 700000000, "columns": 580000000,
+                         "resample": 60000000, "pixels": 2000000},
+                        {"caster": "span", "revision": "after", "view": "pitch 0",
+                         "instructions": 600000000, "columns": 570000000,
+                         "resample": 20000000, "pixels": 2000000},
+                        {"caster": "fast", "revision": "after", "view": "issue camera",
+                         "instructions": 500000000, "pixels": 2000000}]}
+        with open(os.path.join(self.data, "span_callgrind.json"), "w") as f:
+            json.dump(doc, f)
+        page = self.write_page()
+        row = [l for l in page.splitlines() if "Span caster instructions per pixel" in l]
+        self.assertEqual(len(row), 1, page)
+        self.assertIn("span 400 → 350 (columns 300 → 290, resample 75 → 30)", row[0])
+        self.assertIn("span / fast 1.40", row[0])
+        self.assertIn("pitch 0: span 300 (resample 10)", row[0])
 
     def test_callgrind_file_gives_a_row(self):
         with open(os.path.join(self.data, "caster_callgrind.json"), "w") as f:

@@ -7,6 +7,8 @@
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/pose_sweep.hpp"
+#include "ig/shading.hpp"
+#include "ig/span_resample.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
@@ -18,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <random>
 #include <vector>
 
 namespace {
@@ -43,10 +46,11 @@ const TerrainMap& goleta() {
 }
 
 std::unique_ptr<ig::Caster> makeWith(CasterKind kind, const TerrainMap& map, int levels,
-                                     int threads = 0) {
+                                     int threads = 0, const ig::SkyModel& sky = {}) {
     ig::RenderOptions o;
     o.levels = levels;
     o.threads = threads;
+    o.sky = sky;
     return ig::makeCaster(kind, map, o);
 }
 
@@ -60,11 +64,12 @@ struct SweepError {
     int spanFrames = 0;
 };
 
-SweepError sweepError(const TerrainMap& map, int poses, int w, int h) {
+SweepError sweepError(const TerrainMap& map, int poses, int w, int h,
+                      const ig::SkyModel& sky = {}) {
     constexpr int kF = 4;
-    const auto reference = ig::makeCaster(CasterKind::Reference, map);
-    const auto span = makeWith(CasterKind::Span, map, ig::kLevelsAuto);
-    const auto multi = makeWith(CasterKind::Fast, map, ig::kLevelsAuto);
+    const auto reference = makeWith(CasterKind::Reference, map, 0, 0, sky);
+    const auto span = makeWith(CasterKind::Span, map, ig::kLevelsAuto, 0, sky);
+    const auto multi = makeWith(CasterKind::Fast, map, ig::kLevelsAuto, 0, sky);
     const Intrinsics in = Intrinsics::fromFov(w, h, ig::degToRad(60));
     const Intrinsics fine = Intrinsics::fromFov(w * kF, h * kF, ig::degToRad(60));
     SweepError e;
@@ -118,6 +123,14 @@ TEST(SpanCaster, NearTheMultiresCasterAgainstSupersampledReferenceGoleta) {
 
 TEST(SpanCaster, NearTheMultiresCasterAgainstSupersampledReferenceSynthetic) {
     expectQuality("synthetic 512^2", sweepError(synthetic512(), 12, 64, 40));
+}
+
+// With the casters' distance haze: the span caster hazes a segment's two ends and interpolates.
+TEST(SpanCaster, NearTheMultiresCasterUnderDistanceHaze) {
+    ig::SkyModel sky;
+    sky.hazeDistance = 2000.0;
+    ASSERT_TRUE(ig::hazeInKernel(sky));
+    expectQuality("synthetic 512^2, haze 2 km", sweepError(synthetic512(), 12, 64, 40, sky));
 }
 
 // A flat green map with one raised red sample: the needle is drawn at every pitch, with the
@@ -233,6 +246,58 @@ TEST(SpanCaster, FrameStreamGivesRenderFramesImages) {
     Pose rolled = poses[0];
     rolled.roll = 0.1;
     EXPECT_THROW(stream.submit(rolled, in), ig::InputError);
+}
+
+// The resample's blocked transpose is the plain loop's, for any block shape and offsets.
+TEST(SpanResample, TransposeIsThePlainLoops) {
+    constexpr int kH = 37, kCols = 23;
+    std::vector<std::uint32_t> plane(kH * kCols);
+    for (std::size_t i = 0; i < plane.size(); ++i)
+        plane[i] = static_cast<std::uint32_t>(i * 2654435761u);
+    for (int j0 : {0, 1, 5})
+        for (int j1 : {j0 + 1, j0 + 4, j0 + 7, kCols})
+            for (int y0 : {0, 3, 16})
+                for (int y1 : {y0 + 1, y0 + 4, y0 + 13, kH}) {
+                    const int stride = j1 - j0 + 2;
+                    std::vector<std::uint32_t> a((y1 - y0) * stride, 7u), b = a;
+                    ig::spanTranspose(plane.data(), kH, j0, j1, y0, y1, a.data(), stride);
+                    ig::spanTransposeReference(plane.data(), kH, j0, j1, y0, y1, b.data(), stride);
+                    ASSERT_EQ(a, b) << j0 << " " << j1 << " " << y0 << " " << y1;
+                }
+}
+
+// The resample row (fixed-point positions, two channels per word, the copy at stretch 1) is
+// the per-channel loop's, over stretches from 1 to 2 and offsets, on smooth depths, edges and
+// sky; the copy is the plane row itself.
+TEST(SpanResample, RowIsThePerChannelLoops) {
+    constexpr int kCols = 640, kW = 300;  // 7.7 + 299 * 2 + 2 columns read at most
+    std::mt19937 rng(5);
+    std::vector<std::uint32_t> color(kCols);
+    std::vector<float> depth(kCols);
+    for (int j = 0; j < kCols; ++j) {
+        color[j] = rng() & 0xffffffu;
+        depth[j] = j % 17 == 0  ? ig::kSkyDepth
+                   : j % 5 == 0 ? 100.0f + static_cast<float>(rng() % 100)
+                                : 100.0f + 0.01f * static_cast<float>(rng() % 100);
+    }
+    for (double stretch : {1.0, 1.0 + 1.0 / 3.0, 1.08, 1.42, 2.0}) {
+        for (double first : {0.0, 3.0, 0.25, 7.7}) {
+            const ig::SpanRowMap map = ig::spanRowMap(first, stretch);
+            std::vector<ig::Rgb8> a(kW), b(kW);
+            std::vector<float> da(kW), db(kW);
+            ig::spanResampleRow(color.data(), depth.data(), map, kW, a.data(), da.data());
+            ig::spanResampleRowReference(color.data(), depth.data(), map, kW, b.data(), db.data());
+            ASSERT_TRUE(a == b) << stretch << " " << first;
+            ASSERT_EQ(0, std::memcmp(da.data(), db.data(), kW * sizeof(float)));
+            if (stretch == 1.0 && first == 3.0) {
+                for (int x = 0; x < kW; ++x) {
+                    ASSERT_EQ(a[x].r, color[x + 3] & 255u);
+                    ASSERT_EQ(a[x].b, color[x + 3] >> 16 & 255u);
+                    ASSERT_EQ(da[x], depth[x + 3]);
+                }
+            }
+        }
+    }
 }
 
 TEST(SpanCaster, RefusesWhatItCannotDraw) {
