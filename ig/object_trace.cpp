@@ -268,6 +268,8 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     double tx = d.x != 0.0 ? (line(bx, lx + upX, sx, csx) - o.x) * invX : kInf;
     double ty = d.y != 0.0 ? (line(by, ly + upY, sy, csy) - o.y) * invY : kInf;
     const StickTable& table = layer.table();
+    const float* ranges = layer.boxColumnRanges(box);
+    const std::int64_t boxW = box.cx1 - box.cx0 + 1;
     for (;;) {
         if (ta > cutoff) return;  // behind an opaque voxel already found
         const double tb = std::min({tx, ty, t1});
@@ -277,13 +279,18 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
             // sticks lie wholly above or below it gives collectVoxelHits nothing to collect.
             const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
             const double zLo = std::min(zA, zB) - kListPad, zHi = std::max(zA, zB) + kListPad;
-            for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
-                if (cell.id != box.id) continue;
-                if (zHi < cell.baseZ + table.bottom(cell.stick) ||
-                    zLo > cell.baseZ + table.top(cell.stick)) {
-                    continue;
+            // The cell's own height range first (the hull of those entries' ranges): most cells
+            // a ray crosses in a box are empty or passed above or below.
+            const float* r = ranges + 2 * ((cy - box.cy0) * boxW + (cx - box.cx0));
+            if (!(zHi < r[0] || zLo > r[1])) {
+                for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
+                    if (cell.id != box.id) continue;
+                    if (zHi < cell.baseZ + table.bottom(cell.stick) ||
+                        zLo > cell.baseZ + table.top(cell.stick)) {
+                        continue;
+                    }
+                    collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
                 }
-                collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
             }
             for (std::size_t i = before; i < hits.size(); ++i)
                 if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);

@@ -143,8 +143,9 @@ struct ObjectBox {
     std::int64_t cx0 = 0, cy0 = 0, cx1 = -1, cy1 = -1;  // object cells, inclusive
     float zLo = 0.0f, zHi = 0.0f;                       // lowest bottom, highest top, metres
     std::uint16_t id = 0;
-    std::uint32_t rows = 0;   // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
-    std::uint32_t cells = 0;  // first of its cells' offsets from their row's start, row by row
+    std::uint32_t rows = 0;    // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
+    std::uint32_t cells = 0;   // first of its cells' offsets from their row's start, row by row
+    std::uint32_t ranges = 0;  // first of its cells' height ranges (ObjectLayer::boxColumnRanges)
 };
 
 // Objects over one terrain map, on an object grid that divides each terrain cell into k x k
@@ -208,6 +209,14 @@ class ObjectLayer {
         return {cells_.data() + first, end - first};
     }
 
+    // The height range of each cell of `box` (row by row over its rectangle, cx fastest): the
+    // lowest baseZ + bottom and highest baseZ + top (float, as the walk's per-entry test computes
+    // them) of the cell's entries with the box's id; +inf, -inf where it holds none. A ray whose
+    // height range over a cell misses the cell's range meets none of its entries' sticks.
+    const float* boxColumnRanges(const ObjectBox& box) const {
+        return columnRanges_.data() + box.ranges;
+    }
+
     const StickTable& table() const { return table_; }
     const std::vector<PlacedObject>& objects() const { return objects_; }
     std::size_t cellEntries() const { return keys_.size(); }
@@ -248,6 +257,7 @@ class ObjectLayer {
     // Per box cell: its first entry - its row's start (a box whose rows hold more entries than
     // 16 bits count has none, kNoCellIndex, and searches its rows).
     std::vector<std::uint16_t> cellOffsets_;
+    std::vector<float> columnRanges_;  // per box cell: lo, hi (boxColumnRanges)
     static constexpr std::uint32_t kNoCellIndex = 0xffffffffu;
     std::unordered_map<std::string, std::vector<std::uint32_t>> columnCache_;
     bool finished_ = true;
