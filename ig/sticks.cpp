@@ -250,7 +250,13 @@ void ObjectLayer::indexBoxes() {
     rowStarts_.clear();
     cellOffsets_.clear();
     columnRanges_.clear();
+    boxLines_.clear();
     for (ObjectBox& box : boxes_) {
+        box.lines = static_cast<std::uint32_t>(boxLines_.size());
+        for (std::int64_t i = box.cx0; i <= box.cx1 + 1; ++i)
+            boxLines_.push_back(objectGridLine(i, k_, map_->spacingX(), csx_));
+        for (std::int64_t i = box.cy0; i <= box.cy1 + 1; ++i)
+            boxLines_.push_back(objectGridLine(i, k_, map_->spacingY(), csy_));
         box.ranges = static_cast<std::uint32_t>(columnRanges_.size());
         const auto cellsInBox =
             static_cast<std::size_t>((box.cx1 - box.cx0 + 1) * (box.cy1 - box.cy0 + 1));
@@ -315,7 +321,8 @@ std::size_t ObjectLayer::cellBytes() const {
 
 std::size_t ObjectLayer::boxBytes() const {
     return boxes_.size() * sizeof(ObjectBox) + rowStarts_.size() * sizeof(std::uint32_t) +
-           cellOffsets_.size() * sizeof(std::uint16_t) + columnRanges_.size() * sizeof(float);
+           cellOffsets_.size() * sizeof(std::uint16_t) + columnRanges_.size() * sizeof(float) +
+           boxLines_.size() * sizeof(double);
 }
 
 std::size_t ObjectLayer::bytes() const {
