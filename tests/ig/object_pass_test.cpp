@@ -324,8 +324,8 @@ TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
 
 // Each box cell's height range is the hull of its entries of the box's id, whatever the other
 // objects sharing the cell hold (+inf, -inf where it holds none): the walk passes a cell whose
-// range the ray misses without looking at its entries.
-TEST(ObjectPass, BoxColumnRangesAreTheHullOfTheirEntries) {
+// range the ray misses without looking at its entries. Its grid lines are the exact walk's.
+TEST(ObjectPass, BoxColumnRangesAndGridLinesAreTheWalks) {
     const TerrainMap map = flatMap();
     ObjectLayer layer(map, 0.5);
     for (int i = 0; i < 6; ++i) {
@@ -354,6 +354,21 @@ TEST(ObjectPass, BoxColumnRangesAreTheHullOfTheirEntries) {
     }
     EXPECT_GT(held, 100u);
     EXPECT_GT(empty, 0u);  // the models' boxes have empty corners
+    // The grid lines kept with each box are the walk's own (the terrain cell's edge where a line
+    // is one), increasing, one object cell apart.
+    const int k = layer.subdivision();
+    for (const ObjectBox& box : layer.boxes()) {
+        const double* xs = layer.boxLinesX(box);
+        const double* ys = layer.boxLinesY(box);
+        for (std::int64_t i = 0; i <= box.cx1 - box.cx0 + 1; ++i) {
+            EXPECT_EQ(xs[i], objectGridLine(box.cx0 + i, k, map.spacingX(), layer.cellSizeX()));
+            EXPECT_NEAR(xs[i], static_cast<double>(box.cx0 + i) * layer.cellSizeX(), 1e-9);
+        }
+        for (std::int64_t i = 0; i <= box.cy1 - box.cy0 + 1; ++i) {
+            EXPECT_EQ(ys[i], objectGridLine(box.cy0 + i, k, map.spacingY(), layer.cellSizeY()));
+            EXPECT_NEAR(ys[i], static_cast<double>(box.cy0 + i) * layer.cellSizeY(), 1e-9);
+        }
+    }
 }
 
 // 300 walls of one voxel's depth on one row of cells: each wall's cells hold 300 entries, more
