@@ -210,22 +210,15 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
         });
 }
 
+double objectGridLine(std::int64_t i, std::int64_t k, double spacing, double cell) {
+    const std::int64_t b = i / k;
+    return static_cast<double>(b) * spacing + static_cast<double>(i - b * k) * cell;
+}
+
 void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::dvec3& o,
                     const glm::dvec3& d, double t0, double t1, std::vector<VoxelHit>& hits,
                     double& cutoff) {
-    const TerrainMap& map = layer.map();
-    const std::int64_t k = layer.subdivision();
-    const double sx = map.spacingX(), sy = map.spacingY();
     const double csx = layer.cellSizeX(), csy = layer.cellSizeY();
-    // Grid line l of terrain cell b, as traceObjects' walk places it: the terrain cell's edge
-    // plus whole object cells (the next terrain cell's own edge for l = k).
-    const auto line = [k](std::int64_t b, std::int64_t l, double spacing, double cell) {
-        if (l == k) {
-            ++b;
-            l = 0;
-        }
-        return static_cast<double>(b) * spacing + static_cast<double>(l) * cell;
-    };
     const double invX = d.x != 0.0 ? 1.0 / d.x : kInf, invY = d.y != 0.0 ? 1.0 / d.y : kInf;
     const auto clip = [](double oc, double dc, double inv, double lo, double hi, double& a,
                          double& b) {
@@ -238,7 +231,7 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     };
     // The ray inside the box, from where it enters it (or t0) to where it leaves its height
     // range (the box padded: the walk below finds the exact cells).
-    const double padX = 1e-9 * sx, padY = 1e-9 * sy;
+    const double padX = 1e-9 * layer.map().spacingX(), padY = 1e-9 * layer.map().spacingY();
     double ta = t0, tz = t1;
     if (!clip(o.x, d.x, invX, static_cast<double>(box.cx0) * csx - padX,
               static_cast<double>(box.cx1 + 1) * csx + padX, ta, tz) ||
@@ -247,74 +240,69 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
         !clipSlab(o.z, d.z, box.zLo - kBoxPad, box.zHi + kBoxPad, ta, tz)) {
         return;
     }
-    const int stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
+    const std::int64_t stepX = d.x > 0.0 ? 1 : -1, stepY = d.y > 0.0 ? 1 : -1;
     const std::int64_t upX = d.x > 0.0, upY = d.y > 0.0;
-    std::int64_t cx =
-        std::clamp(static_cast<std::int64_t>(std::floor((o.x + ta * d.x) / csx)), box.cx0, box.cx1);
-    std::int64_t cy =
-        std::clamp(static_cast<std::int64_t>(std::floor((o.y + ta * d.y) / csy)), box.cy0, box.cy1);
-    // The cells as (terrain cell, object cell within it), stepped without dividing.
-    std::int64_t bx = cx / k, lx = cx - bx * k, by = cy / k, ly = cy - by * k;
+    // Cells relative to the box's south-west cell.
+    const std::int64_t nx = box.cx1 - box.cx0, ny = box.cy1 - box.cy0;
+    std::int64_t ix = std::clamp(static_cast<std::int64_t>(std::floor((o.x + ta * d.x) / csx)),
+                                 box.cx0, box.cx1) -
+                      box.cx0;
+    std::int64_t iy = std::clamp(static_cast<std::int64_t>(std::floor((o.y + ta * d.y) / csy)),
+                                 box.cy0, box.cy1) -
+                      box.cy0;
+    // The box's grid lines, as traceObjects' walk places them (objectGridLine).
+    const double* lineX = layer.boxLinesX(box);
+    const double* lineY = layer.boxLinesY(box);
     // The first cell's entry as the full walk finds it: the later of the grid lines crossed into
     // it, or t0 (with no side crossed) when the walk starts in it.
-    const double ex = d.x != 0.0 ? (line(bx, lx + 1 - upX, sx, csx) - o.x) * invX : -kInf;
-    const double ey = d.y != 0.0 ? (line(by, ly + 1 - upY, sy, csy) - o.y) * invY : -kInf;
+    const double ex = d.x != 0.0 ? (lineX[ix + 1 - upX] - o.x) * invX : -kInf;
+    const double ey = d.y != 0.0 ? (lineY[iy + 1 - upY] - o.y) * invY : -kInf;
     int axis = ex > ey ? 0 : 1;
     ta = std::max(ex, ey);
     if (ta <= t0) {
         ta = t0;
         axis = -1;
     }
-    double tx = d.x != 0.0 ? (line(bx, lx + upX, sx, csx) - o.x) * invX : kInf;
-    double ty = d.y != 0.0 ? (line(by, ly + upY, sy, csy) - o.y) * invY : kInf;
+    double tx = d.x != 0.0 ? (lineX[ix + upX] - o.x) * invX : kInf;
+    double ty = d.y != 0.0 ? (lineY[iy + upY] - o.y) * invY : kInf;
     const StickTable& table = layer.table();
+    const float* ranges = layer.boxColumnRanges(box);
     for (;;) {
         if (ta > cutoff) return;  // behind an opaque voxel already found
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta) {
-            const std::size_t before = hits.size();
             // The ray's height range over the cell, widened by a millimetre: an entry whose
             // sticks lie wholly above or below it gives collectVoxelHits nothing to collect.
             const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
             const double zLo = std::min(zA, zB) - kListPad, zHi = std::max(zA, zB) + kListPad;
-            for (const ObjectCell& cell : layer.boxCellsAt(box, cx, cy)) {
-                if (cell.id != box.id) continue;
-                if (zHi < cell.baseZ + table.bottom(cell.stick) ||
-                    zLo > cell.baseZ + table.top(cell.stick)) {
-                    continue;
+            // The cell's own height range first (the hull of those entries' ranges): most cells
+            // a ray crosses in a box are empty or passed above or below.
+            const float* r = ranges + 2 * (iy * (nx + 1) + ix);
+            if (!(zHi < r[0] || zLo > r[1])) {
+                const std::size_t before = hits.size();
+                for (const ObjectCell& cell : layer.boxCellsAt(box, box.cx0 + ix, box.cy0 + iy)) {
+                    if (cell.id != box.id) continue;
+                    if (zHi < cell.baseZ + table.bottom(cell.stick) ||
+                        zLo > cell.baseZ + table.top(cell.stick)) {
+                        continue;
+                    }
+                    collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
                 }
-                collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
+                for (std::size_t i = before; i < hits.size(); ++i)
+                    if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
             }
-            for (std::size_t i = before; i < hits.size(); ++i)
-                if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
         }
         if (tb >= t1 || tb >= tz) return;
         if (tx <= ty) {
-            cx += stepX;
+            ix += stepX;
             axis = 0;
-            if (cx < box.cx0 || cx > box.cx1) return;
-            lx += stepX;
-            if (lx == k) {
-                ++bx;
-                lx = 0;
-            } else if (lx < 0) {
-                --bx;
-                lx = k - 1;
-            }
-            tx = (line(bx, lx + upX, sx, csx) - o.x) * invX;
+            if (ix < 0 || ix > nx) return;
+            tx = (lineX[ix + upX] - o.x) * invX;
         } else {
-            cy += stepY;
+            iy += stepY;
             axis = 1;
-            if (cy < box.cy0 || cy > box.cy1) return;
-            ly += stepY;
-            if (ly == k) {
-                ++by;
-                ly = 0;
-            } else if (ly < 0) {
-                --by;
-                ly = k - 1;
-            }
-            ty = (line(by, ly + upY, sy, csy) - o.y) * invY;
+            if (iy < 0 || iy > ny) return;
+            ty = (lineY[iy + upY] - o.y) * invY;
         }
         ta = tb;
     }

@@ -249,7 +249,21 @@ void ObjectLayer::indexBoxes() {
               [](const ObjectBox& a, const ObjectBox& b) { return a.id < b.id; });
     rowStarts_.clear();
     cellOffsets_.clear();
+    columnRanges_.clear();
+    boxLines_.clear();
     for (ObjectBox& box : boxes_) {
+        box.lines = static_cast<std::uint32_t>(boxLines_.size());
+        for (std::int64_t i = box.cx0; i <= box.cx1 + 1; ++i)
+            boxLines_.push_back(objectGridLine(i, k_, map_->spacingX(), csx_));
+        for (std::int64_t i = box.cy0; i <= box.cy1 + 1; ++i)
+            boxLines_.push_back(objectGridLine(i, k_, map_->spacingY(), csy_));
+        box.ranges = static_cast<std::uint32_t>(columnRanges_.size());
+        const auto cellsInBox =
+            static_cast<std::size_t>((box.cx1 - box.cx0 + 1) * (box.cy1 - box.cy0 + 1));
+        for (std::size_t i = 0; i < cellsInBox; ++i) {
+            columnRanges_.push_back(std::numeric_limits<float>::infinity());
+            columnRanges_.push_back(-std::numeric_limits<float>::infinity());
+        }
         box.rows = static_cast<std::uint32_t>(rowStarts_.size());
         box.cells = static_cast<std::uint32_t>(cellOffsets_.size());
         bool fits = true;
@@ -273,6 +287,21 @@ void ObjectLayer::indexBoxes() {
             box.cells = kNoCellIndex;
         }
     }
+    // Each box cell's height range over its entries of the box's id.
+    std::vector<std::int32_t> boxById(65536, -1);
+    for (std::size_t b = 0; b < boxes_.size(); ++b)
+        boxById[boxes_[b].id] = static_cast<std::int32_t>(b);
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+        const ObjectCell& c = cells_[i];
+        const ObjectBox& box = boxes_[static_cast<std::size_t>(boxById[c.id])];
+        const auto cx = static_cast<std::int64_t>(keys_[i] % nx);
+        const auto cy = static_cast<std::int64_t>(keys_[i] / nx);
+        float* r =
+            columnRanges_.data() + box.ranges +
+            2 * static_cast<std::size_t>((cy - box.cy0) * (box.cx1 - box.cx0 + 1) + (cx - box.cx0));
+        r[0] = std::min(r[0], c.baseZ + table_.bottom(c.stick));
+        r[1] = std::max(r[1], c.baseZ + table_.top(c.stick));
+    }
 }
 
 std::span<const ObjectCell> ObjectLayer::cellsAt(std::int64_t cx, std::int64_t cy) const {
@@ -292,7 +321,8 @@ std::size_t ObjectLayer::cellBytes() const {
 
 std::size_t ObjectLayer::boxBytes() const {
     return boxes_.size() * sizeof(ObjectBox) + rowStarts_.size() * sizeof(std::uint32_t) +
-           cellOffsets_.size() * sizeof(std::uint16_t);
+           cellOffsets_.size() * sizeof(std::uint16_t) + columnRanges_.size() * sizeof(float) +
+           boxLines_.size() * sizeof(double);
 }
 
 std::size_t ObjectLayer::bytes() const {

@@ -143,8 +143,10 @@ struct ObjectBox {
     std::int64_t cx0 = 0, cy0 = 0, cx1 = -1, cy1 = -1;  // object cells, inclusive
     float zLo = 0.0f, zHi = 0.0f;                       // lowest bottom, highest top, metres
     std::uint16_t id = 0;
-    std::uint32_t rows = 0;   // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
-    std::uint32_t cells = 0;  // first of its cells' offsets from their row's start, row by row
+    std::uint32_t rows = 0;    // first of its cy1 - cy0 + 1 row starts (ObjectLayer::boxCellsAt)
+    std::uint32_t cells = 0;   // first of its cells' offsets from their row's start, row by row
+    std::uint32_t ranges = 0;  // first of its cells' height ranges (ObjectLayer::boxColumnRanges)
+    std::uint32_t lines = 0;   // first of its grid lines (ObjectLayer::boxLinesX)
 };
 
 // Objects over one terrain map, on an object grid that divides each terrain cell into k x k
@@ -208,6 +210,23 @@ class ObjectLayer {
         return {cells_.data() + first, end - first};
     }
 
+    // The height range of each cell of `box` (row by row over its rectangle, cx fastest): the
+    // lowest baseZ + bottom and highest baseZ + top (float, as the walk's per-entry test computes
+    // them) of the cell's entries with the box's id; +inf, -inf where it holds none. A ray whose
+    // height range over a cell misses the cell's range meets none of its entries' sticks.
+    const float* boxColumnRanges(const ObjectBox& box) const {
+        return columnRanges_.data() + box.ranges;
+    }
+
+    // The x coordinates (metres) of the grid lines of `box`'s columns cx0 .. cx1 + 1 (line i is
+    // the west edge of object cell cx0 + i), and the y coordinates of its rows' lines
+    // cy0 .. cy1 + 1, each as traceObjects' walk places it (objectGridLine): the walk through the
+    // box reads a line instead of working it out from the terrain cell and the cell within it.
+    const double* boxLinesX(const ObjectBox& box) const { return boxLines_.data() + box.lines; }
+    const double* boxLinesY(const ObjectBox& box) const {
+        return boxLinesX(box) + (box.cx1 - box.cx0 + 2);
+    }
+
     const StickTable& table() const { return table_; }
     const std::vector<PlacedObject>& objects() const { return objects_; }
     std::size_t cellEntries() const { return keys_.size(); }
@@ -248,6 +267,8 @@ class ObjectLayer {
     // Per box cell: its first entry - its row's start (a box whose rows hold more entries than
     // 16 bits count has none, kNoCellIndex, and searches its rows).
     std::vector<std::uint16_t> cellOffsets_;
+    std::vector<float> columnRanges_;  // per box cell: lo, hi (boxColumnRanges)
+    std::vector<double> boxLines_;     // per box: its x lines, then its y lines (boxLinesX)
     static constexpr std::uint32_t kNoCellIndex = 0xffffffffu;
     std::unordered_map<std::string, std::vector<std::uint32_t>> columnCache_;
     bool finished_ = true;
@@ -257,5 +278,11 @@ class ObjectLayer {
 // that the max-height pyramid built afterwards bounds the objects too (a march never skips an
 // object). Only for a map that carries objects: a map without is left bit for bit as it was.
 void includeStickTops(TerrainMap& map, const ObjectLayer& layer);
+
+// Grid line i of the object grid along one axis (metres from the map's origin), as the exact
+// walk places it: the terrain cell's edge (i / k) * spacing plus (i mod k) object cells of
+// `cell` metres. Defined with the walk (ig/object_trace.cpp, built without fused multiply-adds)
+// so that every user computes the same double.
+double objectGridLine(std::int64_t i, std::int64_t k, double spacing, double cell);
 
 }  // namespace ig

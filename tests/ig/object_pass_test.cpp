@@ -322,6 +322,55 @@ TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
     }
 }
 
+// Each box cell's height range is the hull of its entries of the box's id, whatever the other
+// objects sharing the cell hold (+inf, -inf where it holds none): the walk passes a cell whose
+// range the ray misses without looking at its entries. Its grid lines are the exact walk's.
+TEST(ObjectPass, BoxColumnRangesAndGridLinesAreTheWalks) {
+    const TerrainMap map = flatMap();
+    ObjectLayer layer(map, 0.5);
+    for (int i = 0; i < 6; ++i) {
+        const double x = 300.0 + 4.0 * i, y = 330.0 + 2.0 * (i % 2);
+        layer.place(shippedModels()[static_cast<std::size_t>(i) % shippedModels().size()],
+                    Placement{static_cast<std::uint16_t>(10 + i), x, y, 100.0 + i, 0.4 * i, 0.5});
+    }
+    layer.finish();
+    const StickTable& table = layer.table();
+    std::size_t empty = 0, held = 0;
+    for (const ObjectBox& box : layer.boxes()) {
+        const float* r = layer.boxColumnRanges(box);
+        for (std::int64_t cy = box.cy0; cy <= box.cy1; ++cy) {
+            for (std::int64_t cx = box.cx0; cx <= box.cx1; ++cx, r += 2) {
+                float lo = INFINITY, hi = -INFINITY;
+                for (const ObjectCell& c : layer.cellsAt(cx, cy)) {
+                    if (c.id != box.id) continue;
+                    lo = std::min(lo, c.baseZ + table.bottom(c.stick));
+                    hi = std::max(hi, c.baseZ + table.top(c.stick));
+                }
+                EXPECT_EQ(r[0], lo) << "id " << box.id << " cell " << cx << "," << cy;
+                EXPECT_EQ(r[1], hi) << "id " << box.id << " cell " << cx << "," << cy;
+                (lo > hi ? empty : held) += 1;
+            }
+        }
+    }
+    EXPECT_GT(held, 100u);
+    EXPECT_GT(empty, 0u);  // the models' boxes have empty corners
+    // The grid lines kept with each box are the walk's own (the terrain cell's edge where a line
+    // is one), increasing, one object cell apart.
+    const int k = layer.subdivision();
+    for (const ObjectBox& box : layer.boxes()) {
+        const double* xs = layer.boxLinesX(box);
+        const double* ys = layer.boxLinesY(box);
+        for (std::int64_t i = 0; i <= box.cx1 - box.cx0 + 1; ++i) {
+            EXPECT_EQ(xs[i], objectGridLine(box.cx0 + i, k, map.spacingX(), layer.cellSizeX()));
+            EXPECT_NEAR(xs[i], static_cast<double>(box.cx0 + i) * layer.cellSizeX(), 1e-9);
+        }
+        for (std::int64_t i = 0; i <= box.cy1 - box.cy0 + 1; ++i) {
+            EXPECT_EQ(ys[i], objectGridLine(box.cy0 + i, k, map.spacingY(), layer.cellSizeY()));
+            EXPECT_NEAR(ys[i], static_cast<double>(box.cy0 + i) * layer.cellSizeY(), 1e-9);
+        }
+    }
+}
+
 // 300 walls of one voxel's depth on one row of cells: each wall's cells hold 300 entries, more
 // than a box's 16-bit cell index counts, so the boxes search their rows instead.
 TEST(ObjectPass, CrowdedRowsSearchedWithoutTheCellIndex) {
