@@ -365,6 +365,13 @@ void Pipeline::startProcess() {
     po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;
     po.paced = options_.clock == ClockMode::Wall;
     po.fault = options_.fault;
+    // The field process's threads come first: the field loop (real-time where allowed) and, on
+    // the wall clock, the truth writer, which otherwise shares the cores evenly with a renderer
+    // that takes all it is given and falls behind the field clock (docs/design/objects.md,
+    // "When the truth falls behind").
+    po.nice = options_.renderNice != 0                              ? options_.renderNice
+              : options_.truth && options_.clock == ClockMode::Wall ? kTruthRenderNice
+                                                                    : 0;
     process_ = std::make_unique<RendererProcess>(renderer_, *ring_, po);
     process_->start();
 }

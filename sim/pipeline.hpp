@@ -75,6 +75,10 @@ FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry&
                                 const ig::Scene& scene, const SceneMotion& motion,
                                 ExtraObjects extra = {});
 
+// The renderer process's nice value when the run writes truth on the wall clock and no other
+// is asked for: the truth writer is scheduled before it.
+inline constexpr int kTruthRenderNice = 10;
+
 struct PipelineOptions {
     double duration = 10.0;  // simulated seconds; fields = round(duration / field period)
     ClockMode clock = ClockMode::Wall;
@@ -84,7 +88,8 @@ struct PipelineOptions {
     // Worker threads of the renderer's own task arena; 0: every core but one (at least one),
     // so the field loop always has a core of its own.
     int renderThreads = 0;
-    // Nice value for the renderer's threads (0: leave them be).
+    // Nice value for the renderer's threads (0: leave them be; a renderer process on the wall
+    // clock with `truth` set: kTruthRenderNice).
     int renderNice = 0;
     // Wall clock: run the field loop at real-time priority (SCHED_FIFO) when the system allows
     // it, else at a raised nice when allowed; restored after the run.

@@ -8,6 +8,7 @@
 #include <oneapi/tbb/task_arena.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -144,6 +145,8 @@ void RendererProcess::childMain() {
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, nullptr);
+    // Threads inherit the nice value of the thread that starts them: set it before the arena's.
+    if (options_.nice != 0) setpriority(PRIO_PROCESS, 0, options_.nice);
     try {
         tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
         std::uint64_t lastGeneration = skipGeneration_;

@@ -45,6 +45,7 @@ struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
     double renderHz = 0.0;  // wall pacing of renders; 0: as fast as it can
     bool paced = true;      // false: render each request once, as soon as it is posted
+    int nice = 0;           // the renderer process's nice value (0: as started)
     std::optional<RendererFault> fault;
 };
 
