@@ -327,7 +327,7 @@ void Pipeline::renderSimulatedUntil(double t) {
         if (process_) {
             // The renderer process renders this one request while the simulated clock stands
             // still; a renderer that fails it costs a modelled restart, and the frame is lost.
-            ring_->postRequest(poses_.predict(aim), aim, nextSequence_);
+            postRequest(poses_.predict(aim), aim, nextSequence_);
             requested_.store(nextSequence_, std::memory_order_relaxed);
             std::string why;
             Await got = awaitFrame(pendingFrame_, renderTimeout(), why);
@@ -354,6 +354,18 @@ void Pipeline::renderSimulatedUntil(double t) {
 double Pipeline::renderTimeout() const {
     if (options_.renderTimeout > 0.0) return options_.renderTimeout;
     return std::max(0.5, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
+}
+
+void Pipeline::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
+    requestObjects_.clear();
+    if (options_.requestObjects) options_.requestObjects(time, requestObjects_);
+    if (!ring_->postRequest(pose, time, sequence, requestObjects_) && !requestObjectsCut_) {
+        requestObjectsCut_ = true;
+        std::fprintf(stderr,
+                     "renderer process: %zu objects in one request; only the first %zu are "
+                     "drawn\n",
+                     requestObjects_.size(), kMaxRequestObjects);
+    }
 }
 
 void Pipeline::startProcess() {
@@ -507,7 +519,7 @@ PipelineResult Pipeline::run() {
     if (process) {
         CHECK_GT(options_.maxFramePixels, 0u) << "a renderer process needs the largest frame size";
         startProcess();
-        ring_->postRequest(poses_.predict(t0_), t0_, 0);
+        postRequest(poses_.predict(t0_), t0_, 0);
         std::string why;
         ig::RenderedFrame& first = frames_.back();
         // The first frame also pays for the renderer's start: allow it ten timeouts.
@@ -568,7 +580,7 @@ PipelineResult Pipeline::run() {
             // after this request on average.
             const double aim =
                 t + renderSeconds_.load(std::memory_order_relaxed) + 0.5 * prp::kFieldPeriod;
-            ring_->postRequest(poses_.predict(aim), aim, requestSequence);
+            postRequest(poses_.predict(aim), aim, requestSequence);
             requested_.store(requestSequence++, std::memory_order_relaxed);
         }
         frames_.fetch();

@@ -23,6 +23,9 @@
 namespace sim {
 namespace {
 
+// The objects of the request being rendered (renderer process only).
+std::vector<ExtraObject> gRequestObjects;
+
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
     timespec ts{};
@@ -44,6 +47,10 @@ double parseSeconds(std::string_view text, std::string_view flag, std::string_vi
 }
 
 }  // namespace
+
+std::span<const ExtraObject> requestObjects() {
+    return gRequestObjects;
+}
 
 RendererFault parseRendererFault(std::string_view text, std::string_view flag) {
     const std::size_t at = text.find('@');
@@ -154,7 +161,7 @@ void RendererProcess::childMain() {
         const std::int64_t periodNs =
             options_.renderHz > 0.0 ? static_cast<std::int64_t>(1e9 / options_.renderHz) : 0;
         while (!ring_.stopRequested()) {
-            const RenderRequest r = ring_.latestRequest();
+            const RenderRequest r = ring_.latestRequest(&gRequestObjects);
             if (r.generation == 0 || r.generation == lastGeneration) {
                 sleepSeconds(0.0005);
                 continue;

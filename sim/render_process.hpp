@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -40,6 +41,10 @@ struct RendererFault {
 // base::InputError naming `flag` and what is wrong.
 RendererFault parseRendererFault(std::string_view text, std::string_view flag);
 std::string describeRendererFault(const RendererFault& fault);
+
+// In the renderer process, while its renderer runs: the objects the request being rendered
+// carried (FrameRing::postRequest); empty in any other process.
+std::span<const ExtraObject> requestObjects();
 
 struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
