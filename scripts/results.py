@@ -1095,6 +1095,20 @@ def objects(p):
               f"{spread(ratios(pv['per_pixel_ms'], pv['pass_ms']), 1, '×')} faster "
               f"({spread(pv['pass_ms'], 1, ' ms')} vs {fmt(statistics.median(pv['per_pixel_ms']), 0)} "
               f"ms); images {'identical' if pv['identical'] else 'differ'}", NO_TARGET, cmd)
+    tb = p.load("truth_bench.json")
+    if tb:
+        f, r = tb["fast_ms"], tb["reference_ms"]
+        p.row(f"Exact ground truth of one {tb['size'].replace('x', '×')} field, the demo's low pass "
+              f"over the forest ({fmt(tb['objects_listed_per_field'], 0)} objects listed, "
+              f"{fmt(tb['unoccluded_px_per_field'], 0)} unoccluded pixels a field): processor "
+              "time of one thread, the truth's fast path (solid-voxel table walk, rays over the "
+              "box's projected hull) against its reference twin; lines compared byte for byte",
+              "≤ 16.7 ms (one field); 0 lines differing",
+              f"{fmt(f['mean'], 2)} ± {fmt(f['sd'], 2)} ms vs {fmt(r['mean'], 2)} ± "
+              f"{fmt(r['sd'], 2)} ms (mean ± sd of {f['n']}: {tb['fields']} fields × "
+              f"{tb['repeat']}); {tb['mismatched_lines']} lines differing",
+              status(f["mean"] <= 1001 / 60 and tb["mismatched_lines"] == 0),
+              p.command("truth_bench"))
     fly = p.load("flythrough_truth.json")
     if fly and "truth" in fly:
         t = fly["truth"]
