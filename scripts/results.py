@@ -771,6 +771,18 @@ def moving_targets(p):
           f"k = 1: {fmt(t1['mean'], 2)} / {fmt(t1['max'], 2)} px; k = {kmax}: "
           f"{fmt(tk['mean'], 2)} / {fmt(tk['max'], 2)} px; static objects "
           f"{fmt(min(st), 2)}–{fmt(max(st), 2)} px (means)", NO_TARGET, cmd)
+    at = p.load("target_eval_720.json")
+    if at and "poly" in at["horizons"][0]:
+        hs = sorted(at["horizons"], key=lambda r: r["k"])
+        p.row(f"The same at {at['width']}×{at['height']} ({at['fov_deg']:.0f}°, the pipeline's "
+              f"horizons: frames every 3-4 fields on the target machine), poly warp: the target's "
+              f"centroid error by horizon, mean (max) over {hs[0]['poly']['target']['n']} base "
+              "frames; static objects", "—",
+              "; ".join(f"k = {r['k']}: {fmt(r['poly']['target']['mean'], 2)} "
+                        f"({fmt(r['poly']['target']['max'], 2)}) px" for r in hs) +
+              f"; static objects {fmt(min(r['poly']['static']['mean'] for r in hs), 2)}–"
+              f"{fmt(max(r['poly']['static']['mean'] for r in hs), 2)} px (means)",
+              NO_TARGET, p.command("target_eval_720"))
     tm = doc.get("truth_ms")
     if tm and tm.get("n"):
         p.row(f"Per-field ground truth (`flythrough --truth`, off the field thread) of a {size} "
