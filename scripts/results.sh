@@ -41,7 +41,7 @@ wanted() {
 if [ "$build" = 1 ]; then
     scripts/setup.sh
     cmake --preset release >/dev/null
-    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp bench-objects ig-render \
+    cmake --build --preset release -j "$(nproc)" --target bench-caster bench-render bench-warp bench-objects bench-truth ig-render \
         warp-eval stereo-eval flythrough io-check
 fi
 mkdir -p "$data" "$cache"
@@ -217,6 +217,7 @@ fi
 # reference, memory per object (about a minute).
 if wanted objects; then
     run objects_bench "$bin/bench-objects" --repeat 3 --json "$data/objects_bench.json"
+    run truth_bench "$bin/bench-truth" --repeat 3 --json "$data/truth_bench.json"
 fi
 if [ ${#only[@]} -gt 0 ] && wanted field-clock; then
     scripts/bench-field-clock.sh 600 "$data/field_clock.json"

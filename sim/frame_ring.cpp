@@ -34,6 +34,7 @@ constexpr std::uint32_t kIndexMask = 3;
 constexpr std::size_t kAlign = 64;
 constexpr std::size_t kErrorBytes = 256;
 constexpr int kRequestWords = 8;
+constexpr int kObjectWords = 6;  // model | id << 32 | on ground << 48, x, y, z, heading, scale
 
 std::size_t roundUp(std::size_t n) {
     return (n + kAlign - 1) / kAlign * kAlign;
@@ -65,6 +66,8 @@ struct FrameRing::Header {
     std::atomic<std::int64_t> lastPublishNs;
     alignas(kAlign) std::atomic<std::uint64_t> requestLock;  // odd while a post is written
     std::atomic<std::uint64_t> request[kRequestWords];
+    std::atomic<std::uint64_t> requestObjectCount;
+    std::atomic<std::uint64_t> requestObjects[kMaxRequestObjects * kObjectWords];
     alignas(kAlign) std::atomic<std::uint32_t> stop;
     std::atomic<std::uint32_t> faultClaimed;
     std::atomic<std::uint32_t> errorLength;
@@ -306,8 +309,10 @@ void FrameRing::resetWriter() {
     std::atomic_thread_fence(std::memory_order_release);
 }
 
-void FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
+bool FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence,
+                            std::span<const ExtraObject> objects) {
     Header& h = header();
+    const std::size_t count = std::min(objects.size(), kMaxRequestObjects);
     const std::uint64_t lock = h.requestLock.load(std::memory_order_relaxed);
     h.requestLock.store(lock + 1, std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_release);
@@ -316,10 +321,25 @@ void FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t seq
         bits(pose.yaw), bits(pose.pitch),      bits(pose.roll),       sequence};
     for (int k = 0; k < kRequestWords; ++k)
         h.request[k].store(words[k], std::memory_order_relaxed);
+    h.requestObjectCount.store(count, std::memory_order_relaxed);
+    for (std::size_t i = 0; i < count; ++i) {
+        const ExtraObject& o = objects[i];
+        const std::uint64_t w[kObjectWords] = {static_cast<std::uint32_t>(o.model) |
+                                                   (std::uint64_t{o.placement.id} << 32) |
+                                                   (std::uint64_t{o.onGround} << 48),
+                                               bits(o.placement.x),
+                                               bits(o.placement.y),
+                                               bits(o.placement.z),
+                                               bits(o.placement.heading),
+                                               bits(o.placement.scale)};
+        for (int k = 0; k < kObjectWords; ++k)
+            h.requestObjects[i * kObjectWords + k].store(w[k], std::memory_order_relaxed);
+    }
     h.requestLock.store(lock + 2, std::memory_order_release);
+    return count == objects.size();
 }
 
-RenderRequest FrameRing::latestRequest() const {
+RenderRequest FrameRing::latestRequest(std::vector<ExtraObject>* objects) const {
     const Header& h = header();
     for (;;) {
         const std::uint64_t before = h.requestLock.load(std::memory_order_acquire);
@@ -327,6 +347,26 @@ RenderRequest FrameRing::latestRequest() const {
         std::uint64_t w[kRequestWords];
         for (int k = 0; k < kRequestWords; ++k)
             w[k] = h.request[k].load(std::memory_order_relaxed);
+        if (objects) {
+            // Read as words, checked below: a post that overlapped is read again.
+            const std::size_t count = std::min<std::uint64_t>(
+                h.requestObjectCount.load(std::memory_order_relaxed), kMaxRequestObjects);
+            objects->resize(count);
+            for (std::size_t i = 0; i < count; ++i) {
+                std::uint64_t o[kObjectWords];
+                for (int k = 0; k < kObjectWords; ++k)
+                    o[k] = h.requestObjects[i * kObjectWords + k].load(std::memory_order_relaxed);
+                ExtraObject& e = (*objects)[i];
+                e.model = static_cast<int>(static_cast<std::int32_t>(o[0] & 0xffffffffu));
+                e.placement.id = static_cast<std::uint16_t>(o[0] >> 32);
+                e.onGround = ((o[0] >> 48) & 1u) != 0;
+                e.placement.x = real(o[1]);
+                e.placement.y = real(o[2]);
+                e.placement.z = real(o[3]);
+                e.placement.heading = real(o[4]);
+                e.placement.scale = real(o[5]);
+            }
+        }
         std::atomic_thread_fence(std::memory_order_acquire);
         if (h.requestLock.load(std::memory_order_relaxed) != before) continue;
         RenderRequest r;

@@ -15,11 +15,14 @@
 #pragma once
 
 #include "ig/frame.hpp"
+#include "sim/scene_motion.hpp"
 
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
+#include <vector>
 
 namespace sim {
 
@@ -30,6 +33,9 @@ struct RenderRequest {
     std::uint64_t sequence = 0;
     std::uint64_t generation = 0;
 };
+
+// Objects a request carries at most (a CIGI host's entities placed at the request's instant).
+inline constexpr std::size_t kMaxRequestObjects = 1024;
 
 class FrameRing {
   public:
@@ -68,8 +74,12 @@ class FrameRing {
     void resetWriter();
 
     // Requests (field side posts, renderer side reads; any number of posts, one reader).
-    void postRequest(const ig::Pose& pose, double time, std::uint64_t sequence);
-    RenderRequest latestRequest() const;
+    // `objects`: placed at `time` (a host's entities), carried with the request; false when
+    // there are more than kMaxRequestObjects (the first ones are carried).
+    bool postRequest(const ig::Pose& pose, double time, std::uint64_t sequence,
+                     std::span<const ExtraObject> objects = {});
+    // The newest request; with `objects`, the objects posted with it (the same post).
+    RenderRequest latestRequest(std::vector<ExtraObject>* objects = nullptr) const;
 
     // Published frames so far; clock (ns, CLOCK_MONOTONIC) of the last publish, 0 before any.
     std::uint64_t published() const;

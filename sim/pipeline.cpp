@@ -327,7 +327,7 @@ void Pipeline::renderSimulatedUntil(double t) {
         if (process_) {
             // The renderer process renders this one request while the simulated clock stands
             // still; a renderer that fails it costs a modelled restart, and the frame is lost.
-            ring_->postRequest(poses_.predict(aim), aim, nextSequence_);
+            postRequest(poses_.predict(aim), aim, nextSequence_);
             requested_.store(nextSequence_, std::memory_order_relaxed);
             std::string why;
             Await got = awaitFrame(pendingFrame_, renderTimeout(), why);
@@ -356,6 +356,18 @@ double Pipeline::renderTimeout() const {
     return std::max(0.5, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
 }
 
+void Pipeline::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
+    requestObjects_.clear();
+    if (options_.requestObjects) options_.requestObjects(time, requestObjects_);
+    if (!ring_->postRequest(pose, time, sequence, requestObjects_) && !requestObjectsCut_) {
+        requestObjectsCut_ = true;
+        std::fprintf(stderr,
+                     "renderer process: %zu objects in one request; only the first %zu are "
+                     "drawn\n",
+                     requestObjects_.size(), kMaxRequestObjects);
+    }
+}
+
 void Pipeline::startProcess() {
     // A stereo ring carries both eyes of every pair; a scene's frames carry object ids.
     ring_ = std::make_unique<FrameRing>(options_.maxFramePixels, options_.stereo ? 2 : 1,
@@ -365,6 +377,13 @@ void Pipeline::startProcess() {
     po.renderHz = options_.clock == ClockMode::Simulated ? 0.0 : options_.renderHz;
     po.paced = options_.clock == ClockMode::Wall;
     po.fault = options_.fault;
+    // The field process's threads come first: the field loop (real-time where allowed) and, on
+    // the wall clock, the truth writer, which otherwise shares the cores evenly with a renderer
+    // that takes all it is given and falls behind the field clock (docs/design/objects.md,
+    // "When the truth falls behind").
+    po.nice = options_.renderNice != 0                              ? options_.renderNice
+              : options_.truth && options_.clock == ClockMode::Wall ? kTruthRenderNice
+                                                                    : 0;
     process_ = std::make_unique<RendererProcess>(renderer_, *ring_, po);
     process_->start();
 }
@@ -500,7 +519,7 @@ PipelineResult Pipeline::run() {
     if (process) {
         CHECK_GT(options_.maxFramePixels, 0u) << "a renderer process needs the largest frame size";
         startProcess();
-        ring_->postRequest(poses_.predict(t0_), t0_, 0);
+        postRequest(poses_.predict(t0_), t0_, 0);
         std::string why;
         ig::RenderedFrame& first = frames_.back();
         // The first frame also pays for the renderer's start: allow it ten timeouts.
@@ -561,7 +580,7 @@ PipelineResult Pipeline::run() {
             // after this request on average.
             const double aim =
                 t + renderSeconds_.load(std::memory_order_relaxed) + 0.5 * prp::kFieldPeriod;
-            ring_->postRequest(poses_.predict(aim), aim, requestSequence);
+            postRequest(poses_.predict(aim), aim, requestSequence);
             requested_.store(requestSequence++, std::memory_order_relaxed);
         }
         frames_.fetch();

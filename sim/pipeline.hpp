@@ -75,6 +75,10 @@ FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry&
                                 const ig::Scene& scene, const SceneMotion& motion,
                                 ExtraObjects extra = {});
 
+// The renderer process's nice value when the run writes truth on the wall clock and no other
+// is asked for: the truth writer is scheduled before it.
+inline constexpr int kTruthRenderNice = 10;
+
 struct PipelineOptions {
     double duration = 10.0;  // simulated seconds; fields = round(duration / field period)
     ClockMode clock = ClockMode::Wall;
@@ -84,7 +88,8 @@ struct PipelineOptions {
     // Worker threads of the renderer's own task arena; 0: every core but one (at least one),
     // so the field loop always has a core of its own.
     int renderThreads = 0;
-    // Nice value for the renderer's threads (0: leave them be).
+    // Nice value for the renderer's threads (0: leave them be; a renderer process on the wall
+    // clock with `truth` set: kTruthRenderNice).
     int renderNice = 0;
     // Wall clock: run the field loop at real-time priority (SCHED_FIFO) when the system allows
     // it, else at a raised nice when allowed; restored after the run.
@@ -110,6 +115,10 @@ struct PipelineOptions {
     std::size_t maxFramePixels = 0;
     // Process: frames carry object ids (the frame ring gets an id plane per slot).
     bool objectIds = false;
+    // Process: asked on the thread that posts each render request (the field thread) for
+    // objects placed at the request's instant (a CIGI host's entities); they travel with the
+    // request, and the renderer process's renderer reads them with requestObjects().
+    std::function<void(double t, std::vector<ExtraObject>& out)> requestObjects;
     // Per-field ground truth: each field and the pose it was warped to (field thread).
     TruthWriter* truth = nullptr;
     // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
@@ -197,6 +206,11 @@ class Pipeline {
     std::uint64_t lastShownSequence_ = ~std::uint64_t{0};
     double lastNewFrameClock_ = 0.0;
     std::uint64_t gapFields_ = 0, gapHeld_ = 0;
+
+    // Posts a render request with options_.requestObjects's objects at `time`.
+    void postRequest(const ig::Pose& pose, double time, std::uint64_t sequence);
+    std::vector<ExtraObject> requestObjects_;  // postRequest's scratch
+    bool requestObjectsCut_ = false;
 
     // Simulated clock renderer state.
     std::uint64_t nextSequence_ = 1;

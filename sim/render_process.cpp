@@ -8,6 +8,7 @@
 #include <oneapi/tbb/task_arena.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -21,6 +22,9 @@
 
 namespace sim {
 namespace {
+
+// The objects of the request being rendered (renderer process only).
+std::vector<ExtraObject> gRequestObjects;
 
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
@@ -43,6 +47,10 @@ double parseSeconds(std::string_view text, std::string_view flag, std::string_vi
 }
 
 }  // namespace
+
+std::span<const ExtraObject> requestObjects() {
+    return gRequestObjects;
+}
 
 RendererFault parseRendererFault(std::string_view text, std::string_view flag) {
     const std::size_t at = text.find('@');
@@ -144,6 +152,8 @@ void RendererProcess::childMain() {
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, nullptr);
+    // Threads inherit the nice value of the thread that starts them: set it before the arena's.
+    if (options_.nice != 0) setpriority(PRIO_PROCESS, 0, options_.nice);
     try {
         tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
         std::uint64_t lastGeneration = skipGeneration_;
@@ -151,7 +161,7 @@ void RendererProcess::childMain() {
         const std::int64_t periodNs =
             options_.renderHz > 0.0 ? static_cast<std::int64_t>(1e9 / options_.renderHz) : 0;
         while (!ring_.stopRequested()) {
-            const RenderRequest r = ring_.latestRequest();
+            const RenderRequest r = ring_.latestRequest(&gRequestObjects);
             if (r.generation == 0 || r.generation == lastGeneration) {
                 sleepSeconds(0.0005);
                 continue;

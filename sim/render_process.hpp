@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -41,10 +42,15 @@ struct RendererFault {
 RendererFault parseRendererFault(std::string_view text, std::string_view flag);
 std::string describeRendererFault(const RendererFault& fault);
 
+// In the renderer process, while its renderer runs: the objects the request being rendered
+// carried (FrameRing::postRequest); empty in any other process.
+std::span<const ExtraObject> requestObjects();
+
 struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
     double renderHz = 0.0;  // wall pacing of renders; 0: as fast as it can
     bool paced = true;      // false: render each request once, as soon as it is posted
+    int nice = 0;           // the renderer process's nice value (0: as started)
     std::optional<RendererFault> fault;
 };
 

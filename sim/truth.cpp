@@ -29,6 +29,61 @@ namespace {
 constexpr int kIds = 65536;
 // Rays an object's unoccluded count casts before it samples its box instead of every pixel.
 constexpr double kExactRays = 4096.0;
+// How far (output pixels) a line's span of rays reaches beyond the box's projection: far more
+// than the rounding of a projection (~1e-10 px), far less than a pixel.
+constexpr double kSpanMarginPx = 1e-3;
+
+// The convex hull of the eight projected corners of a box (Andrew's monotone chain): its
+// vertices in order, `n` of them (a box wholly in front of the eye projects to this hull).
+struct Hull {
+    glm::dvec2 v[16];
+    int n = 0;
+};
+
+Hull convexHull(const glm::dvec2 (&c)[8]) {
+    glm::dvec2 s[8];
+    std::copy(std::begin(c), std::end(c), s);
+    std::sort(std::begin(s), std::end(s), [](const glm::dvec2& a, const glm::dvec2& b) {
+        return a.x < b.x || (a.x == b.x && a.y < b.y);
+    });
+    const auto cross = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+        return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+    };
+    Hull h;
+    for (int i = 0; i < 8; ++i) {  // lower chain
+        while (h.n >= 2 && cross(h.v[h.n - 2], h.v[h.n - 1], s[i]) <= 0.0)
+            --h.n;
+        h.v[h.n++] = s[i];
+    }
+    for (int i = 6, low = h.n + 1; i >= 0; --i) {  // upper chain
+        while (h.n >= low && cross(h.v[h.n - 2], h.v[h.n - 1], s[i]) <= 0.0)
+            --h.n;
+        h.v[h.n++] = s[i];
+    }
+    --h.n;  // the first point closes the chain
+    return h;
+}
+
+// Where the hull meets the band of lines within kSpanMarginPx of y: [s0, s1] widened to hold it
+// (left empty, s0 > s1, when the band misses the hull). The band's extent is reached at a
+// vertex inside it or where an edge crosses one of its two lines.
+void hullSpan(const Hull& h, double y, double& s0, double& s1) {
+    const double edges[2] = {y - kSpanMarginPx, y + kSpanMarginPx};
+    for (int i = 0; i < h.n; ++i) {
+        const glm::dvec2& a = h.v[i];
+        const glm::dvec2& b = h.v[i + 1 < h.n ? i + 1 : 0];
+        if (a.y >= edges[0] && a.y <= edges[1]) {
+            s0 = std::min(s0, a.x);
+            s1 = std::max(s1, a.x);
+        }
+        for (const double e : edges) {
+            if ((a.y - e) * (b.y - e) > 0.0 || a.y == b.y) continue;
+            const double x = a.x + (e - a.y) / (b.y - a.y) * (b.x - a.x);
+            s0 = std::min(s0, x);
+            s1 = std::max(s1, x);
+        }
+    }
+}
 
 double round2(double v) {
     return std::round(v * 100.0) / 100.0;
@@ -40,8 +95,21 @@ TruthObject filledBox(const ig::ObjectModel& model);
 
 TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map)
     : scene_(&scene), motion_(&motion), map_(&map) {
-    for (const auto& model : scene.models)
+    for (const auto& model : scene.models) {
         models_.push_back(filledBox(*model));
+        const ig::VoxModel& g = model->grid;
+        std::vector<std::uint8_t> solid(g.voxels.size(), 0);
+        for (int k = 0; k < g.sizeZ; ++k) {
+            for (int j = 0; j < g.sizeY; ++j) {
+                for (int i = 0; i < g.sizeX; ++i) {
+                    solid[g.index(i, j, k)] =
+                        model->present(i, j, k) && model->color(i, j, k).a != 0;
+                }
+            }
+        }
+        solid_.push_back(std::move(solid));
+        models_.back().solid = solid_.back().data();
+    }
     for (const ig::PlacedObject& p : scene.staticLayer->objects()) {
         const int m = scene.modelIndex(p.model);
         CHECK_GE(m, 0) << "placed model " << p.model;
@@ -97,7 +165,14 @@ TruthObject TruthScene::placed(const ig::ObjectModel& model, std::uint16_t id, d
 }
 
 void TruthScene::objectsAt(double t, std::vector<TruthObject>& out) const {
+    std::vector<TruthObject> moving;
+    movingAt(t, moving);
     out.assign(static_.begin(), static_.end());
+    out.insert(out.end(), moving.begin(), moving.end());
+}
+
+void TruthScene::movingAt(double t, std::vector<TruthObject>& out) const {
+    out.clear();
     const std::vector<ig::Placement> where = motion_->placementsAt(t);
     for (std::size_t i = 0; i < where.size(); ++i) {
         const ig::MovingObject& m = scene_->moving[i];
@@ -153,6 +228,7 @@ struct ModelFrame {
 };
 
 bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]);
+bool rayMeetsSolid(const TruthObject& o, const double p[3], const double d[3]);
 
 }  // namespace
 
@@ -164,10 +240,26 @@ bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::d
     return rayMeetsModel(o, p, d);
 }
 
+bool rayMeetsObjectFast(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir) {
+    const ModelFrame f(o);
+    double p[3], d[3];
+    f.point(o, origin, p);
+    f.direction(dir, d);
+    return o.solid ? rayMeetsSolid(o, p, d) : rayMeetsModel(o, p, d);
+}
+
 namespace {
 
-// Whether the ray p + t d (t > 0, model voxels) meets a voxel of o's model of non-zero opacity.
-bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
+// The ray's entry into o's filled box and the walk's start (Amanatides-Woo): the voxel, the
+// step per axis and the ray parameters of the next voxel face and between faces. False when
+// the ray misses the box. Shared by both walks below, so they start alike.
+struct Walk {
+    double t1;
+    int v[3], step[3];
+    double next[3], delta[3];
+};
+
+bool startWalk(const TruthObject& o, const double p[3], const double d[3], Walk& w) {
     // The filled box's slab interval.
     double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
@@ -183,8 +275,11 @@ bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
     if (!(t0 < t1)) return false;
     // Amanatides-Woo through the voxels from the entry point.
     const double tm = t0 + 1e-9 * std::max(1.0, t0);
-    int v[3], step[3];
-    double next[3], delta[3];
+    w.t1 = t1;
+    int* v = w.v;
+    int* step = w.step;
+    double* next = w.next;
+    double* delta = w.delta;
     for (int a = 0; a < 3; ++a) {
         const double q = p[a] + tm * d[a];
         v[a] = std::clamp(static_cast<int>(std::floor(q)), o.lo[a], o.hi[a] - 1);
@@ -202,6 +297,19 @@ bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
             delta[a] = next[a];
         }
     }
+    return true;
+}
+
+// Whether the ray p + t d (t > 0, model voxels) meets a voxel of o's model of non-zero opacity:
+// the obvious walk, asking the model at every voxel.
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
+    Walk w;
+    if (!startWalk(o, p, d, w)) return false;
+    int* v = w.v;
+    const int* step = w.step;
+    double* next = w.next;
+    const double* delta = w.delta;
+    const double t1 = w.t1;
     for (;;) {
         if (o.model->present(v[0], v[1], v[2]) && o.model->color(v[0], v[1], v[2]).a != 0) {
             return true;
@@ -214,9 +322,45 @@ bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
     }
 }
 
+// The same walk, step for step (the same voxels in the same order from the same arithmetic), made
+// cheap: the scene's table of solid voxels (one byte each) at an index moved with the walk, the
+// axis picked without branches, and the voxels left along each axis counted down instead of the
+// box's bounds compared.
+bool rayMeetsSolid(const TruthObject& o, const double p[3], const double d[3]) {
+    Walk w;
+    if (!startWalk(o, p, d, w)) return false;
+    const ig::VoxModel& g = o.model->grid;
+    const std::ptrdiff_t sx = g.sizeX, sxy = static_cast<std::ptrdiff_t>(g.sizeX) * g.sizeY;
+    const std::uint8_t* __restrict__ solid = o.solid;
+    std::ptrdiff_t at = w.v[2] * sxy + w.v[1] * sx + w.v[0];
+    const std::ptrdiff_t stride[3] = {w.step[0], w.step[1] * sx, w.step[2] * sxy};
+    int left[3];
+    for (int a = 0; a < 3; ++a) {
+        left[a] = w.step[a] > 0   ? o.hi[a] - 1 - w.v[a]
+                  : w.step[a] < 0 ? w.v[a] - o.lo[a]
+                                  : std::numeric_limits<int>::max();
+    }
+    double* next = w.next;
+    const double t1 = w.t1;
+    for (;;) {
+        if (solid[at]) return true;
+        // rayMeetsModel's choice: the least of next[], the earlier axis on a tie of the first
+        // two, axis 2 unless strictly below it.
+        const bool first = next[0] < next[1];
+        const int i = first ? 0 : 1;
+        const double ni = first ? next[0] : next[1];
+        const int a = ni < next[2] ? i : 2;
+        if (next[a] > t1) return false;
+        if (--left[a] < 0) return false;
+        at += stride[a];
+        next[a] += w.delta[a];
+    }
+}
+
 }  // namespace
 
-TruthComputer::TruthComputer(int workers) : acc_(kIds), objectOf_(kIds, -1) {
+TruthComputer::TruthComputer(int workers, bool reference)
+    : acc_(kIds), objectOf_(kIds, -1), reference_(reference) {
     if (workers != 1) {
         arena_ = std::make_unique<tbb::task_arena>(workers > 1 ? workers
                                                                : int{tbb::task_arena::automatic});
@@ -258,8 +402,15 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
     }
 
-    // Where each object truly is at this instant, seen from this pose.
-    scene.objectsAt(time, objects_);
+    // Where each object truly is at this instant, seen from this pose: the static ones where
+    // the scene holds them, the moving ones placed at this instant (the reference copies all).
+    std::span<const TruthObject> fixed;
+    if (reference_) {
+        scene.objectsAt(time, objects_);
+    } else {
+        fixed = scene.staticObjects();
+        scene.movingAt(time, objects_);
+    }
     const ig::Camera cam(pose, camera.window);
     const double kx = static_cast<double>(camera.outWidth) / camera.window.width;
     const double ky = static_cast<double>(camera.outHeight) / camera.window.height;
@@ -298,7 +449,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         return false;
     };
     const auto one = [&](const TruthObject& o, ObjectTruth& t) -> bool {
-        if (acc_[o.id].n == 0 && (late || outside(o))) return false;
+        if (acc_[o.id].n == 0 && (late || (!reference_ && outside(o)))) return false;
         const std::array<glm::dvec3, 8> corners = objectCorners(o);
         t = ObjectTruth{};
         t.id = o.id;
@@ -311,10 +462,14 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         // and where its edges cross that plane.
         double bx0 = std::numeric_limits<double>::infinity(), by0 = bx0, bx1 = -bx0, by1 = -bx0;
         bool behind = false, front = false;
+        // The projected corners (output pixels), for the rows' spans below.
+        glm::dvec2 projected[8];
+        int nProjected = 0;
         const auto extend = [&](const glm::dvec3& q) {
             const std::optional<glm::dvec2> px = cam.project(q);
             if (!px) return;
             front = true;
+            if (nProjected < 8) projected[nProjected++] = {px->x * kx, px->y * ky};
             bx0 = std::min(bx0, px->x * kx);
             bx1 = std::max(bx1, px->x * kx);
             by0 = std::min(by0, px->y * ky);
@@ -377,14 +532,35 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
             const ModelFrame frame(o);
             double p[3], d[3];
             frame.point(o, pose.position, p);
+            // Each line's rays only over the pixels whose centre lies in the box's projection
+            // (all of the box in front of the eye: the convex hull of its projected corners),
+            // widened by kSpanMarginPx: a ray outside it misses the box, so the count is the
+            // same as over the whole rectangle (the reference casts that).
+            const bool spans = !reference_ && !behind && nProjected == 8;
+            const Hull hull = spans ? convexHull(projected) : Hull{};
             std::uint64_t met = 0;
             for (int line = first; line <= last; line += step) {
                 const int y = firstLine + 2 * line;
-                for (int x = x0; x <= x1; x += step) {
+                int xa = x0, xb = x1;
+                if (spans) {
+                    double s0 = std::numeric_limits<double>::infinity(), s1 = -s0;
+                    hullSpan(hull, y + 0.5, s0, s1);
+                    if (!(s0 <= s1)) continue;
+                    s0 = std::clamp(s0 - kSpanMarginPx - 0.5, x0 - 1.0, x1 + 1.0);
+                    s1 = std::clamp(s1 + kSpanMarginPx - 0.5, x0 - 1.0, x1 + 1.0);
+                    const int a = static_cast<int>(std::ceil(s0));
+                    if (a > x0) xa = x0 + (a - x0 + step - 1) / step * step;
+                    xb = std::min(x1, static_cast<int>(std::floor(s1)));
+                }
+                for (int x = xa; x <= xb; x += step) {
                     const glm::dvec3 dir =
                         glm::normalize(cam.rayDirection((x + 0.5) / kx, (y + 0.5) / ky));
+                    if (reference_) {
+                        met += rayMeetsObject(o, pose.position, dir) ? 1 : 0;
+                        continue;
+                    }
                     frame.direction(dir, d);
-                    met += rayMeetsModel(o, p, d) ? 1 : 0;
+                    met += (o.solid ? rayMeetsSolid(o, p, d) : rayMeetsModel(o, p, d)) ? 1 : 0;
                 }
             }
             t.unoccludedPx =
@@ -410,12 +586,15 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         }
         return true;
     };
-    const std::size_t n = objects_.size();
+    const std::size_t nFixed = fixed.size();
+    const std::size_t n = nFixed + objects_.size();
     results_.resize(n);
     listed_.assign(n, 0);
     const auto range = [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i)
-            listed_[i] = one(objects_[i], results_[i]) ? 1 : 0;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const TruthObject& o = i < nFixed ? fixed[i] : objects_[i - nFixed];
+            listed_[i] = one(o, results_[i]) ? 1 : 0;
+        }
     };
     if (arena_) {
         arena_->execute(

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -29,6 +30,9 @@ struct TruthObject {
     bool moving = false;
     // Voxels the model fills, [lo, hi) along its x, y, z (the box projected for true_bbox).
     int lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    // The model's voxels as one byte each, 1 where present with non-zero opacity (indexed as
+    // VoxModel::index; owned by the TruthScene); null: ask the model (rayMeetsObject does).
+    const std::uint8_t* solid = nullptr;
 };
 
 // The world's objects for the truth: the scene's static placements, and its moving objects
@@ -38,6 +42,9 @@ class TruthScene {
     TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map);
     // Every object at time t (static first, in placement order), into `out` (reused).
     void objectsAt(double t, std::vector<TruthObject>& out) const;
+    // The same in two parts: the static objects (never copied), and the moving ones at t.
+    std::span<const TruthObject> staticObjects() const { return static_; }
+    void movingAt(double t, std::vector<TruthObject>& out) const;
 
   private:
     TruthObject placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y, double z,
@@ -47,6 +54,7 @@ class TruthScene {
     const ig::TerrainMap* map_;
     std::vector<TruthObject> static_;
     std::vector<TruthObject> models_;  // per model of the scene: its filled voxels' box
+    std::vector<std::vector<std::uint8_t>> solid_;  // per model: TruthObject::solid
 };
 
 // The field's camera: the output window at the field's pose (roll included), `outWidth` x
@@ -60,6 +68,8 @@ struct TruthCamera {
 std::array<glm::dvec3, 8> objectCorners(const TruthObject& o);
 // Whether the ray origin + t dir (t > 0) meets a voxel of `o`'s model of non-zero opacity.
 bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir);
+// The same answer from the walk TruthComputer uses (o.solid's table; the model when null).
+bool rayMeetsObjectFast(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir);
 
 // One object's truth in one field. Pixel coordinates are output-frame pixels: x right, y the
 // frame line (a field holds every other line); boxes are pixel edges [x0, y0, x1, y1].
@@ -93,8 +103,10 @@ struct FieldTruth {
 class TruthComputer {
   public:
     // `workers`: threads the per-object work is spread over (1: the calling thread alone; 0:
-    // TBB's default). The result is the same whatever the count.
-    explicit TruthComputer(int workers = 0);
+    // TBB's default). The result is the same whatever the count. `reference`: the slow, obvious
+    // twin of the same lines, for tests (every object at its own copy, no frustum culling, a
+    // ray per pixel of the projected box's rectangle, each through rayMeetsObject).
+    explicit TruthComputer(int workers = 0, bool reference = false);
     ~TruthComputer();
     TruthComputer(const TruthComputer&) = delete;
     TruthComputer& operator=(const TruthComputer&) = delete;
@@ -113,7 +125,8 @@ class TruthComputer {
     std::vector<Acc> acc_;                // by id
     std::vector<std::int32_t> objectOf_;  // id -> index into objects_, -1
     std::vector<std::uint16_t> seen_;
-    std::vector<TruthObject> objects_;
+    std::vector<TruthObject> objects_;  // reference: every object; else the moving ones
+    bool reference_ = false;
     std::vector<ObjectTruth> results_;        // per object of objects_
     std::vector<std::uint8_t> listed_;        // per object: its results_ entry is listed
     std::unique_ptr<tbb::task_arena> arena_;  // null: one worker

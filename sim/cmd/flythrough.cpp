@@ -119,8 +119,8 @@ distance). A host silent for --cigi-timeout S is reported lost; the ownship dead
 for --cigi-extrapolate S after its last message, then holds. Several image generators (one
 per channel, each on its own port) can share one host.
 --cigi-entity TYPE=MODEL[:SCALE] draws the host's other entities of that CIGI entity type as a
-model of --scene (renderer thread), each at its dead-reckoned pose at the frame's instant with
-its entity id as its object id.
+model of --scene, each at its dead-reckoned pose at the frame's instant with its entity id as
+its object id (a renderer process gets them placed with each render request).
 
 Objects: --scene FILE draws a scene's voxel objects (every caster, over its terrain), the moving
 ones stamped at each frame's instant; every field carries the object ids warped with its
@@ -319,7 +319,7 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--cigi-entity", cigiEntities,
                    "CIGI: draw host entities of TYPE as the scene's MODEL (TYPE=MODEL[:SCALE], "
-                   "repeatable; needs --scene and --renderer thread)");
+                   "repeatable; needs --scene)");
     app.add_option("--cigi-origin", cigiOrigin,
                    "CIGI: LAT,LON[,ALT] of the map's south-west sample at height 0 (degrees, "
                    "metres); default: from the map's georeference (a georeferenced raster or "
@@ -631,11 +631,6 @@ int main(int argc, char** argv) {
             cigiOptions.windowHeight = height;
             if (!cigiEntities.empty()) {
                 if (!scene) throw ig::InputError("--cigi-entity: needs a --scene with the models");
-                if (rendererText != "thread") {
-                    throw ig::InputError(
-                        "--cigi-entity: needs --renderer thread (the renderer process is not "
-                        "told about host entities)");
-                }
                 for (const std::string& text : cigiEntities) {
                     sim::EntityTypeModel m =
                         sim::parseEntityTypeModel(text, "--cigi-entity", scene->modelNames);
@@ -808,26 +803,33 @@ int main(int argc, char** argv) {
         geometry.coverRoll = !fixedMargin;
         const ig::Intrinsics level = sim::renderIntrinsics(geometry, ig::Pose{});
         options.maxFramePixels = sim::maxFramePixels(geometry);
+        // The host's entities at each frame's instant: asked of the session on the renderer's
+        // thread, or, for a renderer process, on the field thread with each request, which
+        // carries them to the process (sim::requestObjects()).
+        sim::ExtraObjects hostObjects;
+        if (cigiSource && !cigiEntities.empty()) {
+            if (options.rendererMode == sim::RendererMode::Process) {
+                options.requestObjects = [cigiSource](double t,
+                                                      std::vector<sim::ExtraObject>& out) {
+                    cigiSource->objectsAt(t, out);
+                };
+                hostObjects = [](double, std::vector<sim::ExtraObject>& out) {
+                    const std::span<const sim::ExtraObject> carried = sim::requestObjects();
+                    out.assign(carried.begin(), carried.end());
+                };
+            } else {
+                hostObjects = [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
+                    cigiSource->objectsAt(t, out);
+                };
+            }
+        }
         sim::FrameRenderer renderer =
-            stereo && scene
-                ? makeStereoSceneRenderer(
-                      map, geometry, stereo->separation, renderOptions, *scene, *motion,
-                      cigiSource && !cigiEntities.empty()
-                          ? sim::ExtraObjects(
-                                [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
-                                    cigiSource->objectsAt(t, out);
-                                })
-                          : sim::ExtraObjects{})
+            stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,
+                                                      renderOptions, *scene, *motion, hostObjects)
             : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene  ? sim::makeSceneRenderer(
-                           map, geometry, casterKind, renderOptions, *scene, *motion,
-                          cigiSource && !cigiEntities.empty()
-                               ? sim::ExtraObjects(
-                                    [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
-                                        cigiSource->objectsAt(t, out);
-                                    })
-                               : sim::ExtraObjects{})
-                    : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            : scene  ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
+                                              *motion, hostObjects)
+                     : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.
