@@ -65,15 +65,6 @@ doc = {"what": "CIGI over loopback: host message to field, flood, decoding",
        "runs": runs,
        "decode_packets_per_second": per_second("BM_DecodeHostMessage"),
        "session_datagrams_per_second": per_second("BM_SessionPollFlood")}
-# A "before" measurement kept in the file (a structural change measured against the last run
-# before it) travels on.
-if os.path.exists(out):
-    try:
-        old = json.load(open(out))
-        if "before" in old:
-            doc["before"] = old["before"]
-    except (OSError, ValueError):
-        pass
 os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
 json.dump(doc, open(out, "w"), indent=1)
 for name, r in runs.items():

@@ -1063,17 +1063,6 @@ def cigi(p):
                  "drains the socket)" if "max_poll_datagrams" in c else
                  f", {c['capped_polls']} fields at the 256-datagram cap"),
               status(d["p99"] <= period and r["missed_deadlines"] == 0), cmd)
-    before = doc.get("before", {}).get("runs", {}).get("flood")
-    if before:
-        d, c = before["host"]["step_to_field_ms"], before["cigi"]
-        p.row("CIGI over loopback under the flood, before each field drained the socket (at most "
-              "256 datagrams a field): the same change to Start of Frame, p50 / p99 / max; fields "
-              "missed",
-              f"≤ 1 field period ({fmt(period, 2)} ms); 0 missed",
-              f"{fmt(d['p50'], 2)} / {fmt(d['p99'], 2)} / {fmt(d['max'], 2)} ms; "
-              f"{before['missed_deadlines']} of {before['fields']} missed; "
-              f"{c['capped_polls']} fields at the cap, longest poll {fmt(c['max_poll_ms'], 2)} ms",
-              status(d["p99"] <= period and before["missed_deadlines"] == 0), cmd)
     dec, ses = doc.get("decode_packets_per_second"), doc.get("session_datagrams_per_second")
     if dec and ses:
         p.row("CIGI decoding: packets a second (a six-packet host message); datagrams a second "
