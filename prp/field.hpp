@@ -70,7 +70,10 @@ struct Field {
     std::uint64_t edgeSamples = 0;  // samples that fell outside the rendered frame (edge repeated)
     std::uint64_t holeSamples = 0;  // depth model: pixels no rendered pixel landed on
     double warpMs = 0.0;            // time spent in process(), milliseconds
-    double gain = 1.0;              // AGC gain applied to this field
+    // Moving objects re-stamped at the field's instant, and the field pixels that rewrote.
+    int restampedObjects = 0;
+    std::uint64_t restampedPixels = 0;
+    double gain = 1.0;  // AGC gain applied to this field
     // Object id per pixel of this field's lines (width * lines, line by line), warped with the
     // colour (the nearest rendered pixel at each colour sample point); empty when the frame
     // carries no object ids.

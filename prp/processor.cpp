@@ -113,7 +113,8 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
                                      double time, std::uint64_t fieldIndex, Field& out,
-                                     std::optional<WarpModel> forced) {
+                                     std::optional<WarpModel> forced,
+                                     std::span<const ObjectMotion> motions) {
     const auto start = std::chrono::steady_clock::now();
     const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
     const WarpModel chosen = forced.value_or(options_.model);
@@ -140,6 +141,8 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     out.stride = static_cast<std::size_t>(out.width) * bytesPerPixel(out.format);
     out.pixels.resize(out.stride * static_cast<std::size_t>(out.lines));
     out.holeSamples = 0;
+    out.restampedObjects = 0;
+    out.restampedPixels = 0;
 
     const OutputGeometry geometry =
         OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight);
@@ -232,6 +235,30 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         } else if (ids) {
             warpIdsQuadratic(idSource, quadraticOf(out.warp), idView);
         }
+    }
+
+    if (ids && !motions.empty() && poseOk && out.warp.model != WarpModel::Hold) {
+        // Moving objects where they are at the field's instant, sampled through the field's own
+        // source points.
+        FieldSourceMap map;
+        if (out.warp.model == WarpModel::Depth && !options_.depthReference) {
+            map.kind = FieldSourceMap::Kind::Points;
+            map.xs = depthWarp_.pointsX();
+            map.ys = depthWarp_.pointsY();
+            map.stride = static_cast<std::size_t>(out.width);
+            map.windowPerOutputX = static_cast<double>(geometry.windowWidth) / geometry.width;
+            map.windowPerOutputY = static_cast<double>(geometry.windowHeight) / geometry.height;
+        } else if (out.warp.projective) {
+            map.kind = FieldSourceMap::Kind::Homography;
+            map.homography = Homography{out.warp.h};
+        } else {
+            map.quadratic = quadraticOf(out.warp);
+        }
+        const RestampStats r =
+            restampMovingObjects(frame, sourcePixels(frame), poseAtField, geometry, map, motions,
+                                 view, idView, gainQ8, restamp_);
+        out.restampedObjects = r.objects;
+        out.restampedPixels = r.pixels;
     }
 
     out.gain = options_.agc ? gainQ8 / static_cast<double>(kUnityGain) : 1.0;

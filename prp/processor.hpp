@@ -6,11 +6,13 @@
 #include "ig/frame.hpp"
 #include "prp/depth_warp.hpp"
 #include "prp/field.hpp"
+#include "prp/object_restamp.hpp"
 #include "prp/warp_apply.hpp"
 #include "prp/warp_fit.hpp"
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace prp {
@@ -57,9 +59,13 @@ class PostRenderingProcessor {
     // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
     // `model`, when given, replaces options().model for this field (stereo forces the depth
     // model on a field whose two quadratic fits disagree on rows).
+    // `motions`: the moving objects' own motion from the frame's instant to the field's; each
+    // one the field shows is re-stamped where it is at the field's instant (prp/object_restamp.hpp;
+    // not on a field that holds the frame).
     void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
                  std::uint64_t fieldIndex, Field& out,
-                 std::optional<WarpModel> model = std::nullopt);
+                 std::optional<WarpModel> model = std::nullopt,
+                 std::span<const ObjectMotion> motions = {});
 
     const PrpOptions& options() const { return options_; }
     // AGC gain the next field will use.
@@ -85,6 +91,7 @@ class PostRenderingProcessor {
     std::vector<float> splatDepth_;
     std::vector<std::uint8_t> rowRgb_;
     DepthWarp depthWarp_;
+    RestampScratch restamp_;
 };
 
 }  // namespace prp

@@ -597,8 +597,12 @@ PipelineResult Pipeline::run() {
             }
             // Each eye at the field instant, roll about the head; each warped by its own fit.
             const EyePoses eyes = eyePoses(pose, options_.stereo->separation);
-            processor.process(frame, eyes.left, t, n, leftField);
-            rightProcessor->process(*frame.right, eyes.right, t, n, rightField);
+            const std::span<const prp::ObjectMotion> motions =
+                options_.objectMotion ? options_.objectMotion(frame.time, t)
+                                      : std::span<const prp::ObjectMotion>{};
+            processor.process(frame, eyes.left, t, n, leftField, std::nullopt, motions);
+            rightProcessor->process(*frame.right, eyes.right, t, n, rightField, std::nullopt,
+                                    motions);
             const prp::OutputGeometry geometry = prp::OutputGeometry::of(
                 frame.intrinsics, options_.prp.outWidth, options_.prp.outHeight);
             disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
@@ -609,12 +613,13 @@ PipelineResult Pipeline::run() {
                 // model, which puts every point on its own row.
                 const double leftMs = leftField.warpMs, rightMs = rightField.warpMs;
                 if (leftField.warp.model != prp::WarpModel::Depth) {
-                    processor.process(frame, eyes.left, t, n, leftField, prp::WarpModel::Depth);
+                    processor.process(frame, eyes.left, t, n, leftField, prp::WarpModel::Depth,
+                                      motions);
                     leftField.warpMs += leftMs;
                 }
                 if (rightField.warp.model != prp::WarpModel::Depth) {
                     rightProcessor->process(*frame.right, eyes.right, t, n, rightField,
-                                            prp::WarpModel::Depth);
+                                            prp::WarpModel::Depth, motions);
                     rightField.warpMs += rightMs;
                 }
                 disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
@@ -627,7 +632,10 @@ PipelineResult Pipeline::run() {
             rightFallback = rightField.warp.fallback;
             rightModel = rightField.warp.model;
         } else {
-            processor.process(frame, pose, t, n, field);
+            const std::span<const prp::ObjectMotion> motions =
+                options_.objectMotion ? options_.objectMotion(frame.time, t)
+                                      : std::span<const prp::ObjectMotion>{};
+            processor.process(frame, pose, t, n, field, std::nullopt, motions);
             if (options_.truth) options_.truth->record(field, pose);
         }
         noteField(field.frameAge);

@@ -121,6 +121,10 @@ struct PipelineOptions {
     std::function<void(double t, std::vector<ExtraObject>& out)> requestObjects;
     // Per-field ground truth: each field and the pose it was warped to (field thread).
     TruthWriter* truth = nullptr;
+    // The moving objects' own motion from a frame's instant to a field's (field thread), which
+    // the processor re-stamps them by (prp/object_restamp.hpp); unset: none.
+    std::function<std::span<const prp::ObjectMotion>(double frameTime, double fieldTime)>
+        objectMotion;
     // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
     // restarted; 0: 0.5 s or eight times the running render time, whichever is longer.
     double renderTimeout = 0.0;

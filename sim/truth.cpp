@@ -187,6 +187,35 @@ void TruthScene::movingAt(double t, std::vector<TruthObject>& out) const {
     }
 }
 
+namespace {
+
+glm::dvec3 boxMiddle(const TruthObject& o) {
+    glm::dvec3 middle{0.0};
+    for (const glm::dvec3& q : objectCorners(o))
+        middle += q * 0.125;
+    return middle;
+}
+
+}  // namespace
+
+std::span<const prp::ObjectMotion> ObjectMotionBetween::between(double frameTime,
+                                                                double fieldTime) {
+    scene_->movingAt(frameTime, atFrame_);
+    scene_->movingAt(fieldTime, atField_);
+    motions_.clear();
+    // Both lists are in the scene's order, less the objects off the map.
+    std::size_t j = 0;
+    for (const TruthObject& a : atFrame_) {
+        std::size_t k = j;
+        while (k < atField_.size() && atField_[k].id != a.id)
+            ++k;
+        if (k == atField_.size()) continue;  // off the map at the field's instant
+        motions_.push_back({a.id, boxMiddle(a), boxMiddle(atField_[k])});
+        j = k + 1;
+    }
+    return motions_;
+}
+
 std::array<glm::dvec3, 8> objectCorners(const TruthObject& o) {
     // Model (mx, my) -> world: the inverse of ObjectLayer::place's rotation.
     const double s = std::sin(o.heading), c = std::cos(o.heading);

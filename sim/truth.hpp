@@ -5,6 +5,7 @@
 #include "ig/camera.hpp"
 #include "ig/scene.hpp"
 #include "prp/field.hpp"
+#include "prp/object_restamp.hpp"
 #include "sim/scene_motion.hpp"
 
 #include <tbb/task_arena.h>
@@ -55,6 +56,20 @@ class TruthScene {
     std::vector<TruthObject> static_;
     std::vector<TruthObject> models_;  // per model of the scene: its filled voxels' box
     std::vector<std::vector<std::uint8_t>> solid_;  // per model: TruthObject::solid
+};
+
+// The moving objects' own motion between a rendered frame's instant and a field's: the middle
+// of each one's box at both (prp::ObjectMotion, for the processor's re-stamp). Objects on the
+// map at only one of the two instants are left out. Scratch reused.
+class ObjectMotionBetween {
+  public:
+    explicit ObjectMotionBetween(const TruthScene& scene) : scene_(&scene) {}
+    std::span<const prp::ObjectMotion> between(double frameTime, double fieldTime);
+
+  private:
+    const TruthScene* scene_;
+    std::vector<TruthObject> atFrame_, atField_;
+    std::vector<prp::ObjectMotion> motions_;
 };
 
 // The field's camera: the output window at the field's pose (roll included), `outWidth` x

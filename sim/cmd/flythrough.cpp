@@ -284,7 +284,7 @@ int main(int argc, char** argv) {
     std::string faultText;
     std::string levelsText = "auto";
     std::string casterText = "fast";
-    bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false;
+    bool agc = false, antiTwitter = false, quiet = false, fixedMargin = false, noRestamp = false;
     bool terrainPointsOnly = false, overwrite = false;
     std::string edgeFillText = "sky";
     std::string cigiBind, cigiHost, cigiOrigin;
@@ -396,6 +396,9 @@ int main(int argc, char** argv) {
                    "each frame's instant (every caster)");
     app.add_option("--truth", truthPath,
                    "Per-field ground truth of the scene's objects, JSON lines (needs --scene)");
+    app.add_flag("--no-restamp", noRestamp,
+                 "Leave the scene's moving objects where each frame shows them (default: each "
+                 "field re-stamps them where they are at the field's instant)");
     app.add_flag("--terrain-points-only", terrainPointsOnly,
                  "Fit the warp to terrain control points only (default: sky directions too)");
     app.add_option("--edge-fill", edgeFillText,
@@ -847,6 +850,16 @@ int main(int argc, char** argv) {
                                                        opened.width, (opened.height + 1) / 2,
                                                        simulated);
             options.truth = truth.get();
+        }
+        // Moving objects re-stamped at each field's instant by the processor.
+        std::optional<sim::TruthScene> motionScene;
+        std::optional<sim::ObjectMotionBetween> motionBetween;
+        if (scene && !scene->moving.empty() && !noRestamp) {
+            motionScene.emplace(*scene, *motion, map);
+            motionBetween.emplace(*motionScene);
+            options.objectMotion = [&motionBetween](double frameTime, double fieldTime) {
+                return motionBetween->between(frameTime, fieldTime);
+            };
         }
         std::unique_ptr<io::FieldClock> clock =
             simulated ? io::makeSimulatedClock() : io::makeWallClock();
