@@ -113,7 +113,7 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
                                      double time, std::uint64_t fieldIndex, Field& out,
-                                     std::optional<WarpModel> forced) {
+                                     std::optional<WarpModel> forced, double fieldFocal) {
     const auto start = std::chrono::steady_clock::now();
     const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
     const WarpModel chosen = forced.value_or(options_.model);
@@ -142,7 +142,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     out.holeSamples = 0;
 
     const OutputGeometry geometry =
-        OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight);
+        OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight, fieldFocal);
     const int gainQ8 =
         options_.agc ? static_cast<int>(std::lround(gain_ * kUnityGain)) : kUnityGain;
     std::uint64_t lumaSum = 0;
@@ -264,7 +264,9 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
     const ig::Camera src(frame.pose, frame.intrinsics);
     const ig::CameraBasis dst = ig::CameraBasis::fromPose(poseAtField);
     const glm::dvec3 offset = frame.pose.position - poseAtField.position;
-    const double f = frame.intrinsics.focal;
+    // Projected at the field's focal length; an output pixel spans zoom / s rendered pixels.
+    const double f = geometry.fieldWindow().focal;
+    const double zoom = geometry.zoom();
     const double sx = static_cast<double>(ow) / geometry.windowWidth;
     const double sy = static_cast<double>(oh) / geometry.windowHeight;
     const double cx = 0.5 * geometry.windowWidth, cy = 0.5 * geometry.windowHeight;
@@ -295,9 +297,9 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
             if (z < splatDepth_[o]) {
                 splatDepth_[o] = z;
                 splatSource_[2 * o] =
-                    static_cast<float>(x + 0.5 + (std::floor(qx) + 0.5 - qx) / sx);
+                    static_cast<float>(x + 0.5 + zoom * (std::floor(qx) + 0.5 - qx) / sx);
                 splatSource_[2 * o + 1] =
-                    static_cast<float>(y + 0.5 + (std::floor(qy) + 0.5 - qy) / sy);
+                    static_cast<float>(y + 0.5 + zoom * (std::floor(qy) + 0.5 - qy) / sy);
             }
         }
     }
@@ -342,8 +344,8 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
             if (from < n) {
                 const double fx = static_cast<double>(from % ow),
                              fy = static_cast<double>(from / ow);
-                p = {splatSource_[2 * from] + (x - fx) / sx,
-                     splatSource_[2 * from + 1] + (y - fy) / sy};
+                p = {splatSource_[2 * from] + zoom * (x - fx) / sx,
+                     splatSource_[2 * from + 1] + zoom * (y - fy) / sy};
             } else {
                 p = hold({x + 0.5, y + 0.5});
             }

@@ -56,10 +56,13 @@ class PostRenderingProcessor {
     // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose
     // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
     // `model`, when given, replaces options().model for this field (stereo forces the depth
-    // model on a field whose two quadratic fits disagree on rows).
+    // model on a field whose two quadratic fits disagree on rows). `fieldFocal`, when positive,
+    // is the field's own focal length in window pixels (its field of view over the frame's
+    // window): every model warps the frame, whatever focal length it was rendered with, to a
+    // field seen at this one; 0: the field shows the frame's field of view.
     void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
                  std::uint64_t fieldIndex, Field& out,
-                 std::optional<WarpModel> model = std::nullopt);
+                 std::optional<WarpModel> model = std::nullopt, double fieldFocal = 0.0);
 
     const PrpOptions& options() const { return options_; }
     // AGC gain the next field will use.
