@@ -70,11 +70,12 @@ sim::FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map,
             withObjects](const ig::Pose& pose, double time, std::uint64_t sequence) {
         if (extra) extra(time, *objects);
         *moving = motion.stamp(time, *objects);
+        const sim::RenderGeometry g = sim::viewed(geometry, sim::requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         const ig::Pose left = sim::eyePoses(level, stereo.eyeSeparation).left;
-        ig::RenderedFrame frame = ig::renderFrame(
-            *caster, map, left, sim::renderIntrinsics(geometry, pose), time, sequence);
+        ig::RenderedFrame frame =
+            ig::renderFrame(*caster, map, left, sim::renderIntrinsics(g, pose), time, sequence);
         std::vector<ig::RightPixelSource> source;
         ig::StereoStats stats;
         auto right = std::make_shared<ig::RenderedFrame>(
