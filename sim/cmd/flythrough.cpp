@@ -116,9 +116,10 @@ about it). Until the first Entity Control the ownship holds the --start pose; --
 waits up to S seconds for it before the first field. --cigi-view N picks the view shown (View
 Control places the eye on the ownship every field; a symmetric View Definition received before
 the first field sets the field of view, overriding --fov, and its far plane the draw
-distance). A host silent for --cigi-timeout S is reported lost; the ownship dead-reckons
-for --cigi-extrapolate S after its last message, then holds. Several image generators (one
-per channel, each on its own port) can share one host.
+distance; one received during the run changes them from that field on). A host silent for
+--cigi-timeout S is reported lost; the ownship dead-reckons for --cigi-extrapolate S after its
+last message, then holds. Several image generators (one per channel, each on its own port) can
+share one host.
 --cigi-entity TYPE=MODEL[:SCALE] draws the host's other entities of that CIGI entity type as a
 model of --scene, each at its dead-reckoned pose at the frame's instant with its entity id as
 its object id (a renderer process gets them placed with each render request).
