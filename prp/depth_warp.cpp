@@ -67,10 +67,13 @@ DepthProjection DepthProjection::of(const ig::RenderedFrame& frame, const ig::Po
     const double sy = static_cast<double>(geometry.height) / geometry.windowHeight;
     p.ox = static_cast<float>(0.5 * geometry.windowWidth * sx);
     p.oy = static_cast<float>(0.5 * geometry.windowHeight * sy);
-    p.kx = static_cast<float>(in.focal * sx);
-    p.ky = static_cast<float>(in.focal * sy);
-    p.invSx = static_cast<float>(1.0 / sx);
-    p.invSy = static_cast<float>(1.0 / sy);
+    // Projected with the field's focal length; an output pixel spans zoom() / s rendered pixels.
+    const double fieldFocal = geometry.focal > 0.0 ? geometry.focal : in.focal;
+    const double k = geometry.zoom();
+    p.kx = static_cast<float>(fieldFocal * sx);
+    p.ky = static_cast<float>(fieldFocal * sy);
+    p.invSx = static_cast<float>(k / sx);
+    p.invSy = static_cast<float>(k / sy);
     p.outWidth = geometry.width;
     p.outHeight = geometry.height;
     return p;

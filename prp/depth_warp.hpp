@@ -34,12 +34,13 @@ const char* depthMethodName(DepthMethod method);
 // direction). In the field's camera (roll included), scaled by l / d, it is
 // (r, u, w) = d M (a, b, f) + l t; it lands at qx = ox + kx r / w, qy = oy - ky u / w (output
 // pixels, full-frame lines), at inverse depth l / w along the field camera's axis.
+// kx, ky: the field's focal length times the output scaling.
 struct DepthProjection {
     float cx = 0, cy = 0, f = 0;
     float m[9]{};  // row-major: rows are the field camera's right, up, forward in source axes
     float t[3]{};  // source eye minus field eye, in the field camera's axes
     float ox = 0, oy = 0, kx = 0, ky = 0;
-    float invSx = 1, invSy = 1;  // window pixels per output pixel
+    float invSx = 1, invSy = 1;  // rendered pixels per output pixel (zoom included)
     int outWidth = 0, outHeight = 0;
 
     static DepthProjection of(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,

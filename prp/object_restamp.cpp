@@ -122,7 +122,8 @@ RestampStats restampMovingObjects(const ig::RenderedFrame& frame, const ig::Rgb8
         scratch.slot[m.id] = -1;
 
     const ig::CameraBasis basis = ig::CameraBasis::fromPose(fieldPose);
-    const double focal = frame.intrinsics.focal;
+    // The field's own camera (its field of view may differ from the frame's).
+    const double focal = geometry.focal > 0.0 ? geometry.focal : frame.intrinsics.focal;
     const glm::dvec3 frameEye = frame.pose.position;
     const SourceView source{color, frame.width(), frame.height()};
     const int bpp = static_cast<int>(bytesPerPixel(field.format));

@@ -113,7 +113,7 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
 
 void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
                                      double time, std::uint64_t fieldIndex, Field& out,
-                                     std::optional<WarpModel> forced,
+                                     std::optional<WarpModel> forced, double fieldFocal,
                                      std::span<const ObjectMotion> motions) {
     const auto start = std::chrono::steady_clock::now();
     const bool stale = options_.holdAfter > 0.0 && time - frame.time > options_.holdAfter;
@@ -145,7 +145,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     out.restampedPixels = 0;
 
     const OutputGeometry geometry =
-        OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight);
+        OutputGeometry::of(frame.intrinsics, options_.outWidth, options_.outHeight, fieldFocal);
     const int gainQ8 =
         options_.agc ? static_cast<int>(std::lround(gain_ * kUnityGain)) : kUnityGain;
     std::uint64_t lumaSum = 0;
@@ -246,8 +246,10 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             map.xs = depthWarp_.pointsX();
             map.ys = depthWarp_.pointsY();
             map.stride = static_cast<std::size_t>(out.width);
-            map.windowPerOutputX = static_cast<double>(geometry.windowWidth) / geometry.width;
-            map.windowPerOutputY = static_cast<double>(geometry.windowHeight) / geometry.height;
+            map.windowPerOutputX =
+                geometry.zoom() * static_cast<double>(geometry.windowWidth) / geometry.width;
+            map.windowPerOutputY =
+                geometry.zoom() * static_cast<double>(geometry.windowHeight) / geometry.height;
         } else if (out.warp.projective) {
             map.kind = FieldSourceMap::Kind::Homography;
             map.homography = Homography{out.warp.h};
@@ -291,7 +293,9 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
     const ig::Camera src(frame.pose, frame.intrinsics);
     const ig::CameraBasis dst = ig::CameraBasis::fromPose(poseAtField);
     const glm::dvec3 offset = frame.pose.position - poseAtField.position;
-    const double f = frame.intrinsics.focal;
+    // Projected at the field's focal length; an output pixel spans zoom / s rendered pixels.
+    const double f = geometry.fieldWindow().focal;
+    const double zoom = geometry.zoom();
     const double sx = static_cast<double>(ow) / geometry.windowWidth;
     const double sy = static_cast<double>(oh) / geometry.windowHeight;
     const double cx = 0.5 * geometry.windowWidth, cy = 0.5 * geometry.windowHeight;
@@ -322,9 +326,9 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
             if (z < splatDepth_[o]) {
                 splatDepth_[o] = z;
                 splatSource_[2 * o] =
-                    static_cast<float>(x + 0.5 + (std::floor(qx) + 0.5 - qx) / sx);
+                    static_cast<float>(x + 0.5 + zoom * (std::floor(qx) + 0.5 - qx) / sx);
                 splatSource_[2 * o + 1] =
-                    static_cast<float>(y + 0.5 + (std::floor(qy) + 0.5 - qy) / sy);
+                    static_cast<float>(y + 0.5 + zoom * (std::floor(qy) + 0.5 - qy) / sy);
             }
         }
     }
@@ -369,8 +373,8 @@ void PostRenderingProcessor::warpDepth(const ig::RenderedFrame& frame, const ig:
             if (from < n) {
                 const double fx = static_cast<double>(from % ow),
                              fy = static_cast<double>(from / ow);
-                p = {splatSource_[2 * from] + (x - fx) / sx,
-                     splatSource_[2 * from + 1] + (y - fy) / sy};
+                p = {splatSource_[2 * from] + zoom * (x - fx) / sx,
+                     splatSource_[2 * from + 1] + zoom * (y - fy) / sy};
             } else {
                 p = hold({x + 0.5, y + 0.5});
             }

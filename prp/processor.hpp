@@ -58,13 +58,16 @@ class PostRenderingProcessor {
     // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose
     // buffers do not match its intrinsics; a non-finite pose holds the previous warp.
     // `model`, when given, replaces options().model for this field (stereo forces the depth
-    // model on a field whose two quadratic fits disagree on rows).
+    // model on a field whose two quadratic fits disagree on rows). `fieldFocal`, when positive,
+    // is the field's own focal length in window pixels (its field of view over the frame's
+    // window): every model warps the frame, whatever focal length it was rendered with, to a
+    // field seen at this one; 0: the field shows the frame's field of view.
     // `motions`: the moving objects' own motion from the frame's instant to the field's; each
-    // one the field shows is re-stamped where it is at the field's instant (prp/object_restamp.hpp;
-    // not on a field that holds the frame).
+    // one the field shows is re-stamped where it is at the field's instant
+    // (prp/object_restamp.hpp; not on a field that holds the frame).
     void process(const ig::RenderedFrame& frame, const ig::Pose& poseAtField, double fieldTime,
                  std::uint64_t fieldIndex, Field& out,
-                 std::optional<WarpModel> model = std::nullopt,
+                 std::optional<WarpModel> model = std::nullopt, double fieldFocal = 0.0,
                  std::span<const ObjectMotion> motions = {});
 
     const PrpOptions& options() const { return options_; }

@@ -114,7 +114,7 @@ OutsideFill OutsideFill::of(const ig::SkyModel& sky, const ig::Intrinsics& rende
                             const OutputGeometry& geometry, const ig::Pose& pose) {
     OutsideFill f;
     f.sky = sky;
-    f.focal = rendered.focal;
+    f.focal = geometry.focal > 0.0 ? geometry.focal : rendered.focal;  // the field's camera
     f.sx = static_cast<double>(geometry.windowWidth) / geometry.width;
     f.sy = static_cast<double>(geometry.windowHeight) / geometry.height;
     f.cx = 0.5 * geometry.windowWidth;

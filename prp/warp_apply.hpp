@@ -87,7 +87,8 @@ struct OutsideFill {
     double forwardZ = 0.0, rightZ = 0.0, upZ = 0.0;
 
     // The fill of a field whose camera is `pose` (roll included), its output pixels scaled onto
-    // the rendered window of `rendered` by `geometry`.
+    // the rendered window of `rendered` by `geometry`, at the field's focal length
+    // (geometry.focal; the frame's when that is 0).
     static OutsideFill of(const ig::SkyModel& sky, const ig::Intrinsics& rendered,
                           const OutputGeometry& geometry, const ig::Pose& pose);
     // Colour at output pixel centre (x, y); false where the pixel keeps its repeated edge.

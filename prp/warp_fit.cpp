@@ -353,14 +353,32 @@ std::size_t rotationCorrespondences(const ig::RenderedFrame& frame, const ig::Po
     return n;
 }
 
-OutputGeometry OutputGeometry::of(const ig::Intrinsics& rendered, int outWidth, int outHeight) {
+OutputGeometry OutputGeometry::of(const ig::Intrinsics& rendered, int outWidth, int outHeight,
+                                  double fieldFocal) {
     OutputGeometry g;
     g.width = outWidth;
     g.height = outHeight;
     g.windowWidth = rendered.windowWidth();
     g.windowHeight = rendered.windowHeight();
     g.margin = rendered.margin;
+    g.renderedFocal = rendered.focal;
+    g.focal = fieldFocal > 0.0 ? fieldFocal : rendered.focal;
     return g;
+}
+
+double OutputGeometry::zoom() const {
+    // Equal focal lengths give exactly 1, so a field at the frame's field of view is warped
+    // bit for bit as without the factor.
+    return focal > 0.0 && renderedFocal > 0.0 ? renderedFocal / focal : 1.0;
+}
+
+ig::Intrinsics OutputGeometry::fieldWindow() const {
+    ig::Intrinsics in;
+    in.width = windowWidth;
+    in.height = windowHeight;
+    in.margin = 0;
+    in.focal = focal > 0.0 ? focal : renderedFocal;
+    return in;
 }
 
 Affine2 OutputGeometry::windowFromOutput() const {
@@ -370,24 +388,31 @@ Affine2 OutputGeometry::windowFromOutput() const {
 
 Affine2 OutputGeometry::unrolledFromOutput(double roll) const {
     // A camera rolled by r sees the un-rolled image rotated: u - c = R(r) (w - c) with
-    // R = [cos -sin; sin cos] in image axes (x right, y down).
+    // R = [cos -sin; sin cos] in image axes (x right, y down). A field of focal length f' shows
+    // what the frame's focal length f puts at u - c = (f / f') R(r) (w - c): the change of field
+    // of view is a scaling about the same centre, composed the same way.
     const Affine2 s = windowFromOutput();
+    const double k = zoom();
     const double c = std::cos(roll), sn = std::sin(roll);
     const double cx = 0.5 * windowWidth, cy = 0.5 * windowHeight;
     Affine2 r;
-    r.m00 = c * s.m00;
-    r.m01 = -sn * s.m11;
-    r.m10 = sn * s.m00;
-    r.m11 = c * s.m11;
-    r.tx = cx - (c * cx - sn * cy);
-    r.ty = cy - (sn * cx + c * cy);
+    r.m00 = k * c * s.m00;
+    r.m01 = k * -sn * s.m11;
+    r.m10 = k * sn * s.m00;
+    r.m11 = k * c * s.m11;
+    r.tx = cx - k * (c * cx - sn * cy);
+    r.ty = cy - k * (sn * cx + c * cy);
     return r;
 }
 
 Affine2 OutputGeometry::sourceFromOutputHold() const {
     Affine2 m = windowFromOutput();
-    m.tx += margin;
-    m.ty += margin;
+    const double k = zoom();
+    const double cx = 0.5 * windowWidth, cy = 0.5 * windowHeight;
+    m.m00 *= k;
+    m.m11 *= k;
+    m.tx += cx - k * cx + margin;
+    m.ty += cy - k * cy + margin;
     return m;
 }
 
@@ -501,7 +526,7 @@ std::size_t checkCorrespondences(const ig::RenderedFrame& frame, const ig::Pose&
         return 0;
     }
     const ig::Camera src(frame.pose, in);
-    const ig::Camera cam(fieldPose, in.window());
+    const ig::Camera cam(fieldPose, geometry.fieldWindow());
     const double sx = static_cast<double>(geometry.width) / geometry.windowWidth;
     const double sy = static_cast<double>(geometry.height) / geometry.windowHeight;
     std::size_t n = 0;

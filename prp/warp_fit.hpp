@@ -87,7 +87,8 @@ HomographyFit fitHomography(std::span<const Correspondence> points);
 double quadraticDesignCondition(std::span<const Correspondence> points, bool normalise);
 
 // Control points of `frame` projected into the un-rolled camera at `fieldPose` with the frame's
-// window intrinsics (no margins). Points behind that camera or non-finite are dropped; sky
+// window intrinsics (no margins; a field of another focal length is composed afterwards, by
+// OutputGeometry::unrolledFromOutput). Points behind that camera or non-finite are dropped; sky
 // directions (w = 0) are dropped unless `useSky`. Returns the number written to `out`.
 std::size_t controlCorrespondences(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
                                    bool useSky, std::array<Correspondence, 9>& out);
@@ -95,21 +96,33 @@ std::size_t controlCorrespondences(const ig::RenderedFrame& frame, const ig::Pos
 std::size_t rotationCorrespondences(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
                                     std::array<Correspondence, 9>& out);
 
-// Geometry of the output: a `width` x `height` frame showing the rendered frame's window.
+// Geometry of the output: a `width` x `height` frame showing the rendered frame's window, seen
+// at the field's own focal length (its field of view), which may differ from the frame's.
 struct OutputGeometry {
     int width = 0;
     int height = 0;
     int windowWidth = 0;  // rendered window (margins excluded)
     int windowHeight = 0;
     int margin = 0;
+    double focal = 0.0;          // the field's focal length, window pixels (0: the frame's)
+    double renderedFocal = 0.0;  // the rendered frame's focal length
 
-    static OutputGeometry of(const ig::Intrinsics& rendered, int outWidth, int outHeight);
+    // `fieldFocal` 0: the field shows the frame's field of view.
+    static OutputGeometry of(const ig::Intrinsics& rendered, int outWidth, int outHeight,
+                             double fieldFocal = 0.0);
+    // Rendered window pixels per field window pixel about the window centre (the change of
+    // focal length; exactly 1 when the field has the frame's field of view).
+    double zoom() const;
+    // The field's camera over the window: its focal length, no margin.
+    ig::Intrinsics fieldWindow() const;
     // Output pixel -> window pixel (scaling).
     Affine2 windowFromOutput() const;
-    // Output pixel of a camera rolled by `roll` -> un-rolled window pixel (rotation about the
-    // window centre composed with the scaling).
+    // Output pixel of a camera rolled by `roll` at the field's focal length -> un-rolled
+    // window pixel at the frame's (rotation and change of focal length about the window
+    // centre, composed with the scaling).
     Affine2 unrolledFromOutput(double roll) const;
-    // Output pixel -> rendered-frame pixel without motion compensation ("hold").
+    // Output pixel -> rendered-frame pixel without motion compensation ("hold"; the change of
+    // focal length applied).
     Affine2 sourceFromOutputHold() const;
 };
 

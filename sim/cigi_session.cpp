@@ -27,6 +27,11 @@ namespace cigi = io::cigi;
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
+// The widest field of view a View Definition may ask for (as --fov): exclusive.
+constexpr double kMaxFieldOfView = 179.0 * kDeg;
+// Fields of view closer than this (radians) are the same one (a host's float degrees against
+// the run's double).
+constexpr double kSameFieldOfView = 1e-6;
 // Levels of attached entities, the top one included (deeper chains are refused).
 constexpr std::size_t kMaxChain = 64;
 // WGS 84.
@@ -562,7 +567,7 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
                                      [&](const EntityPose& e) { return e.id == sensor.target; });
         if (it != sensorScratch_.end()) {
             const ig::Pose eye = eyePose(ownship_.at(t), view_);
-            double hfov = frozenHfov_ > 0.0 ? frozenHfov_ : viewHfov_;
+            double hfov = fieldHfov_ > 0.0 ? fieldHfov_ : viewHfov_;
             if (!(hfov > 0.0)) hfov = 0.5 * std::numbers::pi;
             const int w = options_.windowWidth, h = options_.windowHeight;
             // Where the renderer stands it: a ground-clamped base on the terrain under it.
@@ -760,43 +765,43 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ++stats_.viewDefinitionsNotApplied;
             noteError("View Definition for view " + std::to_string(vd->viewId) + ": " + why);
         };
-        bool taken = false;
+        // Both parts are checked before either is taken: a refused definition changes nothing.
+        const bool symmetric = vd->leftEnable && vd->rightEnable;
+        const double hfov = symmetric ? (vd->rightDeg - vd->leftDeg) * kDeg : 0.0;
         if (vd->farEnable) {
-            // The far plane is the draw distance (what lies beyond is sky); like the field of
-            // view it is the renderer's for the run.
+            // The far plane is the draw distance (what lies beyond is sky).
             if (!(vd->farM > 0.0f) || !std::isfinite(vd->farM) ||
                 (vd->nearEnable && !(vd->farM > vd->nearM))) {
                 refuse("far plane " + base::number(vd->farM) +
                        " m: must be positive and beyond the near plane");
                 return;
             }
-            if (farFrozen_ && vd->farM != frozenFar_) {
-                refuse("a far plane of " + base::number(vd->farM) +
-                       " m arrived during the run: the renderer keeps " +
-                       (std::isfinite(frozenFar_) ? base::number(frozenFar_) + " m"
-                                                  : std::string("no far plane")));
-                return;
-            }
+        }
+        if (symmetric && (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
+                          !(hfov < kMaxFieldOfView))) {
+            refuse("left " + base::number(vd->leftDeg) + ", right " + base::number(vd->rightDeg) +
+                   " degrees: only a frustum symmetric about the view axis, narrower than " +
+                   base::number(kMaxFieldOfView / kDeg) + " degrees, is rendered");
+            return;
+        }
+        bool taken = false;
+        if (vd->farEnable) {
             viewFar_ = vd->farM;
+            // During the run: the renders asked from this field on draw to the new distance.
+            if (farFrozen_ && viewFar_ != fieldFar_) {
+                fieldFar_ = viewFar_;
+                ++stats_.farPlaneChanges;
+            }
             taken = true;
         }
-        if (vd->leftEnable && vd->rightEnable) {
-            const double hfov = (vd->rightDeg - vd->leftDeg) * kDeg;
-            if (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
-                !(hfov < 179.0 * kDeg)) {
-                refuse("left " + base::number(vd->leftDeg) + ", right " +
-                       base::number(vd->rightDeg) +
-                       " degrees: only a frustum symmetric about the view axis, narrower than "
-                       "179 degrees, is rendered");
-                return;
-            }
-            if (frozenHfov_ > 0.0 && std::abs(hfov - frozenHfov_) > 1e-6) {
-                refuse("a field of view of " + base::number(hfov / kDeg) +
-                       " degrees arrived during the run: the renderer keeps " +
-                       base::number(frozenHfov_ / kDeg));
-                return;
-            }
+        if (symmetric) {
             viewHfov_ = hfov;
+            // During the run: this field and every later one at the new field of view (the PRP
+            // scales the frames rendered at the old one until the renderer's catch up).
+            if (fieldHfov_ > 0.0 && std::abs(hfov - fieldHfov_) > kSameFieldOfView) {
+                fieldHfov_ = hfov;
+                ++stats_.fieldOfViewChanges;
+            }
             taken = true;
         }
         if (taken) {
@@ -1121,6 +1126,10 @@ nlohmann::json toJson(const CigiStats& c) {
             {"send_errors", c.sendErrors},
             {"last_host_frame", c.lastHostFrame},
             {"clamped_poses", c.clampedPoses},
+            {"view_definitions", c.viewDefinitions},
+            {"view_definitions_not_applied", c.viewDefinitionsNotApplied},
+            {"field_of_view_changes", c.fieldOfViewChanges},
+            {"far_plane_changes", c.farPlaneChanges},
             {"host_losses", c.hostLosses},
             {"host_outages", outages},
             {"first_errors", c.firstErrors}};
@@ -1165,6 +1174,10 @@ bool CigiPoseSource::waitForHost(double seconds) {
         if (std::chrono::steady_clock::now() >= until) return false;
         std::this_thread::sleep_for(std::chrono::microseconds(16683));
     }
+}
+
+RenderView CigiPoseSource::view() const {
+    return {session_.fieldHfov(), session_.fieldFar()};
 }
 
 ig::Pose CigiPoseSource::predict(double t) {

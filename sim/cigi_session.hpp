@@ -232,9 +232,11 @@ struct CigiStats {
     std::uint64_t clampedPoses = 0;  // fields whose pose was lifted above the terrain
     std::uint64_t resets = 0;
     std::uint64_t viewControls = 0, viewDefinitions = 0;  // for this view, applied
-    std::uint64_t viewDefinitionsNotApplied = 0;  // asymmetric, or a new field of view mid-run
-    std::uint64_t entityControls = 0;             // for entities other than the ownship, applied
-    std::uint64_t entitiesRefused = 0;  // unknown type or parent, a parent loop, a reserved id
+    std::uint64_t viewDefinitionsNotApplied = 0;          // asymmetric, out of range
+    std::uint64_t fieldOfViewChanges = 0;  // View Definitions during the run that changed it
+    std::uint64_t farPlaneChanges = 0;     // likewise the far plane
+    std::uint64_t entityControls = 0;      // for entities other than the ownship, applied
+    std::uint64_t entitiesRefused = 0;     // unknown type or parent, a parent loop, a reserved id
     std::uint64_t entitiesCreated = 0, entitiesDestroyed = 0;
     std::uint64_t sensorControls = 0;        // for this view, applied
     std::uint64_t sensorTargets = 0;         // Component Controls naming a sensor's target
@@ -271,18 +273,23 @@ class CigiSession {
     // The horizontal field of view (radians) of this view's last View Definition that gave
     // both left and right, or 0 when none did.
     double viewHfov() const { return viewHfov_; }
-    // From now on (the run has started) the renderer's field of view is `hfov`: a View
-    // Definition asking for another is counted and reported, not applied.
-    void freezeFieldOfView(double hfov) { frozenHfov_ = hfov; }
+    // The run starts with field of view `hfov`: from now on a View Definition with another
+    // changes the field of view from the field it is received for (fieldHfov()).
+    void freezeFieldOfView(double hfov) { fieldHfov_ = hfov; }
+    // The field of view of the field polled last: the run's start's, changed by each View
+    // Definition during the run; 0 before freezeFieldOfView().
+    double fieldHfov() const { return fieldHfov_; }
     // This view's far plane (metres) from its last View Definition that enabled one, or
     // +infinity when none did: the renderer's draw distance.
     double viewFar() const { return viewFar_; }
-    // From now on the renderer's draw distance is `farM` (infinite: none): a View Definition
-    // asking for another far plane is counted and reported, not applied.
+    // The run starts with draw distance `farM` (infinite: none): from now on a View
+    // Definition with another far plane changes it for the renders asked from then on.
     void freezeFar(double farM) {
-        frozenFar_ = farM;
+        fieldFar_ = farM;
         farFrozen_ = true;
     }
+    // The draw distance of the field polled last (0 before freezeFar()).
+    double fieldFar() const { return farFrozen_ ? fieldFar_ : 0.0; }
     // This view's sensors, as the host last set them.
     const std::vector<SensorState>& sensors() const { return sensors_; }
     // The response of one sensor at time t (the field's instant): the tracked entity's
@@ -345,8 +352,8 @@ class CigiSession {
     std::uint32_t igFrame_ = 0;
     ViewOffset view_;
     io::cigi::ViewControl viewControl_;  // enabled fields as last set
-    double viewHfov_ = 0.0, frozenHfov_ = 0.0;
-    double viewFar_ = std::numeric_limits<double>::infinity(), frozenFar_ = 0.0;
+    double viewHfov_ = 0.0, fieldHfov_ = 0.0;
+    double viewFar_ = std::numeric_limits<double>::infinity(), fieldFar_ = 0.0;
     bool farFrozen_ = false;
     double lastHeard_ = 0.0;  // simulation time of the last good datagram
     bool silent_ = false;     // an outage is open
@@ -364,6 +371,8 @@ class CigiPoseSource final : public PoseSource {
     ig::Pose advanceTo(double t) override;
     ig::Pose predict(double t) override;
     double startTime() const override { return startTime_; }
+    // The session's field of view and draw distance (fieldHfov(), fieldFar()).
+    RenderView view() const override;
     // The renderer's side (one thread, the one calling predict): the host's active entities at
     // t, from the latest state advanceTo() published.
     void entitiesAt(double t, std::vector<EntityPose>& out);

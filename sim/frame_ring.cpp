@@ -33,7 +33,7 @@ constexpr std::uint32_t kFresh = 4;
 constexpr std::uint32_t kIndexMask = 3;
 constexpr std::size_t kAlign = 64;
 constexpr std::size_t kErrorBytes = 256;
-constexpr int kRequestWords = 8;
+constexpr int kRequestWords = 10;
 constexpr int kObjectWords = 6;  // model | id << 32 | on ground << 48, x, y, z, heading, scale
 
 std::size_t roundUp(std::size_t n) {
@@ -310,15 +310,16 @@ void FrameRing::resetWriter() {
 }
 
 bool FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence,
-                            std::span<const ExtraObject> objects) {
+                            std::span<const ExtraObject> objects, const RenderView& view) {
     Header& h = header();
     const std::size_t count = std::min(objects.size(), kMaxRequestObjects);
     const std::uint64_t lock = h.requestLock.load(std::memory_order_relaxed);
     h.requestLock.store(lock + 1, std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_release);
     const std::uint64_t words[kRequestWords] = {
-        bits(time),     bits(pose.position.x), bits(pose.position.y), bits(pose.position.z),
-        bits(pose.yaw), bits(pose.pitch),      bits(pose.roll),       sequence};
+        bits(time),      bits(pose.position.x), bits(pose.position.y), bits(pose.position.z),
+        bits(pose.yaw),  bits(pose.pitch),      bits(pose.roll),       sequence,
+        bits(view.hfov), bits(view.farM)};
     for (int k = 0; k < kRequestWords; ++k)
         h.request[k].store(words[k], std::memory_order_relaxed);
     h.requestObjectCount.store(count, std::memory_order_relaxed);
@@ -376,6 +377,8 @@ RenderRequest FrameRing::latestRequest(std::vector<ExtraObject>* objects) const 
         r.pose.pitch = real(w[5]);
         r.pose.roll = real(w[6]);
         r.sequence = w[7];
+        r.view.hfov = real(w[8]);
+        r.view.farM = real(w[9]);
         r.generation = before / 2;
         return r;
     }

@@ -11,10 +11,12 @@
 // colour, depth): the right eye travels as the left one does, published and fetched with it.
 //
 // Render requests go the other way through a sequence lock: the field process posts the pose it
-// wants rendered and the time it is for; the renderer reads the newest one.
+// wants rendered, the time it is for and the view (field of view, draw distance) to render it
+// with; the renderer reads the newest one.
 #pragma once
 
 #include "ig/frame.hpp"
+#include "sim/render_view.hpp"
 #include "sim/scene_motion.hpp"
 
 #include <atomic>
@@ -32,6 +34,7 @@ struct RenderRequest {
     ig::Pose pose;      // the full predicted pose, roll included
     std::uint64_t sequence = 0;
     std::uint64_t generation = 0;
+    RenderView view;
 };
 
 // Objects a request carries at most (a CIGI host's entities placed at the request's instant).
@@ -75,9 +78,10 @@ class FrameRing {
 
     // Requests (field side posts, renderer side reads; any number of posts, one reader).
     // `objects`: placed at `time` (a host's entities), carried with the request; false when
-    // there are more than kMaxRequestObjects (the first ones are carried).
+    // there are more than kMaxRequestObjects (the first ones are carried). `view`: the field of
+    // view and draw distance to render with.
     bool postRequest(const ig::Pose& pose, double time, std::uint64_t sequence,
-                     std::span<const ExtraObject> objects = {});
+                     std::span<const ExtraObject> objects = {}, const RenderView& view = {});
     // The newest request; with `objects`, the objects posted with it (the same post).
     RenderRequest latestRequest(std::vector<ExtraObject>* objects = nullptr) const;
 

@@ -85,6 +85,22 @@ std::size_t maxFramePixels(const RenderGeometry& geometry) {
            static_cast<std::size_t>(geometry.windowHeight + 2 * margin);
 }
 
+RenderGeometry viewed(const RenderGeometry& geometry, const RenderView& view) {
+    RenderGeometry g = geometry;
+    if (view.hfov > 0.0) g.hfov = view.hfov;
+    if (view.farM > 0.0) g.farM = view.farM;
+    return g;
+}
+
+double fieldFocal(const ig::RenderedFrame& frame, const RenderView& view) {
+    if (!(view.hfov > 0.0)) return 0.0;
+    // As renderIntrinsics computes it: a frame rendered with this view has this focal length
+    // to the bit, so its fields warp exactly as without a view.
+    return ig::Intrinsics::fromFov(frame.intrinsics.windowWidth(), frame.intrinsics.windowHeight(),
+                                   view.hfov)
+        .focal;
+}
+
 void clipBeyondFar(ig::RenderedFrame& frame, double farM, const ig::SkyModel& sky) {
     if (!(farM < std::numeric_limits<double>::infinity())) return;
     const ig::Camera camera(frame.pose, frame.intrinsics);
@@ -112,15 +128,16 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
                                  ig::CasterKind kind, const ig::RenderOptions& options) {
     std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, options);
     const ig::SkyModel sky = options.sky;
-    return [caster, &map, geometry, sky](const ig::Pose& pose, double time,
-                                         std::uint64_t sequence) {
-        ig::Pose level = pose;
-        level.roll = 0.0;  // the PRP applies roll
-        ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time, sequence);
-        clipBeyondFar(frame, geometry.farM, sky);
-        return frame;
-    };
+    return
+        [caster, &map, geometry, sky](const ig::Pose& pose, double time, std::uint64_t sequence) {
+            const RenderGeometry g = viewed(geometry, requestView());
+            ig::Pose level = pose;
+            level.roll = 0.0;  // the PRP applies roll
+            ig::RenderedFrame frame =
+                ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose), time, sequence);
+            clipBeyondFar(frame, g.farM, sky);
+            return frame;
+        };
 }
 
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
@@ -137,11 +154,12 @@ FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry&
                const ig::Pose& pose, double time, std::uint64_t sequence) {
         if (extra) extra(time, *objects);
         *moving = motion.stamp(time, *objects);
+        const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, level, renderIntrinsics(geometry, pose), time, sequence);
-        clipBeyondFar(frame, geometry.farM, withObjects.sky);
+            ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose), time, sequence);
+        clipBeyondFar(frame, g.farM, withObjects.sky);
         return frame;
     };
 }
@@ -237,7 +255,19 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
 Pipeline::~Pipeline() = default;
 
 ig::RenderedFrame Pipeline::renderAt(double poseTime, std::uint64_t sequence) {
+    setRequestView(view());
     return renderer_(poses_.predict(poseTime), poseTime, sequence);
+}
+
+void Pipeline::setView(const RenderView& view) {
+    viewHfov_.store(view.hfov, std::memory_order_relaxed);
+    viewFar_.store(view.farM, std::memory_order_relaxed);
+}
+
+RenderView Pipeline::view() const {
+    // Two words read apart: a render starting while the view changes may take one part of each
+    // (the next render takes both).
+    return {viewHfov_.load(std::memory_order_relaxed), viewFar_.load(std::memory_order_relaxed)};
 }
 
 void Pipeline::publish(ig::RenderedFrame&& frame) {
@@ -359,7 +389,7 @@ double Pipeline::renderTimeout() const {
 void Pipeline::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
     requestObjects_.clear();
     if (options_.requestObjects) options_.requestObjects(time, requestObjects_);
-    if (!ring_->postRequest(pose, time, sequence, requestObjects_) && !requestObjectsCut_) {
+    if (!ring_->postRequest(pose, time, sequence, requestObjects_, view()) && !requestObjectsCut_) {
         requestObjectsCut_ = true;
         std::fprintf(stderr,
                      "renderer process: %zu objects in one request; only the first %zu are "
@@ -516,6 +546,7 @@ PipelineResult Pipeline::run() {
     t0_ = poses_.startTime();
     runEnd_ = prp::fieldTime(t0_, fieldCount_);
     const double before = clock_.now();
+    setView(poses_.view());
     if (process) {
         CHECK_GT(options_.maxFramePixels, 0u) << "a renderer process needs the largest frame size";
         startProcess();
@@ -575,6 +606,9 @@ PipelineResult Pipeline::run() {
         const double t = prp::fieldTime(t0_, n);
         if (simulated) renderSimulatedUntil(t);
         const ig::Pose pose = poses_.advanceTo(t);
+        // The field's view from its own instant; renders asked from now on take it too.
+        const RenderView fieldView = poses_.view();
+        setView(fieldView);
         if (process && !simulated) {
             // Ask for the pose the next frame should show: when it will be ready, half a field
             // after this request on average.
@@ -586,6 +620,7 @@ PipelineResult Pipeline::run() {
         frames_.fetch();
         const ig::RenderedFrame& frame = frames_.front();
         noteFrameShown(frame, clock_.now());
+        const double focal = fieldFocal(frame, fieldView);
         double rightWarpMs = -1.0, disparity = -1.0, firstDisparity = -1.0;
         prp::Fallback rightFallback = prp::Fallback::None;
         prp::WarpModel rightModel = prp::WarpModel::Poly;
@@ -600,11 +635,11 @@ PipelineResult Pipeline::run() {
             const std::span<const prp::ObjectMotion> motions =
                 options_.objectMotion ? options_.objectMotion(frame.time, t)
                                       : std::span<const prp::ObjectMotion>{};
-            processor.process(frame, eyes.left, t, n, leftField, std::nullopt, motions);
-            rightProcessor->process(*frame.right, eyes.right, t, n, rightField, std::nullopt,
+            processor.process(frame, eyes.left, t, n, leftField, std::nullopt, focal, motions);
+            rightProcessor->process(*frame.right, eyes.right, t, n, rightField, std::nullopt, focal,
                                     motions);
             const prp::OutputGeometry geometry = prp::OutputGeometry::of(
-                frame.intrinsics, options_.prp.outWidth, options_.prp.outHeight);
+                frame.intrinsics, options_.prp.outWidth, options_.prp.outHeight, focal);
             disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
                                           eyes, geometry);
             firstDisparity = disparity;
@@ -614,12 +649,12 @@ PipelineResult Pipeline::run() {
                 const double leftMs = leftField.warpMs, rightMs = rightField.warpMs;
                 if (leftField.warp.model != prp::WarpModel::Depth) {
                     processor.process(frame, eyes.left, t, n, leftField, prp::WarpModel::Depth,
-                                      motions);
+                                      focal, motions);
                     leftField.warpMs += leftMs;
                 }
                 if (rightField.warp.model != prp::WarpModel::Depth) {
                     rightProcessor->process(*frame.right, eyes.right, t, n, rightField,
-                                            prp::WarpModel::Depth, motions);
+                                            prp::WarpModel::Depth, focal, motions);
                     rightField.warpMs += rightMs;
                 }
                 disparity = verticalDisparity(frame, *frame.right, leftField.warp, rightField.warp,
@@ -635,7 +670,7 @@ PipelineResult Pipeline::run() {
             const std::span<const prp::ObjectMotion> motions =
                 options_.objectMotion ? options_.objectMotion(frame.time, t)
                                       : std::span<const prp::ObjectMotion>{};
-            processor.process(frame, pose, t, n, field, std::nullopt, motions);
+            processor.process(frame, pose, t, n, field, std::nullopt, focal, motions);
             if (options_.truth) options_.truth->record(field, pose);
         }
         noteField(field.frameAge);

@@ -45,6 +45,12 @@ struct RenderGeometry {
     double farM = std::numeric_limits<double>::infinity();
 };
 
+// `geometry` with the view's field of view and draw distance where it sets them (non-zero).
+RenderGeometry viewed(const RenderGeometry& geometry, const RenderView& view);
+// The focal length (window pixels) a field of `view` has over `frame`'s window, for
+// prp::PostRenderingProcessor::process; 0 (the frame's own) when the view sets no field of view.
+double fieldFocal(const ig::RenderedFrame& frame, const RenderView& view);
+
 // Draws what lies farther than `farM` from the eye as sky: its pixels get the sky's colour
 // along their ray, sky depth and object id 0; control points beyond it become directions.
 // Nothing changes when farM is infinite. A per-frame pass over the pixels, no allocation.
@@ -58,7 +64,8 @@ ig::Intrinsics renderIntrinsics(const RenderGeometry& geometry, const ig::Pose& 
 // Pixels of the largest frame `geometry` renders, whatever the roll.
 std::size_t maxFramePixels(const RenderGeometry& geometry);
 
-// A caster over `map` rendering `geometry` (the map must outlive the renderer).
+// A caster over `map` rendering `geometry` (the map must outlive the renderer), with the field
+// of view and draw distance of requestView() (sim/render_process.hpp) at each render.
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                  ig::CasterKind kind = ig::CasterKind::Fast,
                                  const ig::RenderOptions& options = {});
@@ -211,8 +218,12 @@ class Pipeline {
     double lastNewFrameClock_ = 0.0;
     std::uint64_t gapFields_ = 0, gapHeld_ = 0;
 
-    // Posts a render request with options_.requestObjects's objects at `time`.
+    // Posts a render request with options_.requestObjects's objects at `time` and the view.
     void postRequest(const ig::Pose& pose, double time, std::uint64_t sequence);
+    // The view of the latest field (field thread writes, the renderer reads).
+    void setView(const RenderView& view);
+    RenderView view() const;
+    std::atomic<double> viewHfov_{0.0}, viewFar_{0.0};
     std::vector<ExtraObject> requestObjects_;  // postRequest's scratch
     bool requestObjectsCut_ = false;
 

@@ -6,6 +6,7 @@
 #include "io/stick.hpp"
 #include "sim/flight_model.hpp"
 #include "sim/mailbox.hpp"
+#include "sim/render_view.hpp"
 
 #include <memory>
 
@@ -23,6 +24,10 @@ class PoseSource {
     virtual ig::Pose predict(double t) = 0;
     // Simulation time at which the flight starts.
     virtual double startTime() const = 0;
+    // Field loop only: the view (field of view, draw distance) of the field at the last
+    // advanceTo(), or before the first the view the run starts with; all 0 (the renderer's
+    // geometry) unless a host sets it.
+    virtual RenderView view() const { return {}; }
 };
 
 // Stick converted to the flight model's controls.

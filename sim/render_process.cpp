@@ -25,6 +25,8 @@ namespace {
 
 // The objects of the request being rendered (renderer process only).
 std::vector<ExtraObject> gRequestObjects;
+// The view of the render the calling thread is doing.
+thread_local RenderView tRequestView;
 
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
@@ -50,6 +52,14 @@ double parseSeconds(std::string_view text, std::string_view flag, std::string_vi
 
 std::span<const ExtraObject> requestObjects() {
     return gRequestObjects;
+}
+
+RenderView requestView() {
+    return tRequestView;
+}
+
+void setRequestView(const RenderView& view) {
+    tRequestView = view;
 }
 
 RendererFault parseRendererFault(std::string_view text, std::string_view flag) {
@@ -209,6 +219,7 @@ void RendererProcess::childMain() {
                 }
             }
             ig::RenderedFrame frame;
+            setRequestView(r.view);
             arena.execute([&] { frame = renderer_(r.pose, r.time, r.sequence); });
             if (!ring_.publish(frame, io::monotonicNs())) {
                 throw std::runtime_error("frame " + std::to_string(frame.sequence) + " of " +

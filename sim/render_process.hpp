@@ -46,6 +46,13 @@ std::string describeRendererFault(const RendererFault& fault);
 // carried (FrameRing::postRequest); empty in any other process.
 std::span<const ExtraObject> requestObjects();
 
+// On the thread that calls a FrameRenderer, while it runs: the view (field of view, draw
+// distance) the render is asked for. The renderer process sets it from each request, the
+// pipeline's renderer thread from the field thread's latest view; the geometry's own (all 0)
+// on any other thread. The renderers of sim/ render with it.
+RenderView requestView();
+void setRequestView(const RenderView& view);
+
 struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
     double renderHz = 0.0;  // wall pacing of renders; 0: as fast as it can

@@ -59,11 +59,12 @@ FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry
     std::shared_ptr<const ig::Caster> caster = ig::makeCaster(ig::CasterKind::Fast, map, options);
     return [caster, &map, geometry, stereo, options](const ig::Pose& pose, double time,
                                                      std::uint64_t sequence) {
+        const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
         ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, left, renderIntrinsics(geometry, pose), time, sequence);
+            ig::renderFrame(*caster, map, left, renderIntrinsics(g, pose), time, sequence);
         std::vector<ig::RightPixelSource> source;
         ig::StereoStats stats;
         auto right = std::make_shared<ig::RenderedFrame>(
@@ -84,7 +85,7 @@ bool warpedRow(const ig::RenderedFrame& frame, const prp::Quadratic& q, bool exa
                const ig::Pose& eye, const prp::OutputGeometry& g, const glm::dvec3& world,
                double& row) {
     const auto p = ig::Camera(frame.pose, frame.intrinsics).project(world, 1.0);
-    const auto w = ig::Camera(eye, frame.intrinsics.window()).project(world, 1.0);
+    const auto w = ig::Camera(eye, g.fieldWindow()).project(world, 1.0);
     if (!p || !w) return false;
     const double sx = static_cast<double>(g.width) / g.windowWidth;
     const double sy = static_cast<double>(g.height) / g.windowHeight;

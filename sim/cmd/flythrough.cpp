@@ -70,11 +70,12 @@ sim::FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map,
             withObjects](const ig::Pose& pose, double time, std::uint64_t sequence) {
         if (extra) extra(time, *objects);
         *moving = motion.stamp(time, *objects);
+        const sim::RenderGeometry g = sim::viewed(geometry, sim::requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         const ig::Pose left = sim::eyePoses(level, stereo.eyeSeparation).left;
-        ig::RenderedFrame frame = ig::renderFrame(
-            *caster, map, left, sim::renderIntrinsics(geometry, pose), time, sequence);
+        ig::RenderedFrame frame =
+            ig::renderFrame(*caster, map, left, sim::renderIntrinsics(g, pose), time, sequence);
         std::vector<ig::RightPixelSource> source;
         ig::StereoStats stats;
         auto right = std::make_shared<ig::RenderedFrame>(
@@ -115,9 +116,10 @@ about it). Until the first Entity Control the ownship holds the --start pose; --
 waits up to S seconds for it before the first field. --cigi-view N picks the view shown (View
 Control places the eye on the ownship every field; a symmetric View Definition received before
 the first field sets the field of view, overriding --fov, and its far plane the draw
-distance). A host silent for --cigi-timeout S is reported lost; the ownship dead-reckons
-for --cigi-extrapolate S after its last message, then holds. Several image generators (one
-per channel, each on its own port) can share one host.
+distance; one received during the run changes them from that field on). A host silent for
+--cigi-timeout S is reported lost; the ownship dead-reckons for --cigi-extrapolate S after its
+last message, then holds. Several image generators (one per channel, each on its own port) can
+share one host.
 --cigi-entity TYPE=MODEL[:SCALE] draws the host's other entities of that CIGI entity type as a
 model of --scene, each at its dead-reckoned pose at the frame's instant with its entity id as
 its object id (a renderer process gets them placed with each render request).

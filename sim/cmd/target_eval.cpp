@@ -211,7 +211,7 @@ int main(int argc, char** argv) {
                         po.format = prp::PixelFormat::Rgb8;
                         po.model = models[m];
                         prp::PostRenderingProcessor prp(po);
-                        prp.process(frame, pose, t, index, field, std::nullopt,
+                        prp.process(frame, pose, t, index, field, std::nullopt, 0.0,
                                     restamp ? motions : std::span<const prp::ObjectMotion>{});
                         // Processor time of this thread: the figure a loaded machine leaves
                         // alone.

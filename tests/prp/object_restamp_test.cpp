@@ -192,7 +192,7 @@ TEST(ObjectRestamp, MovedObjectMatchesTheFieldInstant) {
         Field plain, moved;
         PostRenderingProcessor(options(model)).process(frame, s.fieldPose, s.fieldTime, 1, plain);
         PostRenderingProcessor(options(model))
-            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, {&motion, 1});
+            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0, {&motion, 1});
         const std::vector<std::uint16_t> real = trueIds(truth, moved);
         const Count t = countOf(real, moved, kTank);
         const Count p = countOf(plain.objectId, plain, kTank);
@@ -224,7 +224,7 @@ TEST(ObjectRestamp, ColourFollowsTheObject) {
     const ObjectMotion motion{kTank, s.tankAtFrame.middle(), s.tankAtField.middle()};
     Field moved;
     PostRenderingProcessor(options(WarpModel::Poly))
-        .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, {&motion, 1});
+        .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0, {&motion, 1});
     std::uint64_t tank = 0, red = 0, ground = 0, notRed = 0;
     for (int line = 0; line < moved.lines; ++line) {
         for (int x = 0; x < moved.width; ++x) {
@@ -270,9 +270,9 @@ TEST(ObjectRestamp, StillObjectsLeaveTheFieldAsWarped) {
         PostRenderingProcessor(options(WarpModel::Poly, f))
             .process(frame, s.fieldPose, s.fieldTime, 1, plain);
         PostRenderingProcessor(options(WarpModel::Poly, f))
-            .process(frame, s.fieldPose, s.fieldTime, 1, a, std::nullopt, {&still, 1});
+            .process(frame, s.fieldPose, s.fieldTime, 1, a, std::nullopt, 0.0, {&still, 1});
         PostRenderingProcessor(options(WarpModel::Poly, f))
-            .process(frame, s.fieldPose, s.fieldTime, 1, b, std::nullopt, {&absent, 1});
+            .process(frame, s.fieldPose, s.fieldTime, 1, b, std::nullopt, 0.0, {&absent, 1});
         EXPECT_EQ(a.pixels, plain.pixels);
         EXPECT_EQ(a.objectId, plain.objectId);
         EXPECT_EQ(a.restampedObjects, 0);
@@ -299,7 +299,7 @@ TEST(ObjectRestamp, NearerObjectsHideTheMovedOne) {
     PostRenderingProcessor(options(WarpModel::Poly))
         .process(frame, s.fieldPose, s.fieldTime, 1, plain);
     PostRenderingProcessor(options(WarpModel::Poly))
-        .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, {&motion, 1});
+        .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0, {&motion, 1});
     const std::vector<std::uint16_t> real = trueIds(truth, moved);
     std::uint64_t wallPixels = 0, kept = 0;
     for (std::size_t i = 0; i < plain.objectId.size(); ++i) {
@@ -325,13 +325,13 @@ TEST(ObjectRestamp, SameIdsInEveryFormatAndNothingElseRewritten) {
     const ObjectMotion motion{kTank, s.tankAtFrame.middle(), s.tankAtField.middle()};
     Field rgb;
     PostRenderingProcessor(options(WarpModel::Poly))
-        .process(frame, s.fieldPose, s.fieldTime, 1, rgb, std::nullopt, {&motion, 1});
+        .process(frame, s.fieldPose, s.fieldTime, 1, rgb, std::nullopt, 0.0, {&motion, 1});
     for (const PixelFormat f : {PixelFormat::Uyvy, PixelFormat::Y8}) {
         Field plain, moved;
         PostRenderingProcessor(options(WarpModel::Poly, f))
             .process(frame, s.fieldPose, s.fieldTime, 1, plain);
         PostRenderingProcessor(options(WarpModel::Poly, f))
-            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, {&motion, 1});
+            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0, {&motion, 1});
         EXPECT_EQ(moved.objectId, rgb.objectId);
         const std::size_t bpp = bytesPerPixel(f);
         std::uint64_t changedElsewhere = 0;
@@ -361,7 +361,7 @@ TEST(ObjectRestamp, NotOnAHeldField) {
     o.holdAfter = 0.01;
     Field plain, moved;
     PostRenderingProcessor(o).process(frame, s.fieldPose, s.fieldTime, 1, plain);
-    PostRenderingProcessor(o).process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt,
+    PostRenderingProcessor(o).process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0,
                                       {&motion, 1});
     EXPECT_EQ(moved.warp.model, WarpModel::Hold);
     EXPECT_EQ(moved.restampedObjects, 0);
@@ -387,7 +387,7 @@ TEST(ObjectRestamp, JumpsAndBadPointsAreLeftAlone) {
     for (const ObjectMotion& b : bad) {
         Field moved;
         PostRenderingProcessor(options(WarpModel::Poly))
-            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, {&b, 1});
+            .process(frame, s.fieldPose, s.fieldTime, 1, moved, std::nullopt, 0.0, {&b, 1});
         EXPECT_EQ(moved.restampedObjects, 0);
         EXPECT_EQ(moved.pixels, plain.pixels);
         EXPECT_EQ(moved.objectId, plain.objectId);

@@ -131,6 +131,7 @@ class ScriptedHost final : public sim::PoseSource {
     }
     ig::Pose predict(double t) override { return inner_.predict(t); }
     double startTime() const override { return inner_.startTime(); }
+    sim::RenderView view() const override { return inner_.view(); }
     std::vector<ig::Pose> poses;
     std::vector<double> times;
 
@@ -1050,16 +1051,24 @@ TEST(CigiView, ViewPacketsForThisViewOnly) {
     EXPECT_NEAR(s.view().yaw, -30.0 * kDeg, 1e-7);
     EXPECT_NEAR(s.view().pitch, -10.0 * kDeg, 1e-7);
 
+    // During the run: the same field of view again changes nothing, a wider one is the field's
+    // from this field on, a lopsided or too wide one is refused and changes nothing.
     source.session().freezeFieldOfView(s.viewHfov());
-    cigi::ViewDefinition wider = def, lopsided = def;
+    EXPECT_NEAR(source.view().hfov, 50.0 * kDeg, 1e-7);
+    cigi::ViewDefinition wider = def, lopsided = def, tooWide = def;
     wider.leftDeg = -40.0f;
     wider.rightDeg = 40.0f;
     lopsided.rightDeg = 35.0f;
-    world.host.send({def, wider, lopsided});
+    tooWide.leftDeg = -89.5f;
+    tooWide.rightDeg = 89.5f;
+    world.host.send({def, wider, lopsided, tooWide});
     source.advanceTo(2 * kPeriod);
-    EXPECT_EQ(s.stats().viewDefinitions, 2u);  // the same field of view again: fine
+    EXPECT_EQ(s.stats().viewDefinitions, 3u);  // the same one again, and the wider one
+    EXPECT_EQ(s.stats().fieldOfViewChanges, 1u);
     EXPECT_EQ(s.stats().viewDefinitionsNotApplied, 2u);
-    EXPECT_NEAR(s.viewHfov(), 50.0 * kDeg, 1e-7);
+    EXPECT_NEAR(s.viewHfov(), 80.0 * kDeg, 1e-7);
+    EXPECT_NEAR(s.fieldHfov(), 80.0 * kDeg, 1e-7);
+    EXPECT_NEAR(source.view().hfov, 80.0 * kDeg, 1e-7);
     int reported = 0;
     for (const std::string& e : s.stats().firstErrors)
         reported += e.find("View Definition for view 2") != std::string::npos;
