@@ -795,6 +795,15 @@ def moving_targets(p):
           f"k = 1: {fmt(t1['mean'], 2)} / {fmt(t1['max'], 2)} px; k = {kmax}: "
           f"{fmt(tk['mean'], 2)} / {fmt(tk['max'], 2)} px; static objects "
           f"{fmt(min(st), 2)}–{fmt(max(st), 2)} px (means)", NO_TARGET, cmd)
+    if "target_restamped" in by[kmax][m]:
+        r1, rk = by[1][m]["target_restamped"], by[kmax][m]["target_restamped"]
+        p.row(f"The same fields with the moving objects re-stamped at the field's instant "
+              f"(prp/object_restamp.hpp, {m} warp): the target's centroid error, mean / max, "
+              f"k = 1 and k = {kmax}", "within 0.1 px of the static objects' error (the pixel grid)", f"k = 1: "
+              f"{fmt(r1['mean'], 2)} / {fmt(r1['max'], 2)} px; k = {kmax}: {fmt(rk['mean'], 2)} / "
+              f"{fmt(rk['max'], 2)} px (static {fmt(max(st), 2)})",
+              status(max(by[k][m]["target_restamped"]["mean"] for k in by) <= max(st) + 0.1),
+              cmd)
     at = p.load("target_eval_720.json")
     if at and "poly" in at["horizons"][0]:
         hs = sorted(at["horizons"], key=lambda r: r["k"])
@@ -807,6 +816,12 @@ def moving_targets(p):
               f"; static objects {fmt(min(r['poly']['static']['mean'] for r in hs), 2)}–"
               f"{fmt(max(r['poly']['static']['mean'] for r in hs), 2)} px (means)",
               NO_TARGET, p.command("target_eval_720"))
+        if "target_restamped" in hs[0]["poly"]:
+            p.row(f"The same at {at['width']}×{at['height']} with the moving objects re-stamped "
+                  "at the field's instant: the target's centroid error by horizon, mean (max)",
+                  "—", "; ".join(f"k = {r['k']}: {fmt(r['poly']['target_restamped']['mean'], 2)} "
+                                f"({fmt(r['poly']['target_restamped']['max'], 2)}) px" for r in hs),
+                  NO_TARGET, p.command("target_eval_720"))
     tm = doc.get("truth_ms")
     if tm and tm.get("n"):
         p.row(f"Per-field ground truth (`flythrough --truth`, off the field thread) of a {size} "
