@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace prp {
 
@@ -19,19 +20,6 @@ constexpr double kPointRange = 16384.0;
 std::int32_t toPoint(double v) {
     const double c = std::clamp(v - 0.5, -kPointRange, kPointRange);
     return static_cast<std::int32_t>(std::floor(c * 0x1p16));
-}
-
-// Output-frame point of world point `p` seen from `basis` at `eye`; false behind the eye.
-bool project(const glm::dvec3& p, const glm::dvec3& eye, const ig::CameraBasis& basis, double focal,
-             const OutputGeometry& g, glm::dvec2& out) {
-    const glm::dvec3 v = p - eye;
-    const double z = glm::dot(v, basis.forward);
-    if (!(z > 1e-3)) return false;
-    const double sx = static_cast<double>(g.width) / g.windowWidth;
-    const double sy = static_cast<double>(g.height) / g.windowHeight;
-    out.x = (0.5 * g.windowWidth + focal * glm::dot(v, basis.right) / z) * sx;
-    out.y = (0.5 * g.windowHeight - focal * glm::dot(v, basis.up) / z) * sy;
-    return std::isfinite(out.x) && std::isfinite(out.y);
 }
 
 // The rendered pixel containing point s (clamped to the frame).
@@ -121,9 +109,11 @@ RestampStats restampMovingObjects(const ig::RenderedFrame& frame, const ig::Rgb8
     for (const ObjectMotion& m : motions)
         scratch.slot[m.id] = -1;
 
-    const ig::CameraBasis basis = ig::CameraBasis::fromPose(fieldPose);
-    // The field's own camera (its field of view may differ from the frame's).
-    const double focal = geometry.focal > 0.0 ? geometry.focal : frame.intrinsics.focal;
+    // The field's own camera (its field of view may differ from the frame's), window pixels
+    // scaled to output pixels.
+    const ig::Camera camera(fieldPose, geometry.fieldWindow());
+    const glm::dvec2 outputPerWindow{static_cast<double>(geometry.width) / geometry.windowWidth,
+                                     static_cast<double>(geometry.height) / geometry.windowHeight};
     const glm::dvec3 frameEye = frame.pose.position;
     const SourceView source{color, frame.width(), frame.height()};
     const int bpp = static_cast<int>(bytesPerPixel(field.format));
@@ -132,12 +122,10 @@ RestampStats restampMovingObjects(const ig::RenderedFrame& frame, const ig::Rgb8
         const RestampScratch::Box& box = scratch.boxes[k];
         const ObjectMotion& m = motions[k];
         if (!box.seen || m.id == 0) continue;
-        glm::dvec2 from, to;
-        if (!project(m.atFrame, fieldPose.position, basis, focal, geometry, from) ||
-            !project(m.atField, fieldPose.position, basis, focal, geometry, to)) {
-            continue;
-        }
-        const glm::dvec2 d = to - from;
+        const std::optional<glm::dvec2> from = camera.project(m.atFrame);
+        const std::optional<glm::dvec2> to = camera.project(m.atField);
+        if (!from || !to) continue;  // behind the eye
+        const glm::dvec2 d = (*to - *from) * outputPerWindow;
         const double shift = std::max(std::abs(d.x), std::abs(d.y));
         if (!(shift >= kMinRestampShiftPx && shift <= kMaxRestampShiftPx)) continue;
         // The object's change of range from the frame's eye, for its depth where it now is.
