@@ -3,10 +3,14 @@
 #include "base/cpu_features.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
+#include "ig/near_clip.hpp"
+#include "ig/surface_hit.hpp"
 
 #include <glm/geometric.hpp>
 
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <string>
 
 namespace ig {
@@ -137,15 +141,30 @@ void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFram
     const auto pixels = controlPointPixels(camera.intrinsics());
     for (int i = 0; i < kControlPointCount; ++i) {
         const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
-        const RayHit hit = intersectTerrain(map, camera.pose().position, dir);
         frame.controlPoints[i].pixel = pixels[i];
+        if (frame.nearM > 0.0) {
+            // What the pixel shows beyond the near plane.
+            const TerrainRay ray(map, camera.pose().position, dir);
+            const double t = entryBeyond(map, ray, nearPlaneRange(camera, ray.dir, frame.nearM),
+                                         std::numeric_limits<double>::infinity());
+            frame.controlPoints[i].world =
+                t >= 0.0 ? glm::dvec4{ray.at(t), 1.0} : glm::dvec4{dir, 0.0};
+            continue;
+        }
+        const RayHit hit = intersectTerrain(map, camera.pose().position, dir);
         frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
     }
 }
 
 RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
-                          const Intrinsics& intrinsics, double time, std::uint64_t sequence) {
+                          const Intrinsics& intrinsics, double time, std::uint64_t sequence,
+                          double nearM) {
+    if (!(nearM >= 0.0) || !std::isfinite(nearM)) {
+        throw InputError("near plane " + std::to_string(nearM) +
+                         " m: must be a finite distance of 0 (none) or more");
+    }
     RenderedFrame frame = newFrame(map, pose, intrinsics, time, sequence);
+    frame.nearM = nearM;
     const Camera camera(pose, intrinsics);
 
     const auto start = std::chrono::steady_clock::now();

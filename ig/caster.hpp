@@ -153,11 +153,12 @@ std::unique_ptr<Caster> makeCaster(CasterKind kind, const TerrainMap& map,
                                    const RenderOptions& options = {});
 
 // Renders a whole frame: colour, depth, the nine control points (cast exactly by the reference
-// caster through their pixel centres) and stats. Throws InputError for a non-finite pose or a
-// camera below the terrain surface.
+// caster through their pixel centres) and stats; with `nearM` > 0, nothing nearer than that
+// plane ahead of the eye (RenderedFrame::nearM). Throws InputError for a non-finite pose, a
+// camera below the terrain surface or a negative or non-finite near plane.
 RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
                           const Intrinsics& intrinsics, double time = 0.0,
-                          std::uint64_t sequence = 0);
+                          std::uint64_t sequence = 0, double nearM = 0.0);
 
 // Throws InputError for a non-finite pose, a degenerate image or a camera inside the terrain
 // (what renderFrame checks first).

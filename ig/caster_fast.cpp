@@ -26,6 +26,7 @@
 #include "ig/grid_march.hpp"
 #include "ig/level0_march.hpp"
 #include "ig/multires_march.hpp"
+#include "ig/near_clip.hpp"
 #include "ig/node_skip.hpp"
 #include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
@@ -122,7 +123,7 @@ void FastCaster::finishFrame(const Camera& camera, RenderedFrame& frame) const {
         topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
                       : std::numeric_limits<double>::infinity(),
         topLevel_};
-    finishLighting(options_, bands, camera, frame);
+    finishPasses(map_, options_, bands, camera, frame);
 }
 
 int FastCaster::workUnits(const Camera& camera) const {

@@ -3,6 +3,7 @@
 // ray marched independently from the eye, one grid line per step, no coherence (the baseline).
 #include "ig/caster_impl.hpp"
 #include "ig/grid_march.hpp"
+#include "ig/near_clip.hpp"
 #include "ig/object_trace.hpp"
 #include "ig/shading.hpp"
 #include "ig/surface_hit.hpp"
@@ -77,7 +78,7 @@ class ReferenceCaster final : public Caster {
         finishFrame(camera, frame);
     }
     void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
-        finishLighting(options_, LevelBands{}, camera, frame);
+        finishPasses(map_, options_, LevelBands{}, camera, frame);
     }
     int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
@@ -108,7 +109,7 @@ class NaiveCaster final : public Caster {
         finishFrame(camera, frame);
     }
     void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
-        finishLighting(options_, LevelBands{}, camera, frame);
+        finishPasses(map_, options_, LevelBands{}, camera, frame);
     }
     int workUnits(const Camera& camera) const override { return camera.intrinsics().height; }
     void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,

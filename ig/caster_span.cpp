@@ -15,6 +15,7 @@
 #include "base/check.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
+#include "ig/near_clip.hpp"
 #include "ig/object_pass.hpp"
 #include "ig/pyramid.hpp"
 #include "ig/shading.hpp"
@@ -211,7 +212,7 @@ class SpanCaster final : public Caster {
     }
     // A steep frame was lit by the fast caster it went to; the spans by level 0's normals.
     void finishFrame(const Camera& camera, RenderedFrame& frame) const override {
-        if (frame.stats.path == "span") finishLighting(options_, LevelBands{}, camera, frame);
+        if (frame.stats.path == "span") finishPasses(map_, options_, LevelBands{}, camera, frame);
     }
 
     // One unit: the whole frame (the resample reads across columns); columns and rows inside it

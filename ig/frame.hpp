@@ -51,6 +51,9 @@ struct RenderedFrame {
     // opacity where an object covers the pixel.
     std::vector<std::uint16_t> objectId;
     std::array<ControlPoint, kControlPointCount> controlPoints{};
+    // The near clipping plane it was drawn with (metres ahead along the view axis; 0: none):
+    // nothing nearer shows, in its pixels or its control points (ig/near_clip.hpp).
+    double nearM = 0.0;
     RenderStats stats;
     // Stereo: the right eye of the pair this frame is the left eye of (its own pose, depth and
     // control points; same sequence, time and intrinsics), or null.

@@ -163,7 +163,7 @@ bool objectRaySpan(std::span<const ObjectLayer* const> layers, const glm::dvec3&
 
 void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
                   const glm::dvec3& dir, double tEnd, const SkyModel& sky,
-                  ObjectTraceScratch& scratch, ObjectShading& out) {
+                  ObjectTraceScratch& scratch, ObjectShading& out, double tStart) {
     out = ObjectShading{};
     double t0 = 0.0, t1 = 0.0;
     if (!objectRaySpan(layers, origin, dir, tEnd, t0, t1)) return;
@@ -199,6 +199,7 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
                          if (hits.empty()) return true;
                          sortHits(hits);
                          for (const VoxelHit& hit : hits) {
+                             if (hit.enter < tStart) continue;
                              if (blendVoxelHit(hit, sky, out)) {
                                  done = true;
                                  return false;

@@ -47,10 +47,11 @@ struct ObjectTraceScratch {
 // +inf) through every layer (all on one map and one object grid), every voxel box it crosses
 // in order, and accumulates their colours front to back (colour * face shade, hazed by
 // distance; a voxel of opacity a passes 1 - a of what is behind it; alpha 0 passes all). Stops
-// when less than 1/1024 of the background would show.
+// when less than 1/1024 of the background would show. Voxels the ray enters before `tStart`
+// are left out (a near clipping plane).
 void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& origin,
                   const glm::dvec3& dir, double tEnd, const SkyModel& sky,
-                  ObjectTraceScratch& scratch, ObjectShading& out);
+                  ObjectTraceScratch& scratch, ObjectShading& out, double tStart = 0.0);
 
 // ---- The walk's parts, shared with the footprint pass (ig/object_pass.*) ----------------------
 // The span [t0, t1] traceObjects walks: the ray inside the map's footprint and the layers'

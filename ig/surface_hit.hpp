@@ -92,4 +92,14 @@ double heightAboveSurface(const TerrainMap& map, const TerrainRay& ray, double t
 double exactHitInRange(const TerrainMap& map, const TerrainRay& ray, double ta, double tb,
                        std::uint64_t* cellsVisited = nullptr);
 
+// First t in [ta, tb] at which a ray inside the terrain solid comes out of it (on or above the
+// surface, inside the footprint); ta when it is not inside at ta; negative when it stays inside
+// until it leaves the map.
+double exitSolidInRange(const TerrainMap& map, const TerrainRay& ray, double ta, double tb);
+
+// First t in [ta, tb] at which the ray enters the terrain solid from outside, the part of it
+// that is inside at ta left out (what a near clipping plane at ta leaves of the terrain: a
+// surface is drawn only where the ray crosses into it beyond the plane). Negative when none.
+double entryBeyond(const TerrainMap& map, const TerrainRay& ray, double ta, double tb);
+
 }  // namespace ig

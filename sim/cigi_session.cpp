@@ -777,6 +777,17 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
                 return;
             }
         }
+        if (vd->nearEnable) {
+            // The near plane: nothing nearer is drawn (0: none). It must stay short of the
+            // far plane this definition leaves in force.
+            const double far = vd->farEnable ? static_cast<double>(vd->farM) : viewFar_;
+            if (!(vd->nearM >= 0.0f) || !std::isfinite(vd->nearM) || !(vd->nearM < far)) {
+                refuse("near plane " + base::number(vd->nearM) +
+                       " m: must be 0 or more and short of the far plane (" + base::number(far) +
+                       " m)");
+                return;
+            }
+        }
         if (symmetric && (std::abs(vd->rightDeg + vd->leftDeg) > 0.01f || !(hfov > 0.0) ||
                           !(hfov < kMaxFieldOfView))) {
             refuse("left " + base::number(vd->leftDeg) + ", right " + base::number(vd->rightDeg) +
@@ -791,6 +802,15 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             if (farFrozen_ && viewFar_ != fieldFar_) {
                 fieldFar_ = viewFar_;
                 ++stats_.farPlaneChanges;
+            }
+            taken = true;
+        }
+        if (vd->nearEnable) {
+            viewNear_ = vd->nearM;
+            // During the run: the renders asked from this field on clip at the new plane.
+            if (nearFrozen_ && viewNear_ != fieldNear_) {
+                fieldNear_ = viewNear_;
+                ++stats_.nearPlaneChanges;
             }
             taken = true;
         }
@@ -1130,6 +1150,7 @@ nlohmann::json toJson(const CigiStats& c) {
             {"view_definitions_not_applied", c.viewDefinitionsNotApplied},
             {"field_of_view_changes", c.fieldOfViewChanges},
             {"far_plane_changes", c.farPlaneChanges},
+            {"near_plane_changes", c.nearPlaneChanges},
             {"host_losses", c.hostLosses},
             {"host_outages", outages},
             {"first_errors", c.firstErrors}};
@@ -1177,7 +1198,7 @@ bool CigiPoseSource::waitForHost(double seconds) {
 }
 
 RenderView CigiPoseSource::view() const {
-    return {session_.fieldHfov(), session_.fieldFar()};
+    return {session_.fieldHfov(), session_.fieldFar(), session_.fieldNear()};
 }
 
 ig::Pose CigiPoseSource::predict(double t) {

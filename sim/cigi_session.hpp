@@ -235,6 +235,7 @@ struct CigiStats {
     std::uint64_t viewDefinitionsNotApplied = 0;          // asymmetric, out of range
     std::uint64_t fieldOfViewChanges = 0;  // View Definitions during the run that changed it
     std::uint64_t farPlaneChanges = 0;     // likewise the far plane
+    std::uint64_t nearPlaneChanges = 0;    // likewise the near plane
     std::uint64_t entityControls = 0;      // for entities other than the ownship, applied
     std::uint64_t entitiesRefused = 0;     // unknown type or parent, a parent loop, a reserved id
     std::uint64_t entitiesCreated = 0, entitiesDestroyed = 0;
@@ -290,6 +291,18 @@ class CigiSession {
     }
     // The draw distance of the field polled last (0 before freezeFar()).
     double fieldFar() const { return farFrozen_ ? fieldFar_ : 0.0; }
+    // This view's near plane (metres ahead along the view axis) from its last View Definition
+    // that enabled one, or 0 (none) when none did.
+    double viewNear() const { return viewNear_; }
+    // The run starts with near plane `nearM` (0: none): from now on a View Definition with
+    // another changes it for the renders asked from then on.
+    void freezeNear(double nearM) {
+        fieldNear_ = nearM;
+        nearFrozen_ = true;
+    }
+    // The near plane of the field polled last (negative before freezeNear(): the renderer's
+    // own, sim::RenderView).
+    double fieldNear() const { return nearFrozen_ ? fieldNear_ : -1.0; }
     // This view's sensors, as the host last set them.
     const std::vector<SensorState>& sensors() const { return sensors_; }
     // The response of one sensor at time t (the field's instant): the tracked entity's
@@ -355,6 +368,8 @@ class CigiSession {
     double viewHfov_ = 0.0, fieldHfov_ = 0.0;
     double viewFar_ = std::numeric_limits<double>::infinity(), fieldFar_ = 0.0;
     bool farFrozen_ = false;
+    double viewNear_ = 0.0, fieldNear_ = 0.0;
+    bool nearFrozen_ = false;
     double lastHeard_ = 0.0;  // simulation time of the last good datagram
     bool silent_ = false;     // an outage is open
     CigiStats stats_;

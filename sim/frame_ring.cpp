@@ -33,7 +33,7 @@ constexpr std::uint32_t kFresh = 4;
 constexpr std::uint32_t kIndexMask = 3;
 constexpr std::size_t kAlign = 64;
 constexpr std::size_t kErrorBytes = 256;
-constexpr int kRequestWords = 10;
+constexpr int kRequestWords = 11;
 constexpr int kObjectWords = 6;  // model | id << 32 | on ground << 48, x, y, z, heading, scale
 
 std::size_t roundUp(std::size_t n) {
@@ -319,7 +319,7 @@ bool FrameRing::postRequest(const ig::Pose& pose, double time, std::uint64_t seq
     const std::uint64_t words[kRequestWords] = {
         bits(time),      bits(pose.position.x), bits(pose.position.y), bits(pose.position.z),
         bits(pose.yaw),  bits(pose.pitch),      bits(pose.roll),       sequence,
-        bits(view.hfov), bits(view.farM)};
+        bits(view.hfov), bits(view.farM),       bits(view.nearM)};
     for (int k = 0; k < kRequestWords; ++k)
         h.request[k].store(words[k], std::memory_order_relaxed);
     h.requestObjectCount.store(count, std::memory_order_relaxed);
@@ -379,6 +379,7 @@ RenderRequest FrameRing::latestRequest(std::vector<ExtraObject>* objects) const 
         r.sequence = w[7];
         r.view.hfov = real(w[8]);
         r.view.farM = real(w[9]);
+        r.view.nearM = real(w[10]);
         r.generation = before / 2;
         return r;
     }

@@ -89,6 +89,7 @@ RenderGeometry viewed(const RenderGeometry& geometry, const RenderView& view) {
     RenderGeometry g = geometry;
     if (view.hfov > 0.0) g.hfov = view.hfov;
     if (view.farM > 0.0) g.farM = view.farM;
+    if (view.nearM >= 0.0) g.nearM = view.nearM;
     return g;
 }
 
@@ -133,8 +134,8 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
             const RenderGeometry g = viewed(geometry, requestView());
             ig::Pose level = pose;
             level.roll = 0.0;  // the PRP applies roll
-            ig::RenderedFrame frame =
-                ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose), time, sequence);
+            ig::RenderedFrame frame = ig::renderFrame(
+                *caster, map, level, renderIntrinsics(g, pose), time, sequence, g.nearM);
             clipBeyondFar(frame, g.farM, sky);
             return frame;
         };
@@ -157,8 +158,8 @@ FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry&
         const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
-        ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose), time, sequence);
+        ig::RenderedFrame frame = ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose),
+                                                  time, sequence, g.nearM);
         clipBeyondFar(frame, g.farM, withObjects.sky);
         return frame;
     };
@@ -262,12 +263,14 @@ ig::RenderedFrame Pipeline::renderAt(double poseTime, std::uint64_t sequence) {
 void Pipeline::setView(const RenderView& view) {
     viewHfov_.store(view.hfov, std::memory_order_relaxed);
     viewFar_.store(view.farM, std::memory_order_relaxed);
+    viewNear_.store(view.nearM, std::memory_order_relaxed);
 }
 
 RenderView Pipeline::view() const {
-    // Two words read apart: a render starting while the view changes may take one part of each
-    // (the next render takes both).
-    return {viewHfov_.load(std::memory_order_relaxed), viewFar_.load(std::memory_order_relaxed)};
+    // Words read apart: a render starting while the view changes may take one part of each
+    // (the next render takes all).
+    return {viewHfov_.load(std::memory_order_relaxed), viewFar_.load(std::memory_order_relaxed),
+            viewNear_.load(std::memory_order_relaxed)};
 }
 
 void Pipeline::publish(ig::RenderedFrame&& frame) {
@@ -671,7 +674,7 @@ PipelineResult Pipeline::run() {
                 options_.objectMotion ? options_.objectMotion(frame.time, t)
                                       : std::span<const prp::ObjectMotion>{};
             processor.process(frame, pose, t, n, field, std::nullopt, focal, motions);
-            if (options_.truth) options_.truth->record(field, pose);
+            if (options_.truth) options_.truth->record(field, pose, focal);
         }
         noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);

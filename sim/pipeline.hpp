@@ -43,9 +43,13 @@ struct RenderGeometry {
     // Draw distance (a CIGI View Definition's far plane, metres): what lies farther is drawn
     // as sky (sim::clipBeyondFar). Infinite: everything the caster hits.
     double farM = std::numeric_limits<double>::infinity();
+    // Near clipping plane (a CIGI View Definition's, metres ahead along the view axis): what
+    // lies nearer is not drawn (ig::renderFrame's nearM). 0: none.
+    double nearM = 0.0;
 };
 
-// `geometry` with the view's field of view and draw distance where it sets them (non-zero).
+// `geometry` with the view's field of view, draw distance and near plane where it sets them
+// (field of view and draw distance non-zero, near plane not negative).
 RenderGeometry viewed(const RenderGeometry& geometry, const RenderView& view);
 // The focal length (window pixels) a field of `view` has over `frame`'s window, for
 // prp::PostRenderingProcessor::process; 0 (the frame's own) when the view sets no field of view.
@@ -223,7 +227,7 @@ class Pipeline {
     // The view of the latest field (field thread writes, the renderer reads).
     void setView(const RenderView& view);
     RenderView view() const;
-    std::atomic<double> viewHfov_{0.0}, viewFar_{0.0};
+    std::atomic<double> viewHfov_{0.0}, viewFar_{0.0}, viewNear_{-1.0};
     std::vector<ExtraObject> requestObjects_;  // postRequest's scratch
     bool requestObjectsCut_ = false;
 

@@ -803,6 +803,15 @@ int main(int argc, char** argv) {
                              cigiView, geometry.farM);
             }
             cigiSource->session().freezeFar(geometry.farM);
+            // Its near plane: nothing nearer is drawn.
+            geometry.nearM = cigiSource->session().viewNear();
+            if (geometry.nearM > 0.0) {
+                std::fprintf(stderr,
+                             "flythrough: view %d: clipped nearer than %.2f m (View "
+                             "Definition)\n",
+                             cigiView, geometry.nearM);
+            }
+            cigiSource->session().freezeNear(geometry.nearM);
         }
         geometry.margin = margin;
         geometry.coverRoll = !fixedMargin;

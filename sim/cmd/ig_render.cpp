@@ -286,6 +286,7 @@ struct BatchFlags {
     std::string posesPath;
     std::optional<double> every;
     std::optional<double> timeStep;
+    double nearM = 0.0;  // --near
 };
 
 // The scene of a batch: the static layer, and the moving objects the caster draws, which the
@@ -347,8 +348,8 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
         try {
             const double time = times[static_cast<std::size_t>(i)];
             if (scene.enabled()) *scene.moving = scene.motion->stamp(time);
-            const ig::RenderedFrame frame =
-                ig::renderFrame(caster, map, poses[i], intr, time, static_cast<std::uint64_t>(i));
+            const ig::RenderedFrame frame = ig::renderFrame(
+                caster, map, poses[i], intr, time, static_cast<std::uint64_t>(i), batch.nearM);
             std::string error;
             const std::string colorPath = numberedPath(outPattern, i);
             const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
@@ -432,6 +433,7 @@ struct PagedRequest {
     ig::CasterKind kind = ig::CasterKind::Reference;
     ig::Intrinsics intr;
     int threads = 0;
+    double nearM = 0.0;
 };
 
 // One frame from a database over --cache-mb: the tiles its footprint needs are read (waiting
@@ -484,7 +486,7 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
                      st.substituted - st.failed, st.required, terrain.cacheMb);
     }
     const auto caster = ig::makeCaster(r.kind, map, options);
-    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr);
+    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr, 0.0, 0, r.nearM);
     std::string error;
     const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
     if (io::writePng8(r.outPath, frame.width(), frame.height(), 3, {bytes, frame.color.size() * 3},
@@ -560,6 +562,10 @@ int main(int argc, char** argv) {
     app.add_option("--size", sizeText, "Window size WxH")->capture_default_str();
     app.add_option("--margin", margin, "Extra pixels rendered on every side")
         ->capture_default_str();
+    app.add_option("--near", batch.nearM,
+                   "Near clipping plane, metres ahead along the view axis: nothing nearer is "
+                   "drawn (default 0: none)")
+        ->capture_default_str();
     app.add_option("--caster", casterText, "fast | span | naive | reference")
         ->capture_default_str();
     app.add_option("--out", outPath, "Colour PNG (default frame.png; with --poses frame_####.png)");
@@ -600,6 +606,10 @@ int main(int argc, char** argv) {
         io::installStopSignals(true);
         const bool batchMode = !batch.posesPath.empty();
         if (outPath.empty()) outPath = batchMode ? "frame_####.png" : "frame.png";
+        if (!(batch.nearM >= 0.0) || !std::isfinite(batch.nearM))
+            throw ig::InputError("--near: must be a finite distance of 0 (none) or more metres");
+        if (batch.nearM > 0.0 && stereo.enabled())
+            throw ig::InputError("--near: not with --stereo (the right eye is reprojected)");
         if (batchMode) {
             if (stereo.enabled()) throw ig::InputError("--poses: not with --stereo");
             if (!poseText.empty())
@@ -683,6 +693,7 @@ int main(int argc, char** argv) {
                 req.kind = kind;
                 req.intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg), margin);
                 req.threads = threads;
+                req.nearM = batch.nearM;
                 return renderPaged(terrain, db, look, req);
             }
         }
@@ -741,6 +752,7 @@ int main(int argc, char** argv) {
             common["width"] = intr.width;
             common["height"] = intr.height;
             common["margin"] = margin;
+            common["near_m"] = batch.nearM;
             common["focal_px"] = intr.focal;
             common["levels"] = levelsText;
             common["supersample"] = look.supersample;
@@ -761,7 +773,8 @@ int main(int argc, char** argv) {
             return renderBatch(batch, *caster, map, intr, threads, time, batchScene, outPath,
                                depthPath, jsonPath, common);
         }
-        const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, intr, time);
+        const ig::RenderedFrame frame =
+            ig::renderFrame(*caster, map, pose, intr, time, 0, batch.nearM);
         if (!objectsOut.empty()) {
             std::string idError;
             if (io::writePng16(objectsOut, frame.width(), frame.height(), frame.objectId,
@@ -786,6 +799,7 @@ int main(int argc, char** argv) {
         j["width"] = frame.width();
         j["height"] = frame.height();
         j["margin"] = margin;
+        j["near_m"] = batch.nearM;
         j["focal_px"] = intr.focal;
         j["render_ms"] = frame.stats.renderMs;
         j["ns_per_pixel"] = frame.stats.renderMs * 1e6 / pixels;

@@ -9,6 +9,7 @@
 #include "ig/vox.hpp"
 #include "io/cigi.hpp"
 #include "io/udp_socket.hpp"
+#include "sim/frame_ring.hpp"
 #include "sim/pipeline.hpp"
 #include "sim/scene_motion.hpp"
 #include "sim/truth.hpp"
@@ -472,6 +473,89 @@ TEST(CigiView, FarPlaneIsTheDrawDistance) {
         }
     }
     EXPECT_GT(directions, 0);
+}
+
+// A View Definition's near plane: taken before the run and during it (for the renders asked
+// from then on), refused when not short of the far plane; the renderer draws nothing nearer
+// than it and leaves what lies beyond alone.
+TEST(CigiView, NearPlaneClipsWhatIsNearer) {
+    ig::TerrainMap map = flatMap();
+    Host host;
+    sim::CigiSession session(map, optionsFor(host));
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    EXPECT_EQ(session.viewNear(), 0.0);
+    EXPECT_EQ(session.fieldNear(), -1.0);  // the renderer's own before the run
+    cigi::ViewDefinition vd;
+    vd.nearEnable = true;
+    vd.nearM = 40.0f;
+    host.send({vd});
+    session.poll(0.0);
+    EXPECT_EQ(session.viewNear(), 40.0);
+    EXPECT_EQ(session.stats().viewDefinitions, 1u);
+    session.freezeNear(40.0);
+    EXPECT_EQ(session.fieldNear(), 40.0);
+    vd.nearM = 25.0f;
+    host.send({vd});
+    vd.farEnable = true;
+    vd.farM = 20.0f;
+    host.send({vd});  // near beyond far (a negative one the codec refuses)
+    session.poll(kPeriod);
+    EXPECT_EQ(session.viewNear(), 25.0);
+    EXPECT_EQ(session.fieldNear(), 25.0);
+    EXPECT_EQ(session.stats().nearPlaneChanges, 1u);
+    EXPECT_EQ(session.stats().viewDefinitionsNotApplied, 1u);
+    ASSERT_GE(session.stats().firstErrors.size(), 1u);
+    EXPECT_NE(session.stats().firstErrors[0].find("near plane"), std::string::npos)
+        << session.stats().firstErrors[0];
+    // The view the field loop passes on, and the renderer process's request, carry it.
+    sim::FrameRing ring(64);
+    sim::RenderView view;
+    view.nearM = session.fieldNear();
+    ring.postRequest(ig::Pose{}, 1.5, 7, {}, view);
+    EXPECT_EQ(ring.latestRequest().view.nearM, 25.0);
+
+    // Rendered with and without it, low over the ground looking down: pixels beyond the plane
+    // identical, none nearer than it; the ground cut open shows the sky along each ray.
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 96;
+    geometry.windowHeight = 64;
+    geometry.margin = 8;
+    ig::Pose pose;
+    pose.position = {320.0, 320.0, 110.0};
+    pose.pitch = -30.0 * kDeg;
+    ig::RenderOptions renderOptions;
+    const ig::RenderedFrame all =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions)(pose, 0.0, 1);
+    geometry.nearM = 25.0;
+    const ig::RenderedFrame cut =
+        sim::makeCasterRenderer(map, geometry, ig::CasterKind::Fast, renderOptions)(pose, 0.0, 1);
+    EXPECT_EQ(cut.nearM, 25.0);
+    sim::RenderView none;
+    none.nearM = 0.0;
+    EXPECT_EQ(sim::viewed(geometry, none).nearM, 0.0);  // a host's 0 takes it away
+    EXPECT_EQ(sim::viewed(geometry, {}).nearM, 25.0);   // no view: the geometry's own
+    const ig::Camera camera(all.pose, all.intrinsics);
+    std::size_t kept = 0, clipped = 0;
+    for (int y = 0; y < all.intrinsics.height; ++y) {
+        for (int x = 0; x < all.intrinsics.width; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * all.intrinsics.width + x;
+            const glm::dvec3 d = glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
+            const double ahead = all.depth[i] * glm::dot(d, camera.basis().forward);
+            if (ahead > 25.0 * (1.0 + 1e-6)) {
+                ++kept;
+                ASSERT_EQ(cut.depth[i], all.depth[i]);
+                ASSERT_EQ(cut.color[i], all.color[i]);
+            } else if (ahead < 25.0 * (1.0 - 1e-6)) {
+                ++clipped;
+                ASSERT_EQ(cut.depth[i], ig::kSkyDepth) << x << "," << y;  // flat ground
+                ASSERT_EQ(cut.color[i], ig::skyColor(renderOptions.sky, d.z)) << x << "," << y;
+            }
+        }
+    }
+    EXPECT_GT(kept, 500u);
+    EXPECT_GT(clipped, 500u);
 }
 
 }  // namespace

@@ -1,0 +1,73 @@
+#include "ig/near_clip.hpp"
+
+#include "ig/caster_impl.hpp"
+#include "ig/object_trace.hpp"
+#include "ig/shading.hpp"
+#include "ig/surface_hit.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <limits>
+
+namespace ig {
+
+double nearPlaneRange(const Camera& camera, const glm::dvec3& dir, double nearM) {
+    const double c = glm::dot(dir, camera.basis().forward);
+    return c > 0.0 ? nearM / c : std::numeric_limits<double>::infinity();
+}
+
+void clipNearer(const TerrainMap& map, const RenderOptions& options, const Camera& camera,
+                RenderedFrame& frame) {
+    const double nearM = frame.nearM;
+    if (!(nearM > 0.0)) return;
+    const Intrinsics& in = camera.intrinsics();
+    const int w = in.width, h = in.height;
+    const double f = in.focal;
+    // A point of range d along the ray through pixel offset (dx, dy) from the centre lies
+    // d f / sqrt(f^2 + dx^2 + dy^2) ahead: no pixel farther than nearM times the widest ratio
+    // can be nearer than the plane.
+    const double half = std::hypot(0.5 * w, 0.5 * h);
+    const double farthest = nearM * std::hypot(f, half) / f;
+    const bool ids = !options.objects.empty() && frame.objectId.size() == frame.depth.size();
+    runWithThreads(options.threads, [&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+            ObjectTraceScratch scratch;
+            ObjectShading shading;
+            for (int y = rows.begin(); y < rows.end(); ++y) {
+                for (int x = 0; x < w; ++x) {
+                    const std::size_t i = static_cast<std::size_t>(y) * w + x;
+                    const double d = frame.depth[i];
+                    if (!(d < farthest)) continue;  // sky, NaN, or surely beyond the plane
+                    const double dx = x + 0.5 - in.cx(), dy = y + 0.5 - in.cy();
+                    if (d * f >= nearM * std::sqrt(f * f + dx * dx + dy * dy)) continue;
+                    // The reference caster's pixel, from the plane on.
+                    const TerrainRay ray(map, camera.pose().position,
+                                         camera.rayDirection(x + 0.5, y + 0.5));
+                    const double tNear = nearPlaneRange(camera, ray.dir, nearM);
+                    const double t =
+                        entryBeyond(map, ray, tNear, std::numeric_limits<double>::infinity());
+                    if (t >= 0.0) {
+                        const glm::dvec3 p = ray.at(t);
+                        frame.color[i] = terrainColor(map, options.sky, p.x, p.y, t);
+                        frame.depth[i] = static_cast<float>(t);
+                    } else {
+                        frame.color[i] = skyColor(options.sky, ray.dir.z);
+                        frame.depth[i] = kSkyDepth;
+                    }
+                    if (ids) {
+                        traceObjects(options.objects, ray.origin, ray.dir, t >= 0.0 ? t : kSkyDepth,
+                                     options.sky, scratch, shading, tNear);
+                        frame.color[i] = composeOver(shading, frame.color[i]);
+                        frame.objectId[i] = shading.id;
+                        if (shading.id != 0) frame.depth[i] = static_cast<float>(shading.depth);
+                    }
+                }
+            }
+        });
+    });
+}
+
+}  // namespace ig
