@@ -870,8 +870,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         a.heightM = a.isHot ? hot : hat;
         return a;
     }
-    // Line of sight: a ray from the source, its first hit on the bilinear surface within the
-    // range (the reference model of ig::intersectTerrain).
+    // Line of sight: a ray from the source, its first hit within the range on the bilinear
+    // surface (the reference model of ig::intersectTerrain) or on an object (objectOnLine).
     std::uint16_t requestId = 0;
     bool extended = false, valid = false, segment = false;
     glm::dvec3 source{0.0}, dir{0.0};
@@ -905,9 +905,17 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         CHECK(false) << "not a request: " << cigi::packetName(request);
     }
     double range = -1.0;
+    std::uint16_t objectId = 0;  // the object met first; 0: the terrain
+    ig::Rgba8 objectColor{};
+    glm::dvec3 objectNormal{0.0, 0.0, 1.0};
     if (valid) {
         const ig::TerrainRay ray(map_, source, dir);
         range = ig::exactHitInRange(map_, ray, minRange, maxRange);
+        double nearest = range >= 0.0 ? range : maxRange;
+        if (objectOnLine(ray.origin, ray.dir, minRange, t, nearest, objectId, objectColor,
+                         objectNormal)) {
+            range = nearest;
+        }
         valid = range >= 0.0 && std::isfinite(range);
     }
     if (!extended) {
@@ -918,6 +926,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         a.hostFrameLsn = lsn;
         a.responseCount = 1;
         a.rangeM = valid ? range : 0.0;
+        a.entityIdValid = objectId != 0;
+        a.entityId = objectId;
         return a;
     }
     cigi::LosExtendedResponse a;
@@ -927,6 +937,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
     a.visible = segment && !valid;
     a.hostFrameLsn = lsn;
     a.responseCount = 1;
+    a.entityIdValid = objectId != 0;
+    a.entityId = objectId;
     if (valid) {
         const ig::TerrainRay ray(map_, source, dir);
         const glm::dvec3 hit = ray.at(range);
@@ -935,15 +947,73 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         a.latOrX = geo.x;
         a.lonOrY = geo.y;
         a.altOrZ = geo.z;
-        float rgb[3];
-        map_.surfaceColor(hit.x, hit.y, rgb);
-        a.red = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[0], 0.0f, 255.0f)));
-        a.green = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[1], 0.0f, 255.0f)));
-        a.blue = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[2], 0.0f, 255.0f)));
-        a.alpha = 255;
-        normalAngles(map_, hit.x, hit.y, a.normalAzimuthDeg, a.normalElevationDeg);
+        if (objectId != 0) {
+            // The voxel's own colour and opacity, and its face's normal.
+            a.red = objectColor.r;
+            a.green = objectColor.g;
+            a.blue = objectColor.b;
+            a.alpha = objectColor.a;
+            a.normalAzimuthDeg = static_cast<float>(
+                std::fmod(std::atan2(objectNormal.x, objectNormal.y) / kDeg + 360.0, 360.0));
+            a.normalElevationDeg = static_cast<float>(
+                std::asin(std::clamp(objectNormal.z, -1.0, 1.0)) / kDeg);
+        } else {
+            float rgb[3];
+            map_.surfaceColor(hit.x, hit.y, rgb);
+            a.red = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[0], 0.0f, 255.0f)));
+            a.green = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[1], 0.0f, 255.0f)));
+            a.blue = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[2], 0.0f, 255.0f)));
+            a.alpha = 255;
+            normalAngles(map_, hit.x, hit.y, a.normalAzimuthDeg, a.normalElevationDeg);
+        }
     }
     return a;
+}
+
+bool CigiSession::objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin,
+                               double t, double& range, std::uint16_t& id, ig::Rgba8& color,
+                               glm::dvec3& normal) const {
+    if (!options_.objects) return false;
+    const TruthScene& scene = *options_.objects;
+    bool met = false;
+    // Each object by its exact model (voxels as boxes, as the truth and the reference caster
+    // see them).
+    const auto meet = [&](const TruthObject& o) {
+        ig::Rgba8 c{};
+        glm::dvec3 n{0.0};
+        const double e = rayEntersObject(o, origin, dir, tMin, &c, &n);
+        if (e >= 0.0 && e < range) {
+            range = e;
+            id = o.id;
+            color = c;
+            normal = n;
+            met = true;
+        }
+    };
+    // The static world through its object grid (tens of thousands of objects): the first one
+    // drawn along the line, then its exact model (a line that grazes a resampled edge may meet
+    // the grid and miss the model: then nothing).
+    if (const ig::ObjectLayer* layer = scene.scene().staticLayer.get()) {
+        const ig::ObjectLayer* const layers[] = {layer};
+        ig::ObjectShading shading;
+        ig::traceObjects(layers, origin, dir, range, ig::SkyModel{}, losTrace_, shading, tMin);
+        if (shading.id != 0) {
+            for (const TruthObject& o : scene.staticObjects()) {
+                if (o.id == shading.id) meet(o);
+            }
+        }
+    }
+    // The scene's moving objects at t, and the host's entities drawn as its models.
+    scene.movingAt(t, losObjects_, losWhere_);
+    for (const TruthObject& o : losObjects_)
+        meet(o);
+    entityPosesAt(entities_, ownship_, t, losPoses_);
+    for (const EntityPose& e : losPoses_) {
+        glm::dvec3 base = e.pose.position;
+        if (e.onGround && onMap(map_, base.x, base.y)) base.z = map_.surfaceHeight(base.x, base.y);
+        meet(scene.placedModel(e.model, e.id, base.x, base.y, base.z, e.pose.yaw, e.scale));
+    }
+    return met;
 }
 
 void CigiSession::poll(double t) {

@@ -4,12 +4,14 @@
 #pragma once
 
 #include "ig/camera.hpp"
+#include "ig/object_trace.hpp"
 #include "ig/terrain.hpp"
 #include "io/cigi.hpp"
 #include "io/udp_socket.hpp"
 #include "sim/mailbox.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/scene_motion.hpp"
+#include "sim/truth.hpp"
 
 #include <glm/vec3.hpp>
 #include <nlohmann/json_fwd.hpp>
@@ -200,6 +202,9 @@ struct CigiOptions {
     std::vector<std::uint16_t> reservedIds;
     // The view's window in pixels (sensor gates are worked out in it).
     int windowWidth = 720, windowHeight = 486;
+    // The scene's objects (not owned; null: none): a line of sight meets them, and the host's
+    // entities drawn as its models, as well as the terrain.
+    const TruthScene* objects = nullptr;
 };
 
 // One silence of a host that had been heard: from its last good datagram to the next one (or
@@ -359,6 +364,16 @@ class CigiSession {
     std::vector<HostEntity> entities_;
     std::vector<SensorState> sensors_;       // at most 256 (ids are 8 bits), reserved
     std::vector<EntityPose> sensorScratch_;  // entity poses for the sensors
+    // The first object on a line of sight within [tMin, range) (range: the terrain's hit or the
+    // line's end), if any: range, its id and the colour and world normal of the voxel face it
+    // meets. Scratch reused (answer() is const to its callers).
+    bool objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin, double t,
+                      double& range, std::uint16_t& id, ig::Rgba8& color,
+                      glm::dvec3& normal) const;
+    mutable std::vector<EntityPose> losPoses_;
+    mutable std::vector<TruthObject> losObjects_;
+    mutable std::vector<ig::Placement> losWhere_;
+    mutable ig::ObjectTraceScratch losTrace_;
     DeadReckoning ownship_;
     io::cigi::RateControl rates_;  // the last Rate Control for entity 0 (persists)
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;

@@ -26,6 +26,12 @@ double SceneMotion::startTime() const {
 std::vector<ig::Placement> SceneMotion::placementsAt(double t) const {
     std::vector<ig::Placement> out;
     out.reserve(trajectories_.size());
+    placementsAt(t, out);
+    return out;
+}
+
+void SceneMotion::placementsAt(double t, std::vector<ig::Placement>& out) const {
+    out.clear();
     for (std::size_t i = 0; i < trajectories_.size(); ++i) {
         const ig::Pose pose = trajectories_[i].poseAt(t);
         ig::Placement p;
@@ -36,7 +42,6 @@ std::vector<ig::Placement> SceneMotion::placementsAt(double t) const {
         p.scale = scene_->moving[i].scale;
         out.push_back(p);
     }
-    return out;
 }
 
 ig::ObjectLayer SceneMotion::stamp(double t) const {

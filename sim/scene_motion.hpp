@@ -30,6 +30,8 @@ class SceneMotion {
     // Base centre and heading of every moving object at time t (each clamped to its
     // trajectory's range), in the scene's order.
     std::vector<ig::Placement> placementsAt(double t) const;
+    // The same into `out` (cleared first; it allocates only when it grows).
+    void placementsAt(double t, std::vector<ig::Placement>& out) const;
     // The moving objects at time t, on the static layer's object grid; an object whose
     // trajectory takes it off the map is left out.
     ig::ObjectLayer stamp(double t) const;

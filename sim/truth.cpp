@@ -171,9 +171,22 @@ void TruthScene::objectsAt(double t, std::vector<TruthObject>& out) const {
     out.insert(out.end(), moving.begin(), moving.end());
 }
 
+TruthObject TruthScene::placedModel(int model, std::uint16_t id, double x, double y, double z,
+                                    double heading, double scale) const {
+    CHECK(model >= 0 && static_cast<std::size_t>(model) < scene_->models.size());
+    return placed(*scene_->models[static_cast<std::size_t>(model)], id, x, y, z, heading, scale,
+                  true);
+}
+
 void TruthScene::movingAt(double t, std::vector<TruthObject>& out) const {
+    std::vector<ig::Placement> where;
+    movingAt(t, out, where);
+}
+
+void TruthScene::movingAt(double t, std::vector<TruthObject>& out,
+                          std::vector<ig::Placement>& where) const {
     out.clear();
-    const std::vector<ig::Placement> where = motion_->placementsAt(t);
+    motion_->placementsAt(t, where);
     for (std::size_t i = 0; i < where.size(); ++i) {
         const ig::MovingObject& m = scene_->moving[i];
         const ig::Placement& p = where[i];
@@ -256,7 +269,11 @@ struct ModelFrame {
     }
 };
 
-bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]);
+double firstSolidEntry(const TruthObject& o, const double p[3], const double d[3], double tMin,
+                       ig::Rgba8* color);
+bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
+    return firstSolidEntry(o, p, d, -std::numeric_limits<double>::infinity(), nullptr) >= 0.0;
+}
 bool rayMeetsSolid(const TruthObject& o, const double p[3], const double d[3]);
 
 }  // namespace
@@ -267,6 +284,37 @@ bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::d
     f.point(o, origin, p);
     f.direction(dir, d);
     return rayMeetsModel(o, p, d);
+}
+
+double rayEntersObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir,
+                       double tMin, ig::Rgba8* color, glm::dvec3* normal) {
+    // The model's frame is the world's turned and scaled: a point t along the ray in the world
+    // is the point t along the ray in the model's voxels.
+    const ModelFrame f(o);
+    double p[3], d[3];
+    f.point(o, origin, p);
+    f.direction(dir, d);
+    const double t = firstSolidEntry(o, p, d, tMin, color);
+    if (t >= 0.0 && normal) {
+        // The face entered: the axis along which the entry point lies on a voxel boundary (of
+        // those the ray moves along), facing back along the ray.
+        int face = 2;
+        double best = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) {
+            if (d[a] == 0.0) continue;
+            const double q = p[a] + t * d[a];
+            const double off = std::abs(q - std::round(q));
+            if (off < best) {
+                best = off;
+                face = a;
+            }
+        }
+        double n[3] = {0.0, 0.0, 0.0};
+        n[face] = d[face] > 0.0 ? -1.0 : 1.0;
+        // Model axes to world: the inverse of ModelFrame's turn.
+        *normal = {f.c * n[0] + f.s * n[1], -f.s * n[0] + f.c * n[1], n[2]};
+    }
+    return t;
 }
 
 bool rayMeetsObjectFast(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir) {
@@ -283,7 +331,7 @@ namespace {
 // step per axis and the ray parameters of the next voxel face and between faces. False when
 // the ray misses the box. Shared by both walks below, so they start alike.
 struct Walk {
-    double t1;
+    double t0, t1;
     int v[3], step[3];
     double next[3], delta[3];
 };
@@ -304,6 +352,7 @@ bool startWalk(const TruthObject& o, const double p[3], const double d[3], Walk&
     if (!(t0 < t1)) return false;
     // Amanatides-Woo through the voxels from the entry point.
     const double tm = t0 + 1e-9 * std::max(1.0, t0);
+    w.t0 = t0;
     w.t1 = t1;
     int* v = w.v;
     int* step = w.step;
@@ -329,24 +378,30 @@ bool startWalk(const TruthObject& o, const double p[3], const double d[3], Walk&
     return true;
 }
 
-// Whether the ray p + t d (t > 0, model voxels) meets a voxel of o's model of non-zero opacity:
-// the obvious walk, asking the model at every voxel.
-bool rayMeetsModel(const TruthObject& o, const double p[3], const double d[3]) {
+// The first voxel of o's model of non-zero opacity that the ray p + t d (t > 0, model voxels)
+// enters at t >= tMin: where it enters it, or -1; the obvious walk, asking the model at every
+// voxel (rayMeetsModel: whether there is one at all).
+double firstSolidEntry(const TruthObject& o, const double p[3], const double d[3], double tMin,
+                       ig::Rgba8* color) {
     Walk w;
-    if (!startWalk(o, p, d, w)) return false;
+    if (!startWalk(o, p, d, w)) return -1.0;
     int* v = w.v;
     const int* step = w.step;
     double* next = w.next;
     const double* delta = w.delta;
     const double t1 = w.t1;
+    double enter = w.t0;
     for (;;) {
-        if (o.model->present(v[0], v[1], v[2]) && o.model->color(v[0], v[1], v[2]).a != 0) {
-            return true;
+        if (enter >= tMin && o.model->present(v[0], v[1], v[2]) &&
+            o.model->color(v[0], v[1], v[2]).a != 0) {
+            if (color) *color = o.model->color(v[0], v[1], v[2]);
+            return enter;
         }
         const int a = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
-        if (next[a] > t1) return false;
+        if (next[a] > t1) return -1.0;
         v[a] += step[a];
-        if (v[a] < o.lo[a] || v[a] >= o.hi[a]) return false;
+        if (v[a] < o.lo[a] || v[a] >= o.hi[a]) return -1.0;
+        enter = next[a];
         next[a] += delta[a];
     }
 }
@@ -765,7 +820,7 @@ TruthWriter::~TruthWriter() {
     if (thread_.joinable()) thread_.join();
 }
 
-void TruthWriter::record(const prp::Field& field, const ig::Pose& pose) {
+void TruthWriter::record(const prp::Field& field, const ig::Pose& pose, double focal) {
     const std::uint64_t head = head_.load(std::memory_order_relaxed);
     while (head - tail_.load(std::memory_order_acquire) >= slots_.size()) {
         if (!waitWhenFull_) {
@@ -790,6 +845,7 @@ void TruthWriter::record(const prp::Field& field, const ig::Pose& pose) {
     s.lines = field.lines;
     s.firstLine = prp::fieldFirstLine(field.parity);
     s.pose = pose;
+    s.focal = focal;
     s.time = field.time;
     s.index = field.index;
     head_.store(head + 1, std::memory_order_release);
@@ -839,7 +895,10 @@ void TruthWriter::loop() {
         } else if (error_.empty()) {
             // Late when more than lateAfter fields wait behind this one (wall clock only).
             const bool late = !waitWhenFull_ && head - tail - 1 > lateAfter_;
-            computer.compute(scene_, camera_, s.ids.data(), s.width, s.lines, s.firstLine, s.pose,
+            // The field's own camera: the window at the field's focal length.
+            TruthCamera camera = camera_;
+            if (s.focal > 0.0) camera.window.focal = s.focal;
+            computer.compute(scene_, camera, s.ids.data(), s.width, s.lines, s.firstLine, s.pose,
                              s.time, s.index, truth, late);
             if (writeLine(truthLine(truth)) && late) late_.fetch_add(1, std::memory_order_release);
         }

@@ -46,6 +46,12 @@ class TruthScene {
     // The same in two parts: the static objects (never copied), and the moving ones at t.
     std::span<const TruthObject> staticObjects() const { return static_; }
     void movingAt(double t, std::vector<TruthObject>& out) const;
+    // The same with the placements' scratch given: allocates only while `out` and `where` grow.
+    void movingAt(double t, std::vector<TruthObject>& out, std::vector<ig::Placement>& where) const;
+    // Model `model` of the scene placed as an object (a host's entity drawn as that model).
+    TruthObject placedModel(int model, std::uint16_t id, double x, double y, double z,
+                            double heading, double scale) const;
+    const ig::Scene& scene() const { return *scene_; }
 
   private:
     TruthObject placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y, double z,
@@ -83,6 +89,12 @@ struct TruthCamera {
 std::array<glm::dvec3, 8> objectCorners(const TruthObject& o);
 // Whether the ray origin + t dir (t > 0) meets a voxel of `o`'s model of non-zero opacity.
 bool rayMeetsObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir);
+// Where the ray origin + t dir (dir of unit length) enters the first voxel of `o`'s model of
+// non-zero opacity that it enters at t >= tMin (the same walk as rayMeetsObject), and that
+// voxel's colour into `color` and the world normal of the face it enters by into `normal` when
+// given; negative when there is none.
+double rayEntersObject(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir,
+                       double tMin, ig::Rgba8* color = nullptr, glm::dvec3* normal = nullptr);
 // The same answer from the walk TruthComputer uses (o.solid's table; the model when null).
 bool rayMeetsObjectFast(const TruthObject& o, const glm::dvec3& origin, const glm::dvec3& dir);
 
@@ -171,7 +183,9 @@ class TruthWriter {
     TruthWriter(const TruthWriter&) = delete;
     TruthWriter& operator=(const TruthWriter&) = delete;
 
-    void record(const prp::Field& field, const ig::Pose& pose);
+    // `focal`: the field's own focal length in window pixels (a host's field of view during
+    // the run, sim::fieldFocal); 0: the camera's.
+    void record(const prp::Field& field, const ig::Pose& pose, double focal = 0.0);
     // Writes what was recorded and stops the thread; empty, or what went wrong (a write error,
     // a field without object ids, more lost fields queued at once than the writer holds).
     std::string finish();
@@ -186,6 +200,7 @@ class TruthWriter {
         int width = 0, lines = 0, firstLine = 0;
         bool hasIds = false;
         ig::Pose pose;
+        double focal = 0.0;
         double time = 0.0;
         std::uint64_t index = 0;
     };

@@ -616,6 +616,8 @@ int main(int argc, char** argv) {
             scene.emplace(ig::loadScene(scenePath, map));
             motion.emplace(*scene);
         }
+        // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
+        std::optional<sim::TruthScene> lineOfSightScene;
         const bool shippedMap = ig::usesShippedMap(terrain);
 
         // Where the aircraft is: a trajectory, a stick, or the default scenario's script.
@@ -634,6 +636,10 @@ int main(int argc, char** argv) {
             cigiOptions.startTime = 0.0;
             cigiOptions.windowWidth = width;  // sensor gates are worked out in the output window
             cigiOptions.windowHeight = height;
+            if (scene) {
+                lineOfSightScene.emplace(*scene, *motion, map);
+                cigiOptions.objects = &*lineOfSightScene;
+            }
             if (!cigiEntities.empty()) {
                 if (!scene) throw ig::InputError("--cigi-entity: needs a --scene with the models");
                 for (const std::string& text : cigiEntities) {

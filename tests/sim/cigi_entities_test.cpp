@@ -390,6 +390,121 @@ TEST(CigiEntities, DrawnWhereTheReferenceCasterPutsTheModel) {
     EXPECT_EQ(std::count(c.objectId.begin(), c.objectId.end(), std::uint16_t{42}), 0);
 }
 
+// A line of sight meets the scene's objects and the host's entities (each by its exact model)
+// before the terrain: the range to the face it meets, the object's id as the entity id, the
+// voxel's colour and the face's normal; past an object (minimum range) it goes on to the ground.
+TEST(CigiLineOfSight, MeetsObjectsAndEntitiesBeforeTheTerrain) {
+    ig::TerrainMap map = flatMap();  // the ground 100 m up
+    const std::string dir = boxModel();
+    std::ofstream(dir + "/east.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
+                                        "0,200,200,0,0,0,0\n"
+                                        "10,300,200,0,0,0,0\n";
+    // Boxes of 4 x 2 x 3 voxels of 4 m, heading north: 16 m east-west, 8 m north-south, 12 m
+    // tall. The static one spans x 312..328, y 326..334; the moving one x 242..258, y 196..204
+    // at t = 5 s.
+    const ig::Scene scene = ig::parseScene(
+        R"({"cell_m": 2, "models": {"box": {"vox": "box.vox"}},
+            "objects": [{"id": 42, "model": "box", "x": 320, "y": 330, "heading": 0, "scale": 4},
+                        {"id": 43, "model": "box", "trajectory": "east.csv", "scale": 4}]})",
+        dir + "/lines.json", map);
+    const sim::SceneMotion motion(scene);
+    const sim::TruthScene objects(scene, motion, map);
+    Host host;
+    sim::CigiOptions options = optionsFor(host);
+    options.entityTypes = {{10, scene.modelIndex("box"), 4.0}};
+    options.objects = &objects;
+    sim::CigiSession session(map, options);
+    std::string error;
+    ASSERT_EQ(session.open(&error), 0) << error;
+    host.ig = session.localEndpoint();
+    const sim::GeoFrame& geo = session.geo();
+    // Entity 5, the same box on the ground spanning x 442..458, y 446..454.
+    cigi::EntityControl e5 = entityAt(geo, 5, 10, {450.0, 450.0, 0.0}, 0.0f);
+    e5.groundClamp = cigi::GroundClamp::NonConformal;
+    host.send({e5});
+    const double t = 5.0;
+    session.poll(t);
+    ASSERT_EQ(session.entities().size(), 1u);
+
+    const auto segment = [&](glm::dvec3 from, glm::dvec3 to) {
+        cigi::LosSegmentRequest q;
+        q.extended = true;
+        const glm::dvec3 a = geo.geodeticFromWorld(from), b = geo.geodeticFromWorld(to);
+        q.sourceLatOrX = a.x;
+        q.sourceLonOrY = a.y;
+        q.sourceAltOrZ = a.z;
+        q.destinationLatOrX = b.x;
+        q.destinationLonOrY = b.y;
+        q.destinationAltOrZ = b.z;
+        return std::get<cigi::LosExtendedResponse>(session.answer(q, 0, t));
+    };
+    const ig::Rgba8 color = scene.models[0]->color(0, 0, 0);
+    struct Case {
+        glm::dvec3 from, to;
+        std::uint16_t id;
+        double range, azimuthDeg;
+    };
+    const Case cases[] = {
+        {{250.0, 330.0, 106.0}, {400.0, 330.0, 106.0}, 42, 62.0, 270.0},  // east to the static box
+        {{320.0, 250.0, 111.0}, {320.0, 400.0, 111.0}, 42, 76.0, 180.0},  // north to it
+        {{250.0, 100.0, 104.0}, {250.0, 300.0, 104.0}, 43, 96.0, 180.0},  // the moving box at t
+        {{450.0, 400.0, 104.0}, {450.0, 500.0, 104.0}, 5, 46.0, 180.0},   // the host's entity
+        {{520.0, 450.0, 110.0}, {400.0, 450.0, 110.0}, 5, 62.0, 90.0},    // it from the east
+    };
+    for (const Case& c : cases) {
+        const cigi::LosExtendedResponse r = segment(c.from, c.to);
+        ASSERT_TRUE(r.valid && r.rangeValid) << c.id;
+        EXPECT_FALSE(r.visible) << c.id;
+        EXPECT_TRUE(r.entityIdValid) << c.id;
+        EXPECT_EQ(r.entityId, c.id);
+        EXPECT_NEAR(r.rangeM, c.range, 1e-6) << c.id;
+        EXPECT_NEAR(r.normalAzimuthDeg, c.azimuthDeg, 1e-3) << c.id;
+        EXPECT_NEAR(r.normalElevationDeg, 0.0, 1e-3) << c.id;
+        EXPECT_EQ(r.red, color.r);
+        EXPECT_EQ(r.green, color.g);
+        EXPECT_EQ(r.blue, color.b);
+        EXPECT_EQ(r.alpha, color.a);
+        const glm::dvec3 hit = geo.worldFromGeodetic(r.latOrX, r.lonOrY, r.altOrZ);
+        EXPECT_NEAR(glm::length(hit - (c.from + c.range * glm::normalize(c.to - c.from))), 0.0,
+                    1e-6);
+    }
+    // From above: the top face, elevation 90.
+    const cigi::LosExtendedResponse top = segment({320.0, 330.0, 150.0}, {320.0, 330.0, 50.0});
+    EXPECT_EQ(top.entityId, 42);
+    EXPECT_NEAR(top.rangeM, 38.0, 1e-6);
+    EXPECT_NEAR(top.normalElevationDeg, 90.0, 1e-3);
+    // A line that passes beside the box meets the ground beyond it, as the terrain alone.
+    const cigi::LosExtendedResponse beside = segment({250.0, 340.0, 106.0}, {400.0, 340.0, 90.0});
+    EXPECT_TRUE(beside.valid);
+    EXPECT_FALSE(beside.entityIdValid);
+    const ig::RayHit ground = ig::intersectTerrain(map, {250.0, 340.0, 106.0}, {150.0, 0.0, -16.0});
+    EXPECT_NEAR(beside.rangeM, ground.distance, 1e-6);
+    // A minimum range past the box: the same line goes on through it to the ground.
+    cigi::LosVectorRequest v;
+    v.extended = true;
+    v.azimuthDeg = 90.0f;
+    v.elevationDeg = -2.0f;
+    v.minRangeM = 80.0f;
+    v.maxRangeM = 1000.0f;
+    const glm::dvec3 g = geo.geodeticFromWorld({250.0, 330.0, 106.0});
+    v.sourceLatOrX = g.x;
+    v.sourceLonOrY = g.y;
+    v.sourceAltOrZ = g.z;
+    const auto past = std::get<cigi::LosExtendedResponse>(session.answer(v, 0, t));
+    EXPECT_TRUE(past.valid);
+    EXPECT_FALSE(past.entityIdValid);
+    EXPECT_NEAR(past.rangeM, 6.0 / std::sin(2.0 * kDeg), 1e-3);
+    v.minRangeM = 0.0f;
+    const auto met = std::get<cigi::LosExtendedResponse>(session.answer(v, 0, t));
+    EXPECT_EQ(met.entityId, 42);
+    // Without the objects the session sees the terrain alone.
+    options.objects = nullptr;
+    sim::CigiSession bare(map, options);
+    const auto alone = std::get<cigi::LosExtendedResponse>(bare.answer(v, 0, t));
+    EXPECT_FALSE(alone.entityIdValid);
+    EXPECT_NEAR(alone.rangeM, past.rangeM, 1e-6);
+}
+
 // A View Definition's far plane is the draw distance: taken before the run, refused when it
 // changes during it; the renderer draws what lies beyond it as sky and leaves the rest alone.
 TEST(CigiView, FarPlaneIsTheDrawDistance) {

@@ -23,6 +23,7 @@
 #include <unistd.h>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -98,12 +99,34 @@ struct TruthRun {
     std::vector<prp::WarpModel> models;
 };
 
+// The trajectory's poses, with a host's field of view `hfov` from time `at` on (a CIGI View
+// Definition during the run; never when `hfov` is 0).
+class ZoomingPoses final : public sim::PoseSource {
+  public:
+    ZoomingPoses(sim::Trajectory trajectory, double at, double hfov)
+        : poses_(std::move(trajectory)), at_(at), hfov_(hfov) {}
+    ig::Pose advanceTo(double t) override {
+        t_ = t;
+        return poses_.advanceTo(t);
+    }
+    ig::Pose predict(double t) override { return poses_.predict(t); }
+    double startTime() const override { return poses_.startTime(); }
+    sim::RenderView view() const override { return {hfov_ > 0.0 && t_ >= at_ ? hfov_ : 0.0, 0.0}; }
+
+  private:
+    sim::TrajectoryPoses poses_;
+    double at_, hfov_;
+    double t_ = -1.0;
+};
+
 TruthRun runWithTruth(World& world, prp::WarpModel warp, sim::RendererMode mode,
-                      double duration = 1.0) {
+                      double duration = 1.0, double startHfov = 0.0, double zoomAt = 0.0,
+                      double zoomHfov = 0.0) {
     sim::RenderGeometry geometry;
     geometry.windowWidth = 128;
     geometry.windowHeight = 96;
     geometry.margin = 16;
+    if (startHfov > 0.0) geometry.hfov = startHfov;
     sim::PipelineOptions options;
     options.duration = duration;
     options.clock = sim::ClockMode::Simulated;
@@ -119,7 +142,7 @@ TruthRun runWithTruth(World& world, prp::WarpModel warp, sim::RendererMode mode,
         run.counts.push_back(c);
         run.models.push_back(field.warp.model);
     };
-    sim::TrajectoryPoses poses(cameraPath());
+    ZoomingPoses poses(cameraPath(), zoomAt, zoomHfov);
     io::NullSink sink;
     std::string error;
     sink.open({128, 96, io::PixelFormat::Rgb8}, &error);
@@ -212,6 +235,42 @@ TEST(Truth, DeterministicAndCountsTheWarpedIds) {
 }
 
 // Behind the ridge: in the frustum, listed, nothing visible, fully occluded.
+// A host's field of view changed during the run reaches the truth at the field it is received
+// for: from then on every object's true box is the one a run started at that field of view
+// gives (the same 3-D box projected through the same field camera), before it the old one's.
+TEST(Truth, FieldOfViewChangedDuringTheRunGivesThatFieldsTrueBoxes) {
+    World world;
+    const double wide = 60.0 * std::numbers::pi / 180.0, narrow = 40.0 * std::numbers::pi / 180.0;
+    const double at = prp::fieldTime(0.0, 30);
+    const TruthRun zoomed =
+        runWithTruth(world, prp::WarpModel::Poly, sim::RendererMode::Thread, 1.0, wide, at, narrow);
+    const TruthRun start =
+        runWithTruth(world, prp::WarpModel::Poly, sim::RendererMode::Thread, 1.0, narrow);
+    const TruthRun unzoomed =
+        runWithTruth(world, prp::WarpModel::Poly, sim::RendererMode::Thread, 1.0, wide);
+    ASSERT_EQ(zoomed.lines.size(), 60u);
+    ASSERT_EQ(start.lines.size(), 60u);
+    int compared = 0, differ = 0;
+    for (std::size_t n = 0; n < zoomed.lines.size(); ++n) {
+        const nlohmann::json z = nlohmann::json::parse(zoomed.lines[n]);
+        const nlohmann::json s = nlohmann::json::parse(start.lines[n]);
+        const nlohmann::json u = nlohmann::json::parse(unzoomed.lines[n]);
+        for (const nlohmann::json& o : z["objects"]) {
+            const nlohmann::json* same = findObject(n >= 30 ? s : u, o["id"]);
+            const nlohmann::json* other = findObject(n >= 30 ? u : s, o["id"]);
+            if (o["true_bbox"].is_null()) continue;
+            ASSERT_NE(same, nullptr) << "field " << n << " object " << o["id"];
+            EXPECT_EQ(o["true_bbox"], (*same)["true_bbox"]) << "field " << n << " " << o;
+            EXPECT_EQ(o["range_m"], (*same)["range_m"]) << "field " << n;
+            ++compared;
+            if (!other || (*other)["true_bbox"] != o["true_bbox"]) ++differ;
+        }
+    }
+    // Every field's boxes compared, and the two fields of view really give other boxes.
+    EXPECT_GT(compared, 60);
+    EXPECT_EQ(differ, compared);
+}
+
 TEST(Truth, ObjectBehindARidgeIsListedWithNoPixel) {
     World world;
     const TruthRun run = runWithTruth(world, prp::WarpModel::Poly, sim::RendererMode::Thread, 0.2);
