@@ -955,8 +955,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
             a.alpha = objectColor.a;
             a.normalAzimuthDeg = static_cast<float>(
                 std::fmod(std::atan2(objectNormal.x, objectNormal.y) / kDeg + 360.0, 360.0));
-            a.normalElevationDeg = static_cast<float>(
-                std::asin(std::clamp(objectNormal.z, -1.0, 1.0)) / kDeg);
+            a.normalElevationDeg =
+                static_cast<float>(std::asin(std::clamp(objectNormal.z, -1.0, 1.0)) / kDeg);
         } else {
             float rgb[3];
             map_.surfaceColor(hit.x, hit.y, rgb);
@@ -1007,13 +1007,34 @@ bool CigiSession::objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, 
     scene.movingAt(t, losObjects_, losWhere_);
     for (const TruthObject& o : losObjects_)
         meet(o);
-    entityPosesAt(entities_, ownship_, t, losPoses_);
-    for (const EntityPose& e : losPoses_) {
-        glm::dvec3 base = e.pose.position;
-        if (e.onGround && onMap(map_, base.x, base.y)) base.z = map_.surfaceHeight(base.x, base.y);
-        meet(scene.placedModel(e.model, e.id, base.x, base.y, base.z, e.pose.yaw, e.scale));
-    }
+    objectsAt(t, losEntities_);
+    for (const ExtraObject& e : losEntities_)
+        meet(scene.placedExtra(e));
     return met;
+}
+
+namespace {
+
+ExtraObject entityObject(const EntityPose& e) {
+    ExtraObject o;
+    o.model = e.model;
+    o.placement.id = e.id;
+    o.placement.x = e.pose.position.x;
+    o.placement.y = e.pose.position.y;
+    o.placement.z = e.pose.position.z;
+    o.placement.heading = e.pose.yaw;
+    o.placement.scale = e.scale;
+    o.onGround = e.onGround;
+    return o;
+}
+
+}  // namespace
+
+void CigiSession::objectsAt(double t, std::vector<ExtraObject>& out) const {
+    entityPosesAt(entities_, ownship_, t, entityScratch_);
+    out.clear();
+    for (const EntityPose& e : entityScratch_)
+        out.push_back(entityObject(e));
 }
 
 void CigiSession::poll(double t) {
@@ -1286,18 +1307,8 @@ void CigiPoseSource::entitiesAt(double t, std::vector<EntityPose>& out) {
 void CigiPoseSource::objectsAt(double t, std::vector<ExtraObject>& out) {
     entitiesAt(t, poses_);
     out.clear();
-    for (const EntityPose& e : poses_) {
-        ExtraObject o;
-        o.model = e.model;
-        o.placement.id = e.id;
-        o.placement.x = e.pose.position.x;
-        o.placement.y = e.pose.position.y;
-        o.placement.z = e.pose.position.z;
-        o.placement.heading = e.pose.yaw;
-        o.placement.scale = e.scale;
-        o.onGround = e.onGround;
-        out.push_back(o);
-    }
+    for (const EntityPose& e : poses_)
+        out.push_back(entityObject(e));
 }
 
 }  // namespace sim

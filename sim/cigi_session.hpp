@@ -308,6 +308,10 @@ class CigiSession {
     // The near plane of the field polled last (negative before freezeNear(): the renderer's
     // own, sim::RenderView).
     double fieldNear() const { return nearFrozen_ ? fieldNear_ : -1.0; }
+    // The host's active entities at t as objects of the scene (each entity's model at its base
+    // point and heading, its entity id as the object id), from the session's own state: the
+    // field thread's (CigiPoseSource::objectsAt is the renderer's). `out` is cleared first.
+    void objectsAt(double t, std::vector<ExtraObject>& out) const;
     // This view's sensors, as the host last set them.
     const std::vector<SensorState>& sensors() const { return sensors_; }
     // The response of one sensor at time t (the field's instant): the tracked entity's
@@ -368,9 +372,9 @@ class CigiSession {
     // line's end), if any: range, its id and the colour and world normal of the voxel face it
     // meets. Scratch reused (answer() is const to its callers).
     bool objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin, double t,
-                      double& range, std::uint16_t& id, ig::Rgba8& color,
-                      glm::dvec3& normal) const;
-    mutable std::vector<EntityPose> losPoses_;
+                      double& range, std::uint16_t& id, ig::Rgba8& color, glm::dvec3& normal) const;
+    mutable std::vector<EntityPose> entityScratch_;  // objectsAt()'s
+    mutable std::vector<ExtraObject> losEntities_;
     mutable std::vector<TruthObject> losObjects_;
     mutable std::vector<ig::Placement> losWhere_;
     mutable ig::ObjectTraceScratch losTrace_;

@@ -231,6 +231,7 @@ Pipeline::Pipeline(PoseSource& poses, FrameRenderer renderer, io::FrameSink& sin
       options_(options),
       fieldCount_(static_cast<std::uint64_t>(
           std::max(0.0, std::round(options.duration / prp::kFieldPeriod)))) {
+    truthObjects_.reserve(TruthWriter::kMaxExtraObjects);
     options_.prp.outWidth = sink.format().width;
     options_.prp.outHeight = sink.format().height;
     options_.prp.format = sink.format().format;
@@ -674,7 +675,11 @@ PipelineResult Pipeline::run() {
                 options_.objectMotion ? options_.objectMotion(frame.time, t)
                                       : std::span<const prp::ObjectMotion>{};
             processor.process(frame, pose, t, n, field, std::nullopt, focal, motions);
-            if (options_.truth) options_.truth->record(field, pose, focal);
+            if (options_.truth) {
+                truthObjects_.clear();
+                if (options_.truthObjects) options_.truthObjects(t, truthObjects_);
+                options_.truth->record(field, pose, focal, truthObjects_);
+            }
         }
         noteField(field.frameAge);
         const io::FieldBuffer buffer = toFieldBuffer(field);

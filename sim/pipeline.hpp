@@ -132,6 +132,9 @@ struct PipelineOptions {
     std::function<void(double t, std::vector<ExtraObject>& out)> requestObjects;
     // Per-field ground truth: each field and the pose it was warped to (field thread).
     TruthWriter* truth = nullptr;
+    // With `truth`: objects placed at each field's instant besides the scene's (a CIGI host's
+    // entities), asked on the field thread and listed in the field's truth.
+    std::function<void(double t, std::vector<ExtraObject>& out)> truthObjects;
     // The moving objects' own motion from a frame's instant to a field's (field thread), which
     // the processor re-stamps them by (prp/object_restamp.hpp); unset: none.
     std::function<std::span<const prp::ObjectMotion>(double frameTime, double fieldTime)>
@@ -229,6 +232,7 @@ class Pipeline {
     RenderView view() const;
     std::atomic<double> viewHfov_{0.0}, viewFar_{0.0}, viewNear_{-1.0};
     std::vector<ExtraObject> requestObjects_;  // postRequest's scratch
+    std::vector<ExtraObject> truthObjects_;    // the field loop's scratch for the truth
     bool requestObjectsCut_ = false;
 
     // Simulated clock renderer state.

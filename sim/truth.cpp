@@ -178,6 +178,16 @@ TruthObject TruthScene::placedModel(int model, std::uint16_t id, double x, doubl
                   true);
 }
 
+TruthObject TruthScene::placedExtra(const ExtraObject& e) const {
+    const ig::Placement& p = e.placement;
+    double z = p.z;
+    if (e.onGround && p.x >= 0.0 && p.y >= 0.0 && p.x <= map_->extentX() &&
+        p.y <= map_->extentY()) {
+        z = map_->surfaceHeight(p.x, p.y);
+    }
+    return placedModel(e.model, p.id, p.x, p.y, z, p.heading, p.scale);
+}
+
 void TruthScene::movingAt(double t, std::vector<TruthObject>& out) const {
     std::vector<ig::Placement> where;
     movingAt(t, out, where);
@@ -456,7 +466,7 @@ TruthComputer::~TruthComputer() = default;
 void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
                             const std::uint16_t* ids, int width, int lines, int firstLine,
                             const ig::Pose& pose, double time, std::uint64_t index, FieldTruth& out,
-                            bool late) {
+                            bool late, std::span<const TruthObject> extra) {
     out.field = index;
     out.time = time;
     out.late = late;
@@ -495,6 +505,7 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
         fixed = scene.staticObjects();
         scene.movingAt(time, objects_);
     }
+    objects_.insert(objects_.end(), extra.begin(), extra.end());
     const ig::Camera cam(pose, camera.window);
     const double kx = static_cast<double>(camera.outWidth) / camera.window.width;
     const double ky = static_cast<double>(camera.outHeight) / camera.window.height;
@@ -808,8 +819,10 @@ TruthWriter::TruthWriter(const TruthScene& scene, const TruthCamera& camera, std
       lateAfter_(static_cast<std::uint64_t>(std::max(0, lateAfter))) {
     CHECK_GT(slots, 0);
     slots_.resize(static_cast<std::size_t>(slots));
-    for (Slot& s : slots_)
+    for (Slot& s : slots_) {
         s.ids.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(maxLines));
+        s.extra.reserve(kMaxExtraObjects);
+    }
     // About a minute of fields at 59.94 Hz: lost fields are a few words each.
     lostQueue_.resize(4096);
     thread_ = std::thread([this] { loop(); });
@@ -820,7 +833,8 @@ TruthWriter::~TruthWriter() {
     if (thread_.joinable()) thread_.join();
 }
 
-void TruthWriter::record(const prp::Field& field, const ig::Pose& pose, double focal) {
+void TruthWriter::record(const prp::Field& field, const ig::Pose& pose, double focal,
+                         std::span<const ExtraObject> extra) {
     const std::uint64_t head = head_.load(std::memory_order_relaxed);
     while (head - tail_.load(std::memory_order_acquire) >= slots_.size()) {
         if (!waitWhenFull_) {
@@ -846,6 +860,9 @@ void TruthWriter::record(const prp::Field& field, const ig::Pose& pose, double f
     s.firstLine = prp::fieldFirstLine(field.parity);
     s.pose = pose;
     s.focal = focal;
+    const std::size_t kept = std::min(extra.size(), kMaxExtraObjects);
+    s.extra.assign(extra.begin(), extra.begin() + static_cast<std::ptrdiff_t>(kept));
+    if (kept < extra.size()) extraCut_.fetch_add(extra.size() - kept, std::memory_order_relaxed);
     s.time = field.time;
     s.index = field.index;
     head_.store(head + 1, std::memory_order_release);
@@ -864,6 +881,7 @@ bool TruthWriter::writeLine(const std::string& line) {
 void TruthWriter::loop() {
     TruthComputer computer;
     FieldTruth truth;
+    std::vector<TruthObject> extra;
     for (;;) {
         // The lost queue is read before the slots: a field published to it comes after every
         // slot published before it, so the merge below keeps the field order.
@@ -898,8 +916,11 @@ void TruthWriter::loop() {
             // The field's own camera: the window at the field's focal length.
             TruthCamera camera = camera_;
             if (s.focal > 0.0) camera.window.focal = s.focal;
+            extra.clear();
+            for (const ExtraObject& e : s.extra)
+                extra.push_back(scene_.placedExtra(e));
             computer.compute(scene_, camera, s.ids.data(), s.width, s.lines, s.firstLine, s.pose,
-                             s.time, s.index, truth, late);
+                             s.time, s.index, truth, late, extra);
             if (writeLine(truthLine(truth)) && late) late_.fetch_add(1, std::memory_order_release);
         }
         tail_.store(tail + 1, std::memory_order_release);

@@ -51,6 +51,9 @@ class TruthScene {
     // Model `model` of the scene placed as an object (a host's entity drawn as that model).
     TruthObject placedModel(int model, std::uint16_t id, double x, double y, double z,
                             double heading, double scale) const;
+    // An object placed by a host as the renderer stands it (on the ground under its base when
+    // it is ground-clamped and on the map).
+    TruthObject placedExtra(const ExtraObject& e) const;
     const ig::Scene& scene() const { return *scene_; }
 
   private:
@@ -139,9 +142,11 @@ class TruthComputer {
     TruthComputer& operator=(const TruthComputer&) = delete;
     // `ids`: the field's lines (width * lines), line L being frame line firstLine + 2 L.
     // `late`: the shown objects only, without the unoccluded count (FieldTruth::late).
+    // `extra`: objects placed at this instant besides the scene's (a host's entities).
     void compute(const TruthScene& scene, const TruthCamera& camera, const std::uint16_t* ids,
                  int width, int lines, int firstLine, const ig::Pose& pose, double time,
-                 std::uint64_t index, FieldTruth& out, bool late = false);
+                 std::uint64_t index, FieldTruth& out, bool late = false,
+                 std::span<const TruthObject> extra = {});
 
   private:
     struct Acc {
@@ -184,8 +189,13 @@ class TruthWriter {
     TruthWriter& operator=(const TruthWriter&) = delete;
 
     // `focal`: the field's own focal length in window pixels (a host's field of view during
-    // the run, sim::fieldFocal); 0: the camera's.
-    void record(const prp::Field& field, const ig::Pose& pose, double focal = 0.0);
+    // the run, sim::fieldFocal); 0: the camera's. `extra`: objects at the field's instant besides
+    // the scene's (a host's entities; the first kMaxExtraObjects, the rest counted).
+    void record(const prp::Field& field, const ig::Pose& pose, double focal = 0.0,
+                std::span<const ExtraObject> extra = {});
+    static constexpr std::size_t kMaxExtraObjects = 256;
+    // Extra objects left out of a field's truth (beyond kMaxExtraObjects).
+    std::uint64_t extraCut() const { return extraCut_.load(std::memory_order_acquire); }
     // Writes what was recorded and stops the thread; empty, or what went wrong (a write error,
     // a field without object ids, more lost fields queued at once than the writer holds).
     std::string finish();
@@ -203,6 +213,7 @@ class TruthWriter {
         double focal = 0.0;
         double time = 0.0;
         std::uint64_t index = 0;
+        std::vector<ExtraObject> extra;  // capacity kMaxExtraObjects, reserved up front
     };
     // A field whose ids found no slot: written as lost, in its place among the others.
     struct Lost {
@@ -222,6 +233,7 @@ class TruthWriter {
     std::atomic<std::uint64_t> head_{0}, tail_{0}, lostHead_{0}, lostTail_{0};
     std::atomic<bool> stop_{false};
     std::atomic<std::uint64_t> written_{0}, late_{0}, lost_{0}, dropped_{0}, missingIds_{0};
+    std::atomic<std::uint64_t> extraCut_{0};
     std::string error_;  // writer thread, read after join
     std::thread thread_;
 };

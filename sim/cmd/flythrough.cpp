@@ -867,6 +867,12 @@ int main(int argc, char** argv) {
                                                        opened.width, (opened.height + 1) / 2,
                                                        simulated);
             options.truth = truth.get();
+            if (cigiSource) {
+                // The host's entities at each field's instant, from the session (field thread).
+                options.truthObjects = [cigiSource](double t, std::vector<sim::ExtraObject>& out) {
+                    cigiSource->session().objectsAt(t, out);
+                };
+            }
         }
         // Moving objects re-stamped at each field's instant by the processor.
         std::optional<sim::TruthScene> motionScene;

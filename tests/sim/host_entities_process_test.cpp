@@ -17,12 +17,14 @@
 #include "common/cigi_host.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -128,6 +130,10 @@ HostRun runWith(sim::RendererMode mode) {
     } else {
         extra = [&](double t, std::vector<sim::ExtraObject>& out) { source.objectsAt(t, out); };
     }
+    // The truth lists the host's entities too, placed at each field's instant by the session.
+    po.truthObjects = [&](double t, std::vector<sim::ExtraObject>& out) {
+        source.session().objectsAt(t, out);
+    };
     HostRun run;
     po.onField = [&](const prp::Field& field, const io::FieldBuffer& buffer) {
         for (int l = 0; l < buffer.lines; ++l) {
@@ -179,6 +185,31 @@ TEST(HostEntities, RendererProcessDrawsWhatTheThreadDraws) {
     EXPECT_TRUE(thread.video == process.video) << "the videos differ";
     EXPECT_NE(thread.truth.find("\"id\":5"), std::string::npos);
     EXPECT_EQ(thread.truth, process.truth);
+    // The host's entity in every field's truth once it shows: the field's own count of its
+    // pixels, their box inside its exact box projected at the field's pose (within the warp's
+    // pixel), and moving.
+    std::istringstream lines(thread.truth);
+    std::size_t n = 0, listed = 0;
+    for (std::string line; std::getline(lines, line); ++n) {
+        const nlohmann::json field = nlohmann::json::parse(line);
+        const nlohmann::json* entity = nullptr;
+        for (const nlohmann::json& o : field["objects"])
+            if (o["id"] == 42) entity = &o;
+        ASSERT_LT(n, thread.entityPixels.size());
+        if (thread.entityPixels[n] == 0) continue;
+        ASSERT_NE(entity, nullptr) << "field " << n;
+        ++listed;
+        EXPECT_EQ((*entity)["visible_px"], thread.entityPixels[n]) << "field " << n;
+        EXPECT_TRUE((*entity)["moving"].get<bool>());
+        const nlohmann::json& box = (*entity)["bbox"];
+        const nlohmann::json& truth = (*entity)["true_bbox"];
+        ASSERT_TRUE(truth.is_array()) << "field " << n;
+        for (int k = 0; k < 2; ++k) {
+            EXPECT_GE(box[k].get<double>(), truth[k].get<double>() - 1.5) << "field " << n;
+            EXPECT_LE(box[k + 2].get<double>(), truth[k + 2].get<double>() + 1.5) << "field " << n;
+        }
+    }
+    EXPECT_GE(listed, 15u);
 }
 
 // The objects a request carries come back as they were posted, and only with that request.
