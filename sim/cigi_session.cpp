@@ -835,13 +835,27 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
 }
 
 cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
-    // A point of a request: geodetic, or an offset from the ownship in its axes.
+    // A point of a request: geodetic, or an offset from an entity (the ownship or one of the
+    // host's active entities, at t) in its own axes.
     const ig::Pose ownship = ownship_.at(t);
     const auto point = [&](bool entity, std::uint16_t entityId, double a, double b, double c,
                            bool& ok) {
         if (!entity) return geo_.worldFromGeodetic(a, b, c);
-        ok = ok && entityId == 0;
-        return ownship.position + worldFromBody(ownship, {a, b, c});
+        ig::Pose from = ownship;
+        if (entityId != 0) {
+            entityPosesAt(entities_, ownship_, t, entityScratch_);
+            const auto it = std::find_if(entityScratch_.begin(), entityScratch_.end(),
+                                         [&](const EntityPose& e) { return e.id == entityId; });
+            if (it == entityScratch_.end()) {
+                ok = false;  // no such entity, or not active
+                return glm::dvec3{0.0};
+            }
+            from = it->pose;
+            // Where the renderer stands it: a ground-clamped base on the terrain under it.
+            if (it->onGround && onMap(map_, from.position.x, from.position.y))
+                from.position.z = map_.surfaceHeight(from.position.x, from.position.y);
+        }
+        return from.position + worldFromBody(from, {a, b, c});
     };
     if (const auto* q = std::get_if<cigi::HatHotRequest>(&request)) {
         bool known = true;
@@ -873,6 +887,7 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
     // Line of sight: a ray from the source, its first hit within the range on the bilinear
     // surface (the reference model of ig::intersectTerrain) or on an object (objectOnLine).
     std::uint16_t requestId = 0;
+    std::uint16_t fromEntity = 0;  // a line from a host entity does not meet that entity
     bool extended = false, valid = false, segment = false;
     glm::dvec3 source{0.0}, dir{0.0};
     double minRange = 0.0, maxRange = 0.0;
@@ -881,6 +896,7 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         extended = s->extended;
         segment = true;
         bool known = true;
+        if (s->sourceEntityCoordinates) fromEntity = s->entityId;
         source = point(s->sourceEntityCoordinates, s->entityId, s->sourceLatOrX, s->sourceLonOrY,
                        s->sourceAltOrZ, known);
         // The destination's entity is the request's unless it names one of its own.
@@ -894,6 +910,7 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         requestId = v->requestId;
         extended = v->extended;
         bool known = true;
+        if (v->sourceEntityCoordinates) fromEntity = v->entityId;
         source = point(v->sourceEntityCoordinates, v->entityId, v->sourceLatOrX, v->sourceLonOrY,
                        v->sourceAltOrZ, known);
         const double az = v->azimuthDeg * kDeg, el = v->elevationDeg * kDeg;
@@ -912,8 +929,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         const ig::TerrainRay ray(map_, source, dir);
         range = ig::exactHitInRange(map_, ray, minRange, maxRange);
         double nearest = range >= 0.0 ? range : maxRange;
-        if (objectOnLine(ray.origin, ray.dir, minRange, t, nearest, objectId, objectColor,
-                         objectNormal)) {
+        if (objectOnLine(ray.origin, ray.dir, minRange, t, fromEntity, nearest, objectId,
+                         objectColor, objectNormal)) {
             range = nearest;
         }
         valid = range >= 0.0 && std::isfinite(range);
@@ -971,8 +988,8 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
 }
 
 bool CigiSession::objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin,
-                               double t, double& range, std::uint16_t& id, ig::Rgba8& color,
-                               glm::dvec3& normal) const {
+                               double t, std::uint16_t skip, double& range, std::uint16_t& id,
+                               ig::Rgba8& color, glm::dvec3& normal) const {
     if (!options_.objects) return false;
     const TruthScene& scene = *options_.objects;
     bool met = false;
@@ -1009,7 +1026,7 @@ bool CigiSession::objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, 
         meet(o);
     objectsAt(t, losEntities_);
     for (const ExtraObject& e : losEntities_)
-        meet(scene.placedExtra(e));
+        if (e.placement.id != skip || skip == 0) meet(scene.placedExtra(e));
     return met;
 }
 

@@ -327,7 +327,8 @@ class CigiSession {
 
     // The answer to one request at simulation time t, as sent (public for tests and tools).
     // Entity coordinates are offsets from the ownship (entity 0) in its own axes: x forward,
-    // y right, z down; other entities' answer invalid.
+    // y right, z down; or from another of the host's entities, active at t, in its axes (an
+    // unknown or inactive one answers invalid).
     io::cigi::Packet answer(const io::cigi::Packet& request, std::uint8_t hostFrameLsn,
                             double t) const;
 
@@ -369,10 +370,12 @@ class CigiSession {
     std::vector<SensorState> sensors_;       // at most 256 (ids are 8 bits), reserved
     std::vector<EntityPose> sensorScratch_;  // entity poses for the sensors
     // The first object on a line of sight within [tMin, range) (range: the terrain's hit or the
-    // line's end), if any: range, its id and the colour and world normal of the voxel face it
-    // meets. Scratch reused (answer() is const to its callers).
+    // line's end), if any, host entity `skip` (the line's source; 0: none) left out: range, its id
+    // and the colour and world normal of the voxel face it meets. Scratch reused (answer() is const
+    // to its callers).
     bool objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin, double t,
-                      double& range, std::uint16_t& id, ig::Rgba8& color, glm::dvec3& normal) const;
+                      std::uint16_t skip, double& range, std::uint16_t& id, ig::Rgba8& color,
+                      glm::dvec3& normal) const;
     mutable std::vector<EntityPose> entityScratch_;  // objectsAt()'s
     mutable std::vector<ExtraObject> losEntities_;
     mutable std::vector<TruthObject> losObjects_;

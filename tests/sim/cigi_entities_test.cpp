@@ -497,6 +497,36 @@ TEST(CigiLineOfSight, MeetsObjectsAndEntitiesBeforeTheTerrain) {
     v.minRangeM = 0.0f;
     const auto met = std::get<cigi::LosExtendedResponse>(session.answer(v, 0, t));
     EXPECT_EQ(met.entityId, 42);
+    // A line from entity 5, 6 m above its base in its own axes, to the static box: it does not
+    // meet its own model, and meets the box's north face.
+    cigi::LosSegmentRequest fromEntity;
+    fromEntity.extended = true;
+    fromEntity.sourceEntityCoordinates = true;
+    fromEntity.entityId = 5;
+    fromEntity.sourceAltOrZ = -6.0;  // z down
+    const glm::dvec3 gb = geo.geodeticFromWorld({320.0, 330.0, 106.0});
+    fromEntity.destinationLatOrX = gb.x;
+    fromEntity.destinationLonOrY = gb.y;
+    fromEntity.destinationAltOrZ = gb.z;
+    const auto seen = std::get<cigi::LosExtendedResponse>(session.answer(fromEntity, 0, t));
+    EXPECT_TRUE(seen.valid);
+    EXPECT_EQ(seen.entityId, 42);
+    EXPECT_NEAR(seen.rangeM, (450.0 - 334.0) / 120.0 * std::hypot(130.0, 120.0), 1e-6);
+    EXPECT_NEAR(seen.normalAzimuthDeg, 0.0, 1e-3);
+    // Height above the terrain of a point 10 m ahead of entity 5 and 6 m up; an unknown
+    // entity's offsets answer invalid.
+    cigi::HatHotRequest hat;
+    hat.type = cigi::HatHotType::Hat;
+    hat.entityCoordinates = true;
+    hat.entityId = 5;
+    hat.latOrX = 10.0;
+    hat.altOrZ = -6.0;
+    const auto above = std::get<cigi::HatHotResponse>(session.answer(hat, 0, t));
+    EXPECT_TRUE(above.valid);
+    EXPECT_NEAR(above.heightM, 6.0, 1e-6);
+    hat.entityId = 77;
+    EXPECT_FALSE(std::get<cigi::HatHotResponse>(session.answer(hat, 0, t)).valid);
+
     // Without the objects the session sees the terrain alone.
     options.objects = nullptr;
     sim::CigiSession bare(map, options);
