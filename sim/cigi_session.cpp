@@ -566,7 +566,7 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
         const auto it = std::find_if(sensorScratch_.begin(), sensorScratch_.end(),
                                      [&](const EntityPose& e) { return e.id == sensor.target; });
         if (it != sensorScratch_.end()) {
-            const ig::Pose eye = eyePose(ownship_.at(t), view_);
+            const ig::Pose eye = eyePose(viewCarrier(t), view_);
             double hfov = fieldHfov_ > 0.0 ? fieldHfov_ : viewHfov_;
             if (!(hfov > 0.0)) hfov = 0.5 * std::numbers::pi;
             const int w = options_.windowWidth, h = options_.windowHeight;
@@ -643,6 +643,7 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ownship_.holdAfter = t + options_.extrapolateLimit;
             view_ = {};
             viewControl_ = {};
+            viewEntity_ = 0;
             rates_ = {};
             pending_.clear();
             repeating_.clear();
@@ -722,14 +723,15 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             ++stats_.ignoredPackets;  // another image generator's view
             return;
         }
-        if (vc->entityId != 0) {
-            // Only the ownship is known: the view stays where it was.
+        if (vc->entityId != 0 && findEntity(vc->entityId) == nullptr) {
+            // An entity the host has not created: the view stays where it was.
             ++stats_.ignoredPackets;
             noteError("View Control for view " + std::to_string(vc->viewId) + " names entity " +
-                      std::to_string(vc->entityId) + ": only the ownship (entity 0) is known");
+                      std::to_string(vc->entityId) + ", which the host has not created");
             return;
         }
         ++stats_.viewControls;
+        viewEntity_ = vc->entityId;
         // Only the enabled fields change; the others keep their last value.
         cigi::ViewControl& v = viewControl_;
         if (vc->xEnable) v.x = vc->x;
@@ -1177,40 +1179,68 @@ EntityTypeModel parseEntityTypeModel(std::string_view text, std::string_view fla
     return m;
 }
 
+namespace {
+
+const HostEntity* entityById(const std::vector<HostEntity>& entities, std::uint16_t id) {
+    for (const HostEntity& e : entities) {
+        if (e.id == id) return &e;
+    }
+    return nullptr;
+}
+
+// World pose of `e` at t by walking up its chain of parents (the session refuses loops; the walk
+// is bounded all the same); whether it and all its parents are active (false as well when the
+// chain is broken: `pose` is then not set).
+bool worldPose(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
+               const HostEntity& e, double t, ig::Pose& pose, bool& drawn) {
+    // The chain, child to top (at most the entity count: the session refuses loops).
+    const HostEntity* chain[kMaxChain];
+    std::size_t n = 0;
+    const HostEntity* at = &e;
+    drawn = true;
+    while (true) {
+        if (n == kMaxChain) return false;
+        chain[n++] = at;
+        drawn = drawn && at->active;
+        if (!at->attached || at->parent == 0) break;
+        at = entityById(entities, at->parent);
+        if (!at) return false;
+    }
+    const HostEntity& top = *chain[n - 1];
+    pose = top.attached ? ownship.at(t) : top.motion.at(t);
+    for (std::size_t k = n; k-- > 0;) {
+        if (!chain[k]->attached) continue;
+        const ig::Pose o = chain[k]->motion.at(t);
+        pose = eyePose(pose, ViewOffset{o.position, o.yaw, o.pitch, o.roll});
+    }
+    return true;
+}
+
+}  // namespace
+
+ig::Pose CigiSession::viewCarrier(double t) const {
+    ig::Pose pose;
+    if (viewEntity_ != 0 && entityPoseAt(entities_, ownship_, viewEntity_, t, map_, pose))
+        return pose;
+    return ownship_.at(t);
+}
+
+bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
+                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out) {
+    const HostEntity* e = entityById(entities, id);
+    bool drawn = false;
+    if (!e || !worldPose(entities, ownship, *e, t, out, drawn)) return false;
+    if (e->onGround && onMap(map, out.position.x, out.position.y))
+        out.position.z = map.surfaceHeight(out.position.x, out.position.y);
+    return true;
+}
+
 void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
                    std::vector<EntityPose>& out) {
     out.clear();
-    // Each entity's world pose by walking up its chain of parents (the session refuses loops;
-    // the walk is bounded all the same).
-    const auto find = [&](std::uint16_t id) -> const HostEntity* {
-        for (const HostEntity& e : entities) {
-            if (e.id == id) return &e;
-        }
-        return nullptr;
-    };
-    // World pose of `e` at t, and whether it and all its parents are active.
     const auto world = [&](const HostEntity& e, ig::Pose& pose) {
-        // The chain, child to top (at most the entity count: the session refuses loops).
-        const HostEntity* chain[kMaxChain];
-        std::size_t n = 0;
-        const HostEntity* at = &e;
-        bool drawn = true;
-        while (true) {
-            if (n == kMaxChain) return false;
-            chain[n++] = at;
-            drawn = drawn && at->active;
-            if (!at->attached || at->parent == 0) break;
-            at = find(at->parent);
-            if (!at) return false;
-        }
-        const HostEntity& top = *chain[n - 1];
-        pose = top.attached ? ownship.at(t) : top.motion.at(t);
-        for (std::size_t k = n; k-- > 0;) {
-            if (!chain[k]->attached) continue;
-            const ig::Pose o = chain[k]->motion.at(t);
-            pose = eyePose(pose, ViewOffset{o.position, o.yaw, o.pitch, o.roll});
-        }
-        return drawn;
+        bool drawn = false;
+        return worldPose(entities, ownship, e, t, pose, drawn) && drawn;
     };
     for (const HostEntity& e : entities) {
         ig::Pose pose;
@@ -1286,13 +1316,13 @@ ig::Pose CigiPoseSource::clamped(ig::Pose pose, bool count) {
 
 ig::Pose CigiPoseSource::advanceTo(double t) {
     session_.poll(t);
-    latest_.back() = {session_.ownship(), session_.view()};
+    latest_.back() = {session_.ownship(), session_.view(), session_.viewEntity()};
     latest_.publish();
     EntitySnapshot& snapshot = entities_.back();
     snapshot.ownship = session_.ownship();
     snapshot.entities = session_.entities();  // allocates only when the host adds entities
     entities_.publish();
-    return clamped(eyePose(session_.ownship().at(t), session_.view()), true);
+    return clamped(eyePose(session_.viewCarrier(t), session_.view()), true);
 }
 
 bool CigiPoseSource::waitForHost(double seconds) {
@@ -1312,7 +1342,16 @@ RenderView CigiPoseSource::view() const {
 ig::Pose CigiPoseSource::predict(double t) {
     latest_.fetch();
     const EyeState& s = latest_.front();
-    return clamped(eyePose(s.ownship.at(t), s.view), false);
+    ig::Pose carrier = s.ownship.at(t);
+    if (s.entity != 0) {
+        // A view on another entity: that entity from the latest state the field loop published
+        // (the same mailbox entitiesAt() reads, on this same thread).
+        entities_.fetch();
+        const EntitySnapshot& e = entities_.front();
+        ig::Pose pose;
+        if (entityPoseAt(e.entities, e.ownship, s.entity, t, map_, pose)) carrier = pose;
+    }
+    return clamped(eyePose(carrier, s.view), false);
 }
 
 void CigiPoseSource::entitiesAt(double t, std::vector<EntityPose>& out) {

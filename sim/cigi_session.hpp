@@ -86,10 +86,11 @@ struct ViewOffset {
 // convention (the entity's pose itself, untouched, when the offset is the identity).
 ig::Pose eyePose(const ig::Pose& entity, const ViewOffset& view);
 
-// The ownship and the view's eye on it, as published to predict().
+// The ownship and the view's eye on it (or on entity `entity`), as published to predict().
 struct EyeState {
     DeadReckoning ownship;
     ViewOffset view;
+    std::uint16_t entity = 0;  // the entity the view is on (View Control); 0: the ownship
 };
 
 // --- Entities other than the ownship
@@ -141,6 +142,11 @@ struct EntityPose {
 // still placed: only drawing is off). `out` is cleared first; it allocates only when it grows.
 void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
                    std::vector<EntityPose>& out);
+// The world pose at t of entity `id` (its parents composed, active or not; a ground-clamped
+// base on `map`'s terrain under it, as the renderer stands it); false when there is no such
+// entity or its chain is broken.
+bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
+                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out);
 
 // --- Sensors
 
@@ -274,6 +280,10 @@ class CigiSession {
 
     const DeadReckoning& ownship() const { return ownship_; }
     const ViewOffset& view() const { return view_; }
+    // The entity this view is on (View Control's entity; 0: the ownship).
+    std::uint16_t viewEntity() const { return viewEntity_; }
+    // That entity's pose at t, dead-reckoned (the ownship's when the view's entity is gone).
+    ig::Pose viewCarrier(double t) const;
     // The host's entities other than the ownship, in order of creation.
     const std::vector<HostEntity>& entities() const { return entities_; }
     // The horizontal field of view (radians) of this view's last View Definition that gave
@@ -386,6 +396,7 @@ class CigiSession {
     io::cigi::IgMode igMode_ = io::cigi::IgMode::Reset;
     std::uint32_t igFrame_ = 0;
     ViewOffset view_;
+    std::uint16_t viewEntity_ = 0;
     io::cigi::ViewControl viewControl_;  // enabled fields as last set
     double viewHfov_ = 0.0, fieldHfov_ = 0.0;
     double viewFar_ = std::numeric_limits<double>::infinity(), fieldFar_ = 0.0;

@@ -390,6 +390,76 @@ TEST(CigiEntities, DrawnWhereTheReferenceCasterPutsTheModel) {
     EXPECT_EQ(std::count(c.objectId.begin(), c.objectId.end(), std::uint16_t{42}), 0);
 }
 
+// A View Control may put the view on another of the host's entities: the eye then rides that
+// entity, dead-reckoned to each field (and to the renderer's predictions); one naming an entity
+// the host has not created is refused; when the entity is destroyed the view is back on the
+// ownship.
+TEST(CigiView, ViewOnAnotherEntityRidesIt) {
+    const ig::TerrainMap map = flatMap();
+    Host host;
+    const sim::CigiOptions options = optionsFor(host);
+    sim::CigiPoseSource source(map, options);
+    std::string error;
+    ASSERT_EQ(source.open(&error), 0) << error;
+    host.ig = source.session().localEndpoint();
+    const sim::GeoFrame& geo = source.session().geo();
+    cigi::EntityControl e5 = entityAt(geo, 5, 10, {300.0, 300.0, 250.0}, 30.0f);
+    e5.pitchDeg = 5.0f;
+    cigi::RateControl rate;
+    rate.entityId = 5;
+    rate.yRate = 8.0f;  // CIGI world rates: y east
+    cigi::ViewControl vc;
+    vc.viewId = static_cast<std::uint16_t>(options.viewId);
+    vc.entityId = 5;
+    vc.xEnable = vc.zEnable = vc.pitchEnable = true;
+    vc.x = 2.0f;
+    vc.z = -3.0f;  // z down: 3 m up
+    vc.pitchDeg = -20.0f;
+    host.send({e5, rate, vc});
+    const ig::Pose first = source.advanceTo(0.0);
+    EXPECT_EQ(source.session().viewEntity(), 5);
+    const sim::ViewOffset view{{2.0, 0.0, -3.0}, 0.0, -20.0 * kDeg, 0.0};
+    const auto entityAtT = [&](double t) {
+        ig::Pose p;
+        EXPECT_TRUE(sim::entityPoseAt(source.session().entities(), source.session().ownship(), 5, t,
+                                      map, p));
+        return p;
+    };
+    const auto near = [](const ig::Pose& a, const ig::Pose& b) {
+        return glm::length(a.position - b.position) < 1e-9 && std::abs(a.yaw - b.yaw) < 1e-12 &&
+               std::abs(a.pitch - b.pitch) < 1e-12 && std::abs(a.roll - b.roll) < 1e-12;
+    };
+    EXPECT_TRUE(near(first, sim::eyePose(entityAtT(0.0), view)));
+    EXPECT_NEAR(first.position.z, 250.0 + 3.0 * std::cos(5.0 * kDeg) + 2.0 * std::sin(5.0 * kDeg),
+                1e-6);  // 3 m up and 2 m ahead in the axes of an entity pitched 5 degrees up
+    // Half a second on: 4 m further east, on the field thread and in the renderer's prediction.
+    const double t = 30 * kPeriod;
+    const ig::Pose later = source.advanceTo(t);
+    EXPECT_NEAR(later.position.x - first.position.x, 8.0 * t, 1e-6);
+    EXPECT_NEAR(later.position.y, first.position.y, 1e-6);
+    EXPECT_TRUE(near(later, sim::eyePose(entityAtT(t), view)));
+    EXPECT_TRUE(near(source.predict(t), later));
+    EXPECT_NEAR(source.predict(t + 0.25).position.x - later.position.x, 2.0, 1e-6);
+
+    // An entity the host has not created: refused, the view stays on entity 5.
+    vc.entityId = 77;
+    host.send({vc});
+    const ig::Pose kept = source.advanceTo(t + kPeriod);
+    EXPECT_TRUE(near(kept, sim::eyePose(entityAtT(t + kPeriod), view)));
+    bool named = false;
+    for (const std::string& e : source.session().stats().firstErrors)
+        named = named || e.find("names entity 77") != std::string::npos;
+    EXPECT_TRUE(named);
+    // Destroyed: back on the ownship.
+    cigi::EntityControl gone;
+    gone.entityId = 5;
+    gone.entityState = cigi::EntityState::Destroyed;
+    host.send({gone});
+    const ig::Pose own = source.advanceTo(t + 2 * kPeriod);
+    EXPECT_TRUE(near(own, sim::eyePose(source.session().ownship().at(t + 2 * kPeriod), view)));
+    EXPECT_TRUE(near(source.predict(t + 2 * kPeriod), own));
+}
+
 // A line of sight meets the scene's objects and the host's entities (each by its exact model)
 // before the terrain: the range to the face it meets, the object's id as the entity id, the
 // voxel's colour and the face's normal; past an object (minimum range) it goes on to the ground.
