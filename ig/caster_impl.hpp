@@ -3,6 +3,9 @@
 
 #include "ig/caster.hpp"
 #include "ig/lighting_pass.hpp"
+#include "ig/object_trace.hpp"
+#include "ig/shading.hpp"
+#include "ig/surface_hit.hpp"
 
 #include <memory>
 
@@ -27,6 +30,29 @@ RenderedFrame newFrame(const TerrainMap& map, const Pose& pose, const Intrinsics
 
 // The frame's nine control points, each cast exactly through its pixel centre.
 void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame);
+
+// The reference caster's pixel `i` of `frame` for `ray`: the terrain at its hit t (negative:
+// the sky), then, when `objects`, the objects' voxels the ray enters from `tStart` on to it,
+// composed over it (their id, and the depth of the first).
+inline void shadeReferencePixel(const TerrainMap& map, const RenderOptions& options,
+                                const TerrainRay& ray, double t, double tStart, bool objects,
+                                RenderedFrame& frame, std::size_t i, ObjectTraceScratch& scratch,
+                                ObjectShading& shading) {
+    if (t >= 0.0) {
+        const glm::dvec3 p = ray.at(t);
+        frame.color[i] = terrainColor(map, options.sky, p.x, p.y, t);
+        frame.depth[i] = static_cast<float>(t);
+    } else {
+        frame.color[i] = skyColor(options.sky, ray.dir.z);
+        frame.depth[i] = kSkyDepth;
+    }
+    if (!objects) return;
+    traceObjects(options.objects, ray.origin, ray.dir, t >= 0.0 ? t : kSkyDepth, options.sky,
+                 scratch, shading, tStart);
+    frame.color[i] = composeOver(shading, frame.color[i]);
+    frame.objectId[i] = shading.id;
+    if (shading.id != 0) frame.depth[i] = static_cast<float>(shading.depth);
+}
 
 }  // namespace ig
 

@@ -30,21 +30,7 @@ void renderRow(const TerrainMap& map, const RenderOptions& options, const Camera
         const std::size_t idx = static_cast<std::size_t>(y) * w + x;
         double t0, t1, t = -1.0;
         if (clipToMapBox(map, ray, t0, t1)) t = trace(ray, t0, t1, steps);
-        if (t >= 0.0) {
-            const glm::dvec3 p = ray.at(t);
-            frame.color[idx] = terrainColor(map, options.sky, p.x, p.y, t);
-            frame.depth[idx] = static_cast<float>(t);
-        } else {
-            frame.color[idx] = skyColor(options.sky, ray.dir.z);
-            frame.depth[idx] = kSkyDepth;
-        }
-        if (objects) {
-            traceObjects(options.objects, ray.origin, ray.dir, t >= 0.0 ? t : kSkyDepth,
-                         options.sky, scratch, shading);
-            frame.color[idx] = composeOver(shading, frame.color[idx]);
-            frame.objectId[idx] = shading.id;
-            if (shading.id != 0) frame.depth[idx] = static_cast<float>(shading.depth);
-        }
+        shadeReferencePixel(map, options, ray, t, 0.0, objects, frame, idx, scratch, shading);
     }
 }
 

@@ -49,21 +49,8 @@ void clipNearer(const TerrainMap& map, const RenderOptions& options, const Camer
                     const double tNear = nearPlaneRange(camera, ray.dir, nearM);
                     const double t =
                         entryBeyond(map, ray, tNear, std::numeric_limits<double>::infinity());
-                    if (t >= 0.0) {
-                        const glm::dvec3 p = ray.at(t);
-                        frame.color[i] = terrainColor(map, options.sky, p.x, p.y, t);
-                        frame.depth[i] = static_cast<float>(t);
-                    } else {
-                        frame.color[i] = skyColor(options.sky, ray.dir.z);
-                        frame.depth[i] = kSkyDepth;
-                    }
-                    if (ids) {
-                        traceObjects(options.objects, ray.origin, ray.dir, t >= 0.0 ? t : kSkyDepth,
-                                     options.sky, scratch, shading, tNear);
-                        frame.color[i] = composeOver(shading, frame.color[i]);
-                        frame.objectId[i] = shading.id;
-                        if (shading.id != 0) frame.depth[i] = static_cast<float>(shading.depth);
-                    }
+                    shadeReferencePixel(map, options, ray, t, tNear, ids, frame, i, scratch,
+                                        shading);
                 }
             }
         });

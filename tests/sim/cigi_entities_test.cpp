@@ -83,6 +83,15 @@ sim::CigiOptions optionsFor(const Host& host) {
     return o;
 }
 
+// A small view to render: 96 x 64 pixels and a margin of 8.
+sim::RenderGeometry smallView() {
+    sim::RenderGeometry g;
+    g.windowWidth = 96;
+    g.windowHeight = 64;
+    g.margin = 8;
+    return g;
+}
+
 cigi::EntityControl entityAt(const sim::GeoFrame& geo, std::uint16_t id, std::uint16_t type,
                              glm::dvec3 world, float yawDeg) {
     cigi::EntityControl e;
@@ -641,10 +650,7 @@ TEST(CigiView, FarPlaneIsTheDrawDistance) {
 
     // Rendered with and without it: pixels nearer than the far plane identical, the others sky
     // along their own ray; control points beyond it become directions.
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 96;
-    geometry.windowHeight = 64;
-    geometry.margin = 8;
+    sim::RenderGeometry geometry = smallView();
     ig::Pose pose;
     pose.position = {320.0, 20.0, 130.0};
     pose.pitch = -4.0 * kDeg;
@@ -733,10 +739,7 @@ TEST(CigiView, NearPlaneClipsWhatIsNearer) {
 
     // Rendered with and without it, low over the ground looking down: pixels beyond the plane
     // identical, none nearer than it; the ground cut open shows the sky along each ray.
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 96;
-    geometry.windowHeight = 64;
-    geometry.margin = 8;
+    sim::RenderGeometry geometry = smallView();
     ig::Pose pose;
     pose.position = {320.0, 320.0, 110.0};
     pose.pitch = -30.0 * kDeg;
