@@ -221,10 +221,11 @@ glm::dvec3 boxMiddle(const TruthObject& o) {
 
 }  // namespace
 
-std::span<const prp::ObjectMotion> ObjectMotionBetween::between(double frameTime,
-                                                                double fieldTime) {
-    scene_->movingAt(frameTime, atFrame_);
-    scene_->movingAt(fieldTime, atField_);
+std::span<const prp::ObjectMotion> ObjectMotionBetween::between(
+    double frameTime, double fieldTime, std::span<const ExtraObject> extraAtFrame,
+    std::span<const ExtraObject> extraAtField) {
+    scene_->movingAt(frameTime, atFrame_, where_);
+    scene_->movingAt(fieldTime, atField_, where_);
     motions_.clear();
     // Both lists are in the scene's order, less the objects off the map.
     std::size_t j = 0;
@@ -235,6 +236,15 @@ std::span<const prp::ObjectMotion> ObjectMotionBetween::between(double frameTime
         if (k == atField_.size()) continue;  // off the map at the field's instant
         motions_.push_back({a.id, boxMiddle(a), boxMiddle(atField_[k])});
         j = k + 1;
+    }
+    // The others by id (a host's entities: a few, in the host's order of creation).
+    for (const ExtraObject& a : extraAtFrame) {
+        for (const ExtraObject& b : extraAtField) {
+            if (b.placement.id != a.placement.id || b.model != a.model) continue;
+            motions_.push_back({a.placement.id, boxMiddle(scene_->placedExtra(a)),
+                                boxMiddle(scene_->placedExtra(b))});
+            break;
+        }
     }
     return motions_;
 }

@@ -69,15 +69,20 @@ class TruthScene {
 
 // The moving objects' own motion between a rendered frame's instant and a field's: the middle
 // of each one's box at both (prp::ObjectMotion, for the processor's re-stamp). Objects on the
-// map at only one of the two instants are left out. Scratch reused.
+// map at only one of the two instants are left out. `extraAtFrame`, `extraAtField`: objects
+// placed by someone else at the two instants (a host's entities), matched by id. Scratch
+// reused: nothing allocated once it has grown.
 class ObjectMotionBetween {
   public:
     explicit ObjectMotionBetween(const TruthScene& scene) : scene_(&scene) {}
-    std::span<const prp::ObjectMotion> between(double frameTime, double fieldTime);
+    std::span<const prp::ObjectMotion> between(double frameTime, double fieldTime,
+                                               std::span<const ExtraObject> extraAtFrame = {},
+                                               std::span<const ExtraObject> extraAtField = {});
 
   private:
     const TruthScene* scene_;
     std::vector<TruthObject> atFrame_, atField_;
+    std::vector<ig::Placement> where_;
     std::vector<prp::ObjectMotion> motions_;
 };
 

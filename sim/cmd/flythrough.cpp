@@ -875,13 +875,24 @@ int main(int argc, char** argv) {
             }
         }
         // Moving objects re-stamped at each field's instant by the processor.
+        // A CIGI host's entities too, each where the session dead-reckons it at both instants.
         std::optional<sim::TruthScene> motionScene;
         std::optional<sim::ObjectMotionBetween> motionBetween;
-        if (scene && !scene->moving.empty() && !noRestamp) {
+        std::vector<sim::ExtraObject> entitiesAtFrame, entitiesAtField;
+        const bool hostEntities = cigiSource && !cigiEntities.empty();
+        if (scene && (!scene->moving.empty() || hostEntities) && !noRestamp) {
             motionScene.emplace(*scene, *motion, map);
             motionBetween.emplace(*motionScene);
-            options.objectMotion = [&motionBetween](double frameTime, double fieldTime) {
-                return motionBetween->between(frameTime, fieldTime);
+            entitiesAtFrame.reserve(sim::TruthWriter::kMaxExtraObjects);
+            entitiesAtField.reserve(sim::TruthWriter::kMaxExtraObjects);
+            options.objectMotion = [&motionBetween, &entitiesAtFrame, &entitiesAtField, cigiSource](
+                                       double frameTime, double fieldTime) {
+                if (cigiSource) {
+                    cigiSource->session().objectsAt(frameTime, entitiesAtFrame);
+                    cigiSource->session().objectsAt(fieldTime, entitiesAtField);
+                }
+                return motionBetween->between(frameTime, fieldTime, entitiesAtFrame,
+                                              entitiesAtField);
             };
         }
         std::unique_ptr<io::FieldClock> clock =
