@@ -218,6 +218,11 @@ fi
 if wanted objects; then
     run objects_bench "$bin/bench-objects" --repeat 3 --json "$data/objects_bench.json"
     run truth_bench "$bin/bench-truth" --repeat 3 --json "$data/truth_bench.json"
+    # Ground truth on the wall clock at 720x486: the demo scene's low pass over the forest.
+    run flythrough_truth "$bin/flythrough" --scene data/scenes/puget-sound.json \
+        --start 52250,37950,+120,40 --out null --contact none --quiet --truth /tmp/truth.jsonl \
+        --json "$data/flythrough_truth.json"
+    rm -f /tmp/truth.jsonl
 fi
 if [ ${#only[@]} -gt 0 ] && wanted field-clock; then
     scripts/bench-field-clock.sh 600 "$data/field_clock.json"
