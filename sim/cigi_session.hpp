@@ -421,6 +421,10 @@ class CigiPoseSource final : public PoseSource {
     double startTime() const override { return startTime_; }
     // The session's field of view and draw distance (fieldHfov(), fieldFar()).
     RenderView view() const override;
+    // Polls at t0 (advanceTo): the host's messages that arrived while the run started (the
+    // first frame rendered, the renderer started) are applied before the first field, which
+    // then drains only what arrives in its own period.
+    void settle(double t0) override { advanceTo(t0); }
     // The renderer's side (one thread, the one calling predict): the host's active entities at
     // t, from the latest state advanceTo() published.
     void entitiesAt(double t, std::vector<EntityPose>& out);

@@ -594,6 +594,7 @@ PipelineResult Pipeline::run() {
         }
     }
     const FieldPriority priority(!simulated && options_.raiseFieldPriority);
+    poses_.settle(t0_);
 
     prp::Field field;
     io::FieldPacer pacer(clock_, c0_);

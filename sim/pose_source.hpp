@@ -28,6 +28,10 @@ class PoseSource {
     // advanceTo(), or before the first the view the run starts with; all 0 (the renderer's
     // geometry) unless a host sets it.
     virtual RenderView view() const { return {}; }
+    // Field loop, once, after the first frame is rendered and just before the first field (at
+    // its instant t0): a source fed from outside takes what waited meanwhile (a host's
+    // messages), so the first field does not pay for the start's backlog. Nothing by default.
+    virtual void settle(double t0) { (void)t0; }
 };
 
 // Stick converted to the flight model's controls.
