@@ -5,24 +5,32 @@
 
 #include "common/counting_new.hpp"
 
+#include <unistd.h>
+
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <new>
 #include <string>
 #include <vector>
 
+#include "ig/scene.hpp"
 #include "ig/synthetic.hpp"
+#include "ig/vox.hpp"
 #include "io/cigi.hpp"
 #include "io/udp_socket.hpp"
 #include "sim/cigi_session.hpp"
+#include "sim/truth.hpp"
 
 namespace {
 
 namespace cigi = io::cigi;
 
-TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
-    const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
+// A host's fields against a session, warmed for 10 fields then counted for 100; `objects`: the
+// scene whose objects lines of sight meet (null: the terrain alone).
+void expectWarmFieldsAllocateNothing(const ig::TerrainMap& map, const sim::TruthScene* objects) {
     io::UdpSocket host;
     ASSERT_EQ(host.open({0x7f000001, 0}), 0);
     sim::CigiOptions options;
@@ -31,6 +39,7 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     options.origin = {47.0, -122.0, 0.0};
     options.startPose.position = {100.0, 100.0, map.maxHeight() + 100.0};
     options.entityTypes = {{10, 0, 2.0, 4, 2, 3}};
+    options.objects = objects;
     sim::CigiPoseSource source(map, options);
     std::string error;
     ASSERT_EQ(source.open(&error), 0) << error;
@@ -75,7 +84,17 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     cigi::ComponentControl target;
     target.componentClass = cigi::kComponentClassSensor;
     target.data[0] = 5;
-    const std::vector<cigi::Packet> packets{control, e, r, hat, los, other, sensor, target};
+    // A line of sight from the ownship to the entity, past the scene's box when there is one.
+    cigi::LosSegmentRequest toEntity;
+    toEntity.extended = true;
+    toEntity.sourceLatOrX = g.x;
+    toEntity.sourceLonOrY = g.y;
+    toEntity.sourceAltOrZ = g.z;
+    toEntity.destinationLatOrX = g5.x;
+    toEntity.destinationLonOrY = g5.y;
+    toEntity.destinationAltOrZ = g5.z;
+    const std::vector<cigi::Packet> packets{control, e,      r,      hat,     los,
+                                            other,   sensor, target, toEntity};
     const std::vector<std::uint8_t> good = cigi::encodeMessage(packets, cigi::ByteOrder::Big);
     const std::vector<std::uint8_t> bad(good.begin(), good.begin() + 30);
     std::vector<std::uint8_t> answers(65536);
@@ -99,7 +118,14 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     EXPECT_EQ(gAllocations.load() - before, 0u);
     const sim::CigiStats& stats = source.session().stats();
     EXPECT_EQ(stats.entityUpdates, 110u);
-    EXPECT_EQ(stats.answers, 220u);
+    EXPECT_EQ(stats.answers, 330u);
+    // The line meets the scene's box when there is a scene, else nothing but the terrain.
+    const auto line = std::get<cigi::LosExtendedResponse>(
+        source.session().answer(toEntity, 0, 110 * 1001.0 / 60000.0));
+    EXPECT_EQ(line.entityIdValid, objects != nullptr);
+    if (objects) {
+        EXPECT_EQ(line.entityId, 900);
+    }
     EXPECT_EQ(stats.badDatagrams, 0u);
     EXPECT_EQ(stats.sensorResponses, 110u);
 
@@ -108,6 +134,40 @@ TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
     for (int n = 110; n < 120; ++n)
         field(n);
     EXPECT_EQ(stats.badDatagrams, 10u);
+}
+
+TEST(CigiSessionAllocation, AFieldAllocatesNothingOnceWarm) {
+    const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
+    expectWarmFieldsAllocateNothing(map, nullptr);
+}
+
+// The same with the objects of a scene, which lines of sight meet: a box standing in the line
+// from the ownship to the entity, and one driving.
+TEST(CigiSessionAllocation, LinesOfSightMeetingObjectsAllocateNothingOnceWarm) {
+    const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
+    const std::string dir = std::string(VIG_TEST_TMP) + "/cigi-alloc-" + std::to_string(::getpid());
+    std::filesystem::create_directories(dir);
+    ig::VoxFile vox;
+    vox.palette = ig::defaultVoxPalette();
+    vox.models.push_back(ig::VoxModel(4, 2, 3));
+    for (auto& v : vox.models[0].voxels)
+        v = 7;
+    ig::writeVox(dir + "/box.vox", vox);
+    std::ofstream(dir + "/drive.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
+                                         "0,600,600,0,0,0,0\n"
+                                         "10,700,600,0,0,0,0\n";
+    // The line runs from (900, 800, top + 50) to (900, 1200, top): at y = 1000 it is 25 m above
+    // the top, inside a box standing there from 20 m above the top, 12 m tall.
+    const double top = map.maxHeight();
+    const ig::Scene scene = ig::parseScene(
+        R"({"cell_m": 2, "models": {"box": {"vox": "box.vox"}},
+            "objects": [{"id": 900, "model": "box", "x": 900, "y": 1000, "z": )" +
+            std::to_string(top + 20.0) + R"(, "heading": 0, "scale": 4},
+                        {"id": 901, "model": "box", "trajectory": "drive.csv", "scale": 4}]})",
+        dir + "/scene.json", map);
+    const sim::SceneMotion motion(scene);
+    const sim::TruthScene objects(scene, motion, map);
+    expectWarmFieldsAllocateNothing(map, &objects);
 }
 
 }  // namespace
