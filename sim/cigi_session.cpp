@@ -844,18 +844,11 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
                            bool& ok) {
         if (!entity) return geo_.worldFromGeodetic(a, b, c);
         ig::Pose from = ownship;
-        if (entityId != 0) {
-            entityPosesAt(entities_, ownship_, t, entityScratch_);
-            const auto it = std::find_if(entityScratch_.begin(), entityScratch_.end(),
-                                         [&](const EntityPose& e) { return e.id == entityId; });
-            if (it == entityScratch_.end()) {
-                ok = false;  // no such entity, or not active
-                return glm::dvec3{0.0};
-            }
-            from = it->pose;
-            // Where the renderer stands it: a ground-clamped base on the terrain under it.
-            if (it->onGround && onMap(map_, from.position.x, from.position.y))
-                from.position.z = map_.surfaceHeight(from.position.x, from.position.y);
+        bool drawn = true;
+        if (entityId != 0 &&
+            (!entityPoseAt(entities_, ownship_, entityId, t, map_, from, &drawn) || !drawn)) {
+            ok = false;  // no such entity, or not active
+            return glm::dvec3{0.0};
         }
         return from.position + worldFromBody(from, {a, b, c});
     };
@@ -1226,10 +1219,12 @@ ig::Pose CigiSession::viewCarrier(double t) const {
 }
 
 bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
-                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out) {
+                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out,
+                  bool* drawn) {
     const HostEntity* e = entityById(entities, id);
-    bool drawn = false;
-    if (!e || !worldPose(entities, ownship, *e, t, out, drawn)) return false;
+    bool active = false;
+    if (!e || !worldPose(entities, ownship, *e, t, out, active)) return false;
+    if (drawn) *drawn = active;
     if (e->onGround && onMap(map, out.position.x, out.position.y))
         out.position.z = map.surfaceHeight(out.position.x, out.position.y);
     return true;

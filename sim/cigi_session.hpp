@@ -144,9 +144,10 @@ void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning&
                    std::vector<EntityPose>& out);
 // The world pose at t of entity `id` (its parents composed, active or not; a ground-clamped
 // base on `map`'s terrain under it, as the renderer stands it); false when there is no such
-// entity or its chain is broken.
+// entity or its chain is broken. `drawn`, when given: whether it and all its parents are active.
 bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
-                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out);
+                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out,
+                  bool* drawn = nullptr);
 
 // --- Sensors
 
