@@ -3,6 +3,7 @@
 // (tests/common/counting_new.cpp).
 #include <gtest/gtest.h>
 
+#include "common/box_vox.hpp"
 #include "common/counting_new.hpp"
 
 #include <unistd.h>
@@ -147,12 +148,7 @@ TEST(CigiSessionAllocation, LinesOfSightMeetingObjectsAllocateNothingOnceWarm) {
     const ig::TerrainMap map = ig::makeSyntheticTerrain(64, 5, 30.0);
     const std::string dir = std::string(VIG_TEST_TMP) + "/cigi-alloc-" + std::to_string(::getpid());
     std::filesystem::create_directories(dir);
-    ig::VoxFile vox;
-    vox.palette = ig::defaultVoxPalette();
-    vox.models.push_back(ig::VoxModel(4, 2, 3));
-    for (auto& v : vox.models[0].voxels)
-        v = 7;
-    ig::writeVox(dir + "/box.vox", vox);
+    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
     std::ofstream(dir + "/drive.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
                                          "0,600,600,0,0,0,0\n"
                                          "10,700,600,0,0,0,0\n";

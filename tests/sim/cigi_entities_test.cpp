@@ -14,6 +14,7 @@
 #include "sim/scene_motion.hpp"
 #include "sim/truth.hpp"
 
+#include "common/box_vox.hpp"
 #include "common/cigi_host.hpp"
 
 #include <gtest/gtest.h>
@@ -63,12 +64,7 @@ std::string tmpDir() {
 // A model 4 x 2 x 3 voxels (so its heading shows), written once per test process.
 std::string boxModel() {
     const std::string dir = tmpDir();
-    ig::VoxFile vox;
-    vox.palette = ig::defaultVoxPalette();
-    vox.models.push_back(ig::VoxModel(4, 2, 3));
-    for (auto& v : vox.models[0].voxels)
-        v = 7;
-    ig::writeVox(dir + "/box.vox", vox);
+    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
     return dir;
 }
 

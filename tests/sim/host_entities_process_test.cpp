@@ -14,6 +14,7 @@
 #include "sim/scene_motion.hpp"
 #include "sim/truth.hpp"
 
+#include "common/box_vox.hpp"
 #include "common/cigi_host.hpp"
 
 #include <gtest/gtest.h>
@@ -65,12 +66,7 @@ struct HostRun {
 HostRun runWith(sim::RendererMode mode, bool restamp = false, float speed = 8.0f) {
     ig::TerrainMap map = flatMap();
     const std::string dir = tmpDir();
-    ig::VoxFile vox;
-    vox.palette = ig::defaultVoxPalette();
-    vox.models.push_back(ig::VoxModel(4, 2, 3));
-    for (auto& v : vox.models[0].voxels)
-        v = 7;
-    ig::writeVox(dir + "/box.vox", vox);
+    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
     const ig::Scene scene = ig::parseScene(
         R"({"cell_m": 2, "models": {"box": {"vox": "box.vox"}},
             "objects": [{"id": 5, "model": "box", "x": 330, "y": 340, "heading": 20, "scale": 4}]})",

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include "common/box_vox.hpp"
 
 #include <unistd.h>
 #include <cmath>
@@ -52,12 +53,7 @@ void writeModels(const std::string& dir) {
                 if (rng() % 3 == 0) sparse.set(x, y, z, rng() % 5 == 0 ? 9 : 7);
     vox.models.push_back(sparse);
     ig::writeVox(dir + "/sparse.vox", vox);
-    ig::VoxFile box;
-    box.palette = ig::defaultVoxPalette();
-    box.models.push_back(ig::VoxModel(4, 4, 6));
-    for (auto& v : box.models[0].voxels)
-        v = 7;
-    ig::writeVox(dir + "/box.vox", box);
+    vig_test::writeBoxVox(dir + "/box.vox", 4, 4, 6);
 }
 
 struct Scene {

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/box_vox.hpp"
 #include "common/counting_new.hpp"
 
 #include <cmath>
@@ -59,12 +60,7 @@ struct World {
 
     World() {
         const std::string dir = tmpDir();
-        ig::VoxFile vox;
-        vox.palette = ig::defaultVoxPalette();
-        vox.models.push_back(ig::VoxModel(4, 4, 6));
-        for (auto& v : vox.models[0].voxels)
-            v = 7;
-        ig::writeVox(dir + "/box.vox", vox);
+        vig_test::writeBoxVox(dir + "/box.vox", 4, 4, 6);
         std::ofstream(dir + "/drive.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
                                              "0,240,230,0,90,0,0\n"
                                              "10,360,230,0,90,0,0\n";
