@@ -13,6 +13,8 @@
 namespace ig {
 
 class ObjectLayer;
+class SlopeBlocks;
+class TerrainPyramid;
 struct SunLighting;
 
 // Span: cost per terrain sample (docs/design/span_renderer.md); steep frames go to Fast.
@@ -92,6 +94,12 @@ struct RenderOptions {
     // the map's colours as albedo and light them by the sun at the frame's time. Null: the
     // colours as they are, bit for bit.
     std::shared_ptr<const SunLighting> lighting;
+    // Fast caster: what it otherwise builds from the whole map at construction, supplied by a
+    // map paged from a terrain database (ig/paged_terrain.hpp), whose arrays are filled only
+    // where a frame reads them: the pyramid (with `levels` coarser levels) and the per-block
+    // slope bounds. Null: built from the map. The span caster does not take them.
+    std::shared_ptr<const TerrainPyramid> pyramid;
+    std::shared_ptr<const SlopeBlocks> slopes;
 };
 
 // Columns of the vertical image plane per output pixel at the pitched window's most stretched

@@ -26,7 +26,9 @@ class AutoSupersampleCaster final : public Caster {
             throw InputError("levels " + std::to_string(options.levels) +
                              ": expected auto or a count >= 0");
         }
-        const auto pyramid = std::make_shared<const TerrainPyramid>(map, options.levels);
+        const auto pyramid = options.pyramid
+                                 ? options.pyramid
+                                 : std::make_shared<const TerrainPyramid>(map, options.levels);
         for (int n = 1; n <= options.supersampleMax; ++n) {
             RenderOptions o = options;
             o.supersample = n;

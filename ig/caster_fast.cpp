@@ -86,10 +86,12 @@ FastCaster::FastCaster(const TerrainMap& map, const RenderOptions& options,
                          ": expected auto or a count >= 0");
     }
     chooseKernel();
+    if (!pyramid) pyramid = options_.pyramid;
     pyramid_ =
         pyramid ? std::move(pyramid) : std::make_shared<const TerrainPyramid>(map, options_.levels);
+    CHECK(&pyramid_->map() == &map) << "the pyramid is another map's";
     topLevel_ = pyramid_->levelCount() - 1;
-    slopes_ = std::make_unique<SlopeBlocks>(map);
+    slopes_ = options_.slopes ? options_.slopes : std::make_shared<const SlopeBlocks>(map);
     far_.emplace(map_, *pyramid_, options_.sky);
     rows_ = RowsCaster{&options_.sky, pyramid_.get(), options_.skipNodes, &*far_};
 }

@@ -253,7 +253,7 @@ class FastCaster final : public Caster {
     UnitRenderer renderUnit_ = nullptr;
     int columnsPerUnit_ = 1;
     std::shared_ptr<const TerrainPyramid> pyramid_;
-    std::unique_ptr<SlopeBlocks> slopes_;
+    std::shared_ptr<const SlopeBlocks> slopes_;
     int topLevel_ = 0;
     std::optional<FarMarch> far_;      // the multiresolution march past the level-0 distance
     RowsCaster rows_{};                // what the row batches read of this caster

@@ -185,6 +185,11 @@ class SpanCaster final : public Caster {
             throw InputError("span stretch limit " + std::to_string(options_.spanMaxStretch) +
                              ": expected 1..16");
         }
+        if (options_.pyramid || options_.slopes) {
+            throw InputError(
+                "the span caster renders a map in memory, not one paged from a "
+                "terrain database (use --caster fast)");
+        }
         RenderOptions fast = options_;
         fast.objects.clear();  // drawn by this caster over either path's terrain
         fast.levels = options_.levels == 0 ? kLevelsAuto : options_.levels;

@@ -33,7 +33,8 @@ void addTerrainOptions(CLI::App& app, TerrainOptions& o) {
                    "--cache-mb");
     app.add_option("--cache-mb", o.cacheMb,
                    "Memory for the terrain database, MB (default 4096): a larger map is paged by "
-                   "the view (ig-render with --caster reference|naive; refused elsewhere)");
+                   "the view (ig-render: one frame, caster fast|naive|reference; flythrough: a "
+                   "--trajectory; refused elsewhere)");
 }
 
 namespace {
@@ -155,7 +156,7 @@ TerrainMap loadTerrainFromOptions(const TerrainOptions& o) {
                 " MB in memory, over --cache-mb " +
                 std::to_string(static_cast<long long>(o.cacheMb)) +
                 "; this program loads a database whole (ig-render pages one "
-                "beyond the budget with --caster reference or naive)");
+                "beyond the budget, and flythrough flies a --trajectory over one)");
         }
         return db.loadMap();
     }

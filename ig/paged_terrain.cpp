@@ -1,20 +1,26 @@
 // The map's arrays are sparse (one address range each for heights, colours and cell maxima, as
-// the whole map's): a level-0 tile is copied to where the in-memory map holds it, so the casters
-// index the map exactly as they do a loaded one and read the same bits where the tiles are
-// placed. Tiles share their edge samples: an exact tile writes all of its samples; a stand-in
-// (upsampled from a coarser level) leaves alone the edge samples an exact neighbour holds, and
-// its cell maxima are recomputed from the map after every frame's placements, so they bound
-// its bilinear surface whatever its neighbours. A page is given back only when no placed tile
-// touches any of its samples.
+// the whole map's), and so are the fast caster's pyramid's (each coarser display level's, each
+// node level's): a tile is copied to where the in-memory map or pyramid holds it, so the casters
+// index them exactly as they do a loaded map and read the same bits where the tiles are
+// placed. Nodes are stored complemented (ig/pyramid.hpp), so a node tile not placed reads "no
+// bound" and a march only looks closer there; the frame's footprint holds every node its rays
+// pass over, so with every tile resident the nodes read are the in-memory pyramid's. Tiles share
+// their edge samples: an exact tile writes all of its samples; a stand-in (upsampled from a coarser
+// level) leaves alone the edge samples an exact neighbour holds, and its cell maxima are recomputed
+// from the map after every frame's placements, so they bound its bilinear surface whatever its
+// neighbours. A page is given back only when no placed tile touches any of its samples.
 #include "ig/paged_terrain.hpp"
 
+#include "ig/caster.hpp"
 #include "ig/pyramid.hpp"
 
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <set>
 
 namespace ig {
@@ -26,13 +32,9 @@ constexpr std::size_t kPage = 4096;
 TerrainMap makeSparseMap(const TerrainDbInfo& info) {
     const double a = info.minRaw * info.heightScale + info.heightOffset;
     const double b = info.maxRaw * info.heightScale + info.heightOffset;
-    // The header has no slope bound: the height range over one sample spacing bounds it.
-    const double range =
-        static_cast<double>(info.maxRaw - info.minRaw) * std::abs(info.heightScale);
-    const double gx = range / info.spacingX, gy = range / info.spacingY;
     return TerrainMap::sparse(info.width, info.height, info.spacingX, info.spacingY,
                               info.heightScale, info.heightOffset, std::min(a, b), std::max(a, b),
-                              std::sqrt(gx * gx + gy * gy));
+                              info.maxSlope());
 }
 
 // Gives back the pages of an array (elements of `elemBytes`, `rowLen` a row, `total` in all)
@@ -65,20 +67,60 @@ PagedTerrain::PagedTerrain(const TerrainDb& db, const Options& options)
     g.originY = db.info().originY;
     g.crs = db.info().crs;
     map_.setGeoreference(std::move(g));
+    if (options_.pyramid) {
+        pyramid_ =
+            std::make_shared<TerrainPyramid>(map_, options_.levels, TerrainPyramid::Sparse{});
+        slopes_ = std::make_shared<const SlopeBlocks>(map_, db.slopeBounds());
+    }
+}
+
+PagedTerrain::Grid PagedTerrain::grid(TileKind kind, int level) const {
+    Grid g;
+    if (kind == TileKind::Nodes) {
+        g.w = pyramid_->nodesX(level);
+        g.h = pyramid_->nodesY(level);
+        g.nodes = pyramid_->nodesComplement(level);
+    } else if (level == 0) {
+        // The map's arrays: written only here, between frames (the map is the casters' const).
+        TerrainMap& m = const_cast<TerrainMap&>(map_);
+        g.w = m.width();
+        g.h = m.height();
+        g.heights = m.rawHeights().data();
+        g.colors = m.colors().data();
+        g.cellMax = m.cellMaxData();
+    } else {
+        const PyramidLevel& l = pyramid_->level(level);
+        g.w = l.width;
+        g.h = l.height;
+        g.heights = pyramid_->levelHeights(level);
+        g.colors = pyramid_->levelColors(level);
+        g.cellMax = pyramid_->levelCellMax(level);
+    }
+    return g;
+}
+
+std::size_t PagedTerrain::placedTiles() const {
+    std::size_t n = 0;
+    for (const auto& [key, p] : placed_)
+        n += key.kind == TileKind::Display;
+    return n;
 }
 
 std::size_t PagedTerrain::substitutedTiles() const {
     std::size_t n = 0;
-    for (const auto& [cell, p] : placed_)
-        n += p.sourceLevel != 0;
+    for (const auto& [key, p] : placed_)
+        n += key.kind == TileKind::Display && p.sourceLevel != key.level;
     return n;
 }
 
 std::size_t PagedTerrain::placedBytes() const {
-    const int t = db_.layout().tileSize();
-    // Heights, colours and cell maxima: rows of at most T + 1 samples, each row spanning at
-    // most two pages per array.
-    return placed_.size() * static_cast<std::size_t>(t + 1) * 3 * 2 * kPage;
+    const std::size_t t = static_cast<std::size_t>(db_.layout().tileSize());
+    // Display tiles: heights, colours and cell maxima, rows of at most T + 1 samples, each row
+    // spanning at most two pages per array; node tiles: T rows.
+    std::size_t bytes = 0;
+    for (const auto& [key, p] : placed_)
+        bytes += (key.kind == TileKind::Display ? (t + 1) * 3 : t) * 2 * kPage;
+    return bytes;
 }
 
 std::size_t PagedTerrain::residentMapBytes() const {
@@ -92,70 +134,85 @@ std::size_t PagedTerrain::residentMapBytes() const {
             n += c & 1;
         return n * kPage;
     };
-    return resident(map_.rawHeights().data(), map_.rawHeights().size() * sizeof(std::uint16_t)) +
-           resident(map_.colors().data(), map_.colors().size() * sizeof(Rgb8)) +
-           resident(map_.cellMaxData(),
-                    (static_cast<std::size_t>(map_.width() - 1) * (map_.height() - 1) + 2) *
-                        sizeof(std::uint16_t));
+    auto levelBytes = [&](int k) {
+        const Grid g = grid(TileKind::Display, k);
+        const std::size_t n = static_cast<std::size_t>(g.w) * g.h;
+        return resident(g.heights, n * sizeof(std::uint16_t)) +
+               resident(g.colors, n * sizeof(Rgb8)) +
+               resident(g.cellMax,
+                        static_cast<std::size_t>(g.w - 1) * (g.h - 1) * sizeof(std::uint16_t));
+    };
+    std::size_t total = levelBytes(0);
+    if (pyramid_) {
+        for (int k = 1; k < pyramid_->levelCount(); ++k)
+            total += levelBytes(k);
+        for (int j = 1; j < pyramid_->nodeLevelCount(); ++j) {
+            const Grid g = grid(TileKind::Nodes, j);
+            total += resident(g.nodes, static_cast<std::size_t>(g.w) * g.h * sizeof(std::uint16_t));
+        }
+    }
+    return total;
 }
 
-bool PagedTerrain::samplePlaced(int x, int y) const {
+bool PagedTerrain::sampleHeld(int level, int x, int y, const TileKey* self, bool exact) const {
     const int t = db_.layout().tileSize();
-    for (int ty = std::max(0, (y + t - 1) / t - 1); ty <= y / t; ++ty)
-        for (int tx = std::max(0, (x + t - 1) / t - 1); tx <= x / t; ++tx)
-            if (placed_.count({tx, ty})) return true;
+    for (int ty = std::max(0, (y + t - 1) / t - 1); ty <= y / t; ++ty) {
+        for (int tx = std::max(0, (x + t - 1) / t - 1); tx <= x / t; ++tx) {
+            const TileKey k{TileKind::Display, level, tx, ty};
+            if (self && k == *self) continue;
+            const auto it = placed_.find(k);
+            if (it != placed_.end() && (!exact || it->second.sourceLevel == level)) return true;
+        }
+    }
     return false;
 }
 
 void PagedTerrain::copyTile(const TerrainTile& tile) {
-    const std::size_t w = static_cast<std::size_t>(map_.width());
-    std::uint16_t* heights = map_.rawHeights().data();
-    Rgb8* colors = map_.colors().data();
-    std::uint16_t* cellMax = map_.cellMaxData();
+    const Grid g = grid(tile.key.kind, tile.key.level);
+    const std::size_t w = static_cast<std::size_t>(g.w);
+    if (tile.key.kind == TileKind::Nodes) {
+        for (int r = 0; r < tile.height; ++r) {
+            std::uint16_t* out = g.nodes + static_cast<std::size_t>(tile.y0 + r) * w + tile.x0;
+            const std::uint16_t* in = tile.maxima.data() + static_cast<std::size_t>(r) * tile.width;
+            for (int c = 0; c < tile.width; ++c)
+                out[c] = static_cast<std::uint16_t>(~in[c]);
+        }
+        return;
+    }
     for (int r = 0; r < tile.height; ++r) {
         const std::size_t o = static_cast<std::size_t>(tile.y0 + r) * w + tile.x0;
         const std::size_t s = static_cast<std::size_t>(r) * tile.width;
-        std::memcpy(heights + o, tile.heights.data() + s, tile.width * sizeof(std::uint16_t));
-        std::memcpy(colors + o, tile.colors.data() + s, tile.width * sizeof(Rgb8));
+        std::memcpy(g.heights + o, tile.heights.data() + s, tile.width * sizeof(std::uint16_t));
+        std::memcpy(g.colors + o, tile.colors.data() + s, tile.width * sizeof(Rgb8));
     }
     for (int r = 0; r + 1 < tile.height; ++r) {
         const std::size_t o = static_cast<std::size_t>(tile.y0 + r) * (w - 1) + tile.x0;
         const std::size_t s = static_cast<std::size_t>(r) * (tile.width - 1);
-        std::memcpy(cellMax + o, tile.maxima.data() + s, (tile.width - 1) * sizeof(std::uint16_t));
+        std::memcpy(g.cellMax + o, tile.maxima.data() + s,
+                    (tile.width - 1) * sizeof(std::uint16_t));
     }
 }
 
-void PagedTerrain::fillFromCoarser(int tx, int ty, const TerrainTile& coarse) {
+void PagedTerrain::fillFromCoarser(const TileKey& key, const TerrainTile& coarse) {
     int x0, y0, tw, th;
-    db_.layout().tileExtent(TileKey{TileKind::Display, 0, tx, ty}, x0, y0, tw, th);
-    const std::size_t w = static_cast<std::size_t>(map_.width());
-    std::uint16_t* heights = map_.rawHeights().data();
-    Rgb8* colors = map_.colors().data();
-    const int k = coarse.key.level;
-    const int t = db_.layout().tileSize();
-    // An edge sample an exact neighbour holds stays as it is.
-    auto heldByExact = [&](int x, int y) {
-        for (int ny = std::max(0, (y + t - 1) / t - 1); ny <= y / t; ++ny) {
-            for (int nx = std::max(0, (x + t - 1) / t - 1); nx <= x / t; ++nx) {
-                if (nx == tx && ny == ty) continue;
-                const auto it = placed_.find({nx, ny});
-                if (it != placed_.end() && it->second.sourceLevel == 0) return true;
-            }
-        }
-        return false;
-    };
+    db_.layout().tileExtent(key, x0, y0, tw, th);
+    const Grid g = grid(TileKind::Display, key.level);
+    const std::size_t w = static_cast<std::size_t>(g.w);
+    // Level-k sample x lies at coarse-level coordinate x / 2^(k' - k).
+    const int shift = coarse.key.level - key.level;
     for (int r = 0; r < th; ++r) {
         const int y = y0 + r;
-        const double v = std::clamp(std::ldexp(static_cast<double>(y), -k) - coarse.y0, 0.0,
+        const double v = std::clamp(std::ldexp(static_cast<double>(y), -shift) - coarse.y0, 0.0,
                                     static_cast<double>(coarse.height - 1));
         const int j = std::min(static_cast<int>(v), std::max(coarse.height - 2, 0));
         const double fv = v - j;
         const int j1 = std::min(j + 1, coarse.height - 1);
         for (int c = 0; c < tw; ++c) {
             const int x = x0 + c;
+            // An edge sample an exact neighbour holds stays as it is.
             const bool edge = r == 0 || c == 0 || r == th - 1 || c == tw - 1;
-            if (edge && heldByExact(x, y)) continue;
-            const double u = std::clamp(std::ldexp(static_cast<double>(x), -k) - coarse.x0, 0.0,
+            if (edge && sampleHeld(key.level, x, y, &key, true)) continue;
+            const double u = std::clamp(std::ldexp(static_cast<double>(x), -shift) - coarse.x0, 0.0,
                                         static_cast<double>(coarse.width - 1));
             const int i = std::min(static_cast<int>(u), std::max(coarse.width - 2, 0));
             const double fu = u - i;
@@ -173,54 +230,61 @@ void PagedTerrain::fillFromCoarser(int tx, int ty, const TerrainTile& coarse) {
                 return static_cast<std::uint8_t>(std::clamp(std::lround(val), 0L, 255L));
             };
             const std::size_t o = static_cast<std::size_t>(y) * w + x;
-            heights[o] = static_cast<std::uint16_t>(std::clamp(std::lround(hh), 0L, 65535L));
-            colors[o] =
+            g.heights[o] = static_cast<std::uint16_t>(std::clamp(std::lround(hh), 0L, 65535L));
+            g.colors[o] =
                 Rgb8{q(lerp2(c00.r, c10.r, c01.r, c11.r)), q(lerp2(c00.g, c10.g, c01.g, c11.g)),
                      q(lerp2(c00.b, c10.b, c01.b, c11.b))};
         }
     }
 }
 
-void PagedTerrain::updateCellMax(int tx, int ty) {
+void PagedTerrain::updateCellMax(const TileKey& key) {
     int x0, y0, tw, th;
-    db_.layout().tileExtent(TileKey{TileKind::Display, 0, tx, ty}, x0, y0, tw, th);
-    const std::size_t w = static_cast<std::size_t>(map_.width());
-    const std::uint16_t* heights = map_.rawHeights().data();
-    std::uint16_t* cellMax = map_.cellMaxData();
+    db_.layout().tileExtent(key, x0, y0, tw, th);
+    const Grid g = grid(TileKind::Display, key.level);
+    const std::size_t w = static_cast<std::size_t>(g.w);
     for (int r = 0; r + 1 < th; ++r) {
         const std::size_t o = static_cast<std::size_t>(y0 + r) * w + x0;
-        cellMaxRow(heights + o, heights + o + w, tw - 1,
-                   cellMax + static_cast<std::size_t>(y0 + r) * (w - 1) + x0);
+        cellMaxRow(g.heights + o, g.heights + o + w, tw - 1,
+                   g.cellMax + static_cast<std::size_t>(y0 + r) * (w - 1) + x0);
     }
 }
 
-void PagedTerrain::release(int tx, int ty) {
+void PagedTerrain::release(const TileKey& key) {
     int x0, y0, tw, th;
-    db_.layout().tileExtent(TileKey{TileKind::Display, 0, tx, ty}, x0, y0, tw, th);
+    db_.layout().tileExtent(key, x0, y0, tw, th);
     const int t = db_.layout().tileSize();
-    const std::size_t w = static_cast<std::size_t>(map_.width());
-    const std::size_t n = w * static_cast<std::size_t>(map_.height());
+    const Grid g = grid(key.kind, key.level);
+    const std::size_t w = static_cast<std::size_t>(g.w);
+    const std::size_t n = w * static_cast<std::size_t>(g.h);
+    // Cells (and nodes) belong to exactly one tile.
+    auto ownedUsed = [&](int row, int c0, int c1) {
+        for (int sx = c0 / t; sx <= c1 / t; ++sx)
+            if (placed_.count(TileKey{key.kind, key.level, sx, row / t})) return true;
+        return false;
+    };
+    if (key.kind == TileKind::Nodes) {
+        for (int r = 0; r < th; ++r) {
+            releaseRange(g.nodes, sizeof(std::uint16_t), w, n,
+                         static_cast<std::size_t>(y0 + r) * w + x0, tw, ownedUsed);
+        }
+        return;
+    }
     // Samples: a placed tile's extent includes its edges.
     auto samplesUsed = [&](int row, int c0, int c1) {
         for (int sy = std::max(0, (row + t - 1) / t - 1); sy <= row / t; ++sy)
             for (int sx = std::max(0, (c0 + t - 1) / t - 1); sx <= c1 / t; ++sx)
-                if (placed_.count({sx, sy})) return true;
-        return false;
-    };
-    // Cells belong to exactly one tile.
-    auto cellsUsed = [&](int row, int c0, int c1) {
-        for (int sx = c0 / t; sx <= c1 / t; ++sx)
-            if (placed_.count({sx, row / t})) return true;
+                if (placed_.count(TileKey{TileKind::Display, key.level, sx, sy})) return true;
         return false;
     };
     for (int r = 0; r < th; ++r) {
         const std::size_t o = static_cast<std::size_t>(y0 + r) * w + x0;
-        releaseRange(map_.rawHeights().data(), sizeof(std::uint16_t), w, n, o, tw, samplesUsed);
-        releaseRange(map_.colors().data(), sizeof(Rgb8), w, n, o, tw, samplesUsed);
+        releaseRange(g.heights, sizeof(std::uint16_t), w, n, o, tw, samplesUsed);
+        releaseRange(g.colors, sizeof(Rgb8), w, n, o, tw, samplesUsed);
         if (r + 1 < th) {
             const std::size_t oc = static_cast<std::size_t>(y0 + r) * (w - 1) + x0;
-            releaseRange(map_.cellMaxData(), sizeof(std::uint16_t), w - 1,
-                         (w - 1) * (map_.height() - 1), oc, tw - 1, cellsUsed);
+            releaseRange(g.cellMax, sizeof(std::uint16_t), w - 1, (w - 1) * (g.h - 1), oc, tw - 1,
+                         ownedUsed);
         }
     }
 }
@@ -234,6 +298,80 @@ TileKey PagedTerrain::tileUnder(double x, double y) const {
     return TileKey{TileKind::Display, 0, cx / t, cy / t};
 }
 
+double PagedTerrain::tileBound(int tx, int ty) const {
+    const TerrainDbLayout& layout = db_.layout();
+    const TerrainDbInfo& info = db_.info();
+    const int t = layout.tileSize();
+    const int j0 = std::countr_zero(static_cast<unsigned>(t));  // a node per level-0 tile
+    for (int j = std::max(j0, 1); j < layout.nodeLevels(); ++j) {
+        // The node over the tile's first cell covers the whole tile from level j0 up.
+        const int nx = (tx * t) >> j, ny = (ty * t) >> j;
+        const auto tile = cache_.find(TileKey{TileKind::Nodes, j, nx / t, ny / t});
+        if (!tile) continue;
+        const std::size_t i =
+            static_cast<std::size_t>(ny - tile->y0) * tile->width + (nx - tile->x0);
+        return tile->maxima[i] * info.heightScale + info.heightOffset;
+    }
+    return map_.maxHeight();
+}
+
+void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir,
+                               std::set<TileKey>& out) const {
+    const int t = db_.layout().tileSize();
+    const double tileX = t * map_.spacingX(), tileY = t * map_.spacingY();
+    const int tilesX = db_.layout().tilesX(TileKind::Display, 0);
+    const int tilesY = db_.layout().tilesY(TileKind::Display, 0);
+    const double lo = map_.minHeight(), hi = map_.maxHeight();
+    // The part of the ray over the map: [s0, s1] in its parameter.
+    double s0 = 0.0, s1 = std::numeric_limits<double>::infinity();
+    const double ext[2] = {map_.extentX(), map_.extentY()};
+    for (int a = 0; a < 2; ++a) {
+        if (dir[a] == 0.0) {
+            if (eye[a] < 0.0 || eye[a] > ext[a]) return;
+            continue;
+        }
+        double ta = (0.0 - eye[a]) / dir[a], tb = (ext[a] - eye[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        s0 = std::max(s0, ta);
+        s1 = std::min(s1, tb);
+    }
+    // And within the height range: the hit lies there.
+    if (dir.z != 0.0) {
+        double ta = (lo - eye.z) / dir.z, tb = (hi - eye.z) / dir.z;
+        if (ta > tb) std::swap(ta, tb);
+        s0 = std::max(s0, ta);
+        s1 = std::min(s1, tb);
+    } else if (eye.z < lo || eye.z > hi) {
+        return;
+    }
+    if (!(s0 <= s1) || !std::isfinite(s1)) return;
+    // Tile by tile along the ground track (a 2D walk over the tile grid).
+    const glm::dvec3 p0 = eye + s0 * dir;
+    int tx = std::clamp(static_cast<int>(std::floor(p0.x / tileX)), 0, tilesX - 1);
+    int ty = std::clamp(static_cast<int>(std::floor(p0.y / tileY)), 0, tilesY - 1);
+    const int stepX = dir.x > 0.0 ? 1 : -1, stepY = dir.y > 0.0 ? 1 : -1;
+    auto nextCross = [&](int i, int step, double size, double e, double d) {
+        if (d == 0.0) return std::numeric_limits<double>::infinity();
+        return ((step > 0 ? i + 1 : i) * size - e) / d;
+    };
+    double s = s0;
+    for (int guard = 0; guard < 4 * (tilesX + tilesY) + 8 && s <= s1; ++guard) {
+        const double sx = nextCross(tx, stepX, tileX, eye.x, dir.x);
+        const double sy = nextCross(ty, stepY, tileY, eye.y, dir.y);
+        const double sEnd = std::min({sx, sy, s1});
+        const double zLow = std::min(eye.z + s * dir.z, eye.z + sEnd * dir.z);
+        if (zLow <= tileBound(tx, ty)) out.insert(TileKey{TileKind::Display, 0, tx, ty});
+        if (sEnd >= s1) break;
+        s = sEnd;
+        if (sx <= sy) {
+            tx += stepX;
+        } else {
+            ty += stepY;
+        }
+        if (tx < 0 || ty < 0 || tx >= tilesX || ty >= tilesY) break;
+    }
+}
+
 PagedFrameStats PagedTerrain::placeAround(double x, double y) {
     return page({tileUnder(x, y)}, {}, true);
 }
@@ -242,11 +380,19 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
                                       double yawRate) {
     const TerrainDbLayout& layout = db_.layout();
     const TerrainDbInfo& info = db_.info();
-    // The casters reading this map march level 0 everywhere.
-    const LevelSelection selection = LevelSelection::forCamera(camera.intrinsics(), info, 0);
+    // The levels the casters reading this map march: level 0 everywhere, or the fast
+    // caster's (its max-height nodes whatever its levels).
+    const LevelSelection selection =
+        LevelSelection::forCamera(camera.intrinsics(), info, pyramid_ ? options_.levels : 0);
     Footprint fp = frameFootprint(camera, layout, info, selection);
     // The ground under the eye too (the check that the eye is above it, height queries).
     fp.tiles.insert(tileUnder(camera.pose().position.x, camera.pose().position.y));
+    // The control points are cast exactly on level 0 (renderFrame), at any distance.
+    if (pyramid_) {
+        for (const glm::dvec2& px : controlPointPixels(camera.intrinsics())) {
+            addRayTiles(camera.pose().position, camera.rayDirection(px.x, px.y), fp.tiles);
+        }
+    }
     std::set<TileKey> prefetch;
     if (velocity != glm::dvec3(0.0) || yawRate != 0.0) {
         prefetch =
@@ -256,8 +402,13 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
     } else if (options_.prefetchMargin > 0.0) {
         prefetch = frameFootprint(camera, layout, info, selection, options_.prefetchMargin).tiles;
     }
-    for (const TileKey& k : fp.tiles)
-        prefetch.erase(k);
+    // Only what this map holds: level 0, or the pyramid's levels and nodes.
+    auto unused = [&](const TileKey& k) {
+        if (k.kind == TileKind::Nodes) return !pyramid_;
+        return k.level > 0 && (!pyramid_ || k.level >= pyramid_->levelCount());
+    };
+    std::erase_if(fp.tiles, unused);
+    std::erase_if(prefetch, [&](const TileKey& k) { return unused(k) || fp.tiles.count(k) > 0; });
     return page(fp.tiles, prefetch, wait);
 }
 
@@ -268,57 +419,64 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     cache_.beginFrame(frame_, required, prefetch);
     if (wait) cache_.waitIdle();
 
-    std::set<Cell> needed;
-    for (const TileKey& k : required)
-        if (k.kind == TileKind::Display && k.level == 0) needed.insert({k.tx, k.ty});
-    st.required = needed.size();
-
     // Tiles no longer needed leave first (their pages go back unless a kept tile touches them).
-    std::vector<Cell> gone;
-    for (const auto& [cell, p] : placed_)
-        if (!needed.count(cell)) gone.push_back(cell);
-    for (const Cell& c : gone)
-        placed_.erase(c);
-    for (const Cell& c : gone)
-        release(c.first, c.second);
+    std::vector<TileKey> gone;
+    for (const auto& [key, p] : placed_)
+        if (!required.count(key)) gone.push_back(key);
+    for (const TileKey& k : gone)
+        placed_.erase(k);
+    for (const TileKey& k : gone)
+        release(k);
     st.released = gone.size();
 
-    for (const Cell& c : needed) {
-        const TileKey key{TileKind::Display, 0, c.first, c.second};
-        auto it = placed_.find(c);
+    for (const TileKey& key : required) {
+        auto it = placed_.find(key);
+        const bool placedExact = it != placed_.end() && it->second.sourceLevel == key.level;
         std::shared_ptr<const TerrainTile> tile = cache_.find(key);
+        if (key.kind == TileKind::Nodes) {
+            ++st.nodesRequired;
+            if (tile && !placedExact) copyTile(*tile);
+            if (tile || placedExact) {
+                placed_[key] = Placed{key.level, false};
+            } else {
+                ++st.nodesMissing;  // not placed: its nodes read "no bound"
+            }
+            continue;
+        }
+        ++st.required;
+        st.requiredCoarse += key.level > 0;
+        // An exact tile already in place stays, even if the cache has let it go since.
+        if (placedExact) continue;
         if (!tile) {
             ++st.substituted;
             const std::string failure = cache_.failure(key);
             if (!failure.empty()) {
                 ++st.failed;
-                if (reported_.insert(c).second) st.failures.push_back(failure);
+                if (reported_.insert(key).second) st.failures.push_back(failure);
             }
             tile = cache_.findOrCoarser(key);
             if (!tile) {
                 ++st.holes;
                 continue;
             }
-            if (tile->key.level > 0) {
+            if (tile->key.level > key.level) {
                 if (it == placed_.end() || it->second.sourceLevel != tile->key.level) {
-                    fillFromCoarser(c.first, c.second, *tile);
+                    fillFromCoarser(key, *tile);
                     ++st.copied;
                 }
-                placed_[c] = Placed{tile->key.level, !failure.empty()};
+                placed_[key] = Placed{tile->key.level, !failure.empty()};
                 continue;
             }
             --st.substituted;  // loaded meanwhile
         }
-        if (it == placed_.end() || it->second.sourceLevel != 0) {
-            copyTile(*tile);
-            ++st.copied;
-        }
-        placed_[c] = Placed{0, false};
+        copyTile(*tile);
+        ++st.copied;
+        placed_[key] = Placed{key.level, false};
     }
     // Stand-ins' cell maxima from the map as it now is (an exact neighbour may have replaced
     // a shared edge).
-    for (const auto& [cell, p] : placed_)
-        if (p.sourceLevel != 0) updateCellMax(cell.first, cell.second);
+    for (const auto& [key, p] : placed_)
+        if (key.kind == TileKind::Display && p.sourceLevel != key.level) updateCellMax(key);
     return st;
 }
 

@@ -2,12 +2,16 @@
 // (ig/terrain.hpp: address space for the whole map, memory only for the pages written), into
 // which, between frames, the level-0 tiles the frame's footprint needs are copied from the
 // resident tiles; a needed tile not resident (not loaded yet, withheld, unreadable) is filled by
-// upsampling the finest resident coarser level, so the casters need no change. The tiles no
-// longer needed give their pages back. docs/design/terrain_db.md, "Casters reading through the
-// cache".
+// upsampling the finest resident coarser level, so the casters need no change. For the fast
+// caster a sparse pyramid is filled the same way (its coarser display levels where the frame
+// reads them, and the max-height nodes above them), and its slope bounds are the database's.
+// The tiles no longer needed give their pages back. docs/design/terrain_db.md, "Casters reading
+// through the cache".
 #pragma once
 
 #include "ig/camera.hpp"
+#include "ig/pyramid.hpp"
+#include "ig/slope_bound.hpp"
 #include "ig/terrain.hpp"
 #include "ig/terrain_db.hpp"
 #include "ig/tile_cache.hpp"
@@ -17,6 +21,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 #include <utility>
@@ -24,15 +29,18 @@
 
 namespace ig {
 
-// What preparing one frame found (level-0 display tiles).
+// What preparing one frame found (display tiles of every level read; node tiles apart).
 struct PagedFrameStats {
     std::uint64_t frame = 0;
-    std::size_t required = 0;           // tiles the frame's footprint needs
+    std::size_t required = 0;           // display tiles the frame's footprint needs
+    std::size_t requiredCoarse = 0;     // of those, of levels >= 1 (fast caster)
     std::size_t copied = 0;             // copied into the map for this frame
     std::size_t substituted = 0;        // needed, not resident: filled from a coarser level
     std::size_t failed = 0;             // of those, unreadable (corrupt, truncated): reported holes
     std::size_t holes = 0;              // nothing resident above either: left as they were
     std::size_t released = 0;           // placed tiles no longer needed, their pages given back
+    std::size_t nodesRequired = 0;      // node tiles the footprint needs (fast caster)
+    std::size_t nodesMissing = 0;       // of those, not resident: those nodes give no bound
     std::vector<std::string> failures;  // messages of failed tiles, each reported once
 };
 
@@ -45,6 +53,11 @@ class PagedTerrain {
         double lookahead = 0.5;
         double lookaheadStep = 0.125;
         double prefetchMargin = 0.0;
+        // What the casters reading the map need. False: level 0 only (reference, naive
+        // casters). True: the fast caster's pyramid too, with `levels` coarser display levels
+        // (kLevelsAuto, -1: all; 0: none, the max-height nodes only), as RenderOptions::levels.
+        bool pyramid = false;
+        int levels = 0;
     };
 
     // `db` must outlive this. Loads the cache's resident coarse levels (InputError when the
@@ -55,6 +68,10 @@ class PagedTerrain {
 
     // The map the casters read (level 0 of the database, resident where a frame needed it).
     const TerrainMap& map() const { return map_; }
+    // The fast caster's pyramid over map() and the database's slope bounds (null unless
+    // Options::pyramid): for RenderOptions::pyramid and ::slopes.
+    std::shared_ptr<const TerrainPyramid> pyramid() const { return pyramid_; }
+    std::shared_ptr<const SlopeBlocks> slopes() const { return slopes_; }
     TileCache& cache() { return cache_; }
     const TileCache& cache() const { return cache_; }
 
@@ -72,36 +89,57 @@ class PagedTerrain {
     // a height above it). The next prepare() keeps it only if its frame needs it.
     PagedFrameStats placeAround(double x, double y);
 
-    // Level-0 tiles placed in the map now, and how many of them are stand-ins.
-    std::size_t placedTiles() const { return placed_.size(); }
+    // Display tiles placed in the map (and pyramid) now, and how many of them are stand-ins.
+    std::size_t placedTiles() const;
     std::size_t substitutedTiles() const;
-    // Bytes of the map's pages that placed tiles can cover (a bound on the map's memory).
+    // Bytes of the pages that placed tiles (display and node) can cover (a bound on the map's
+    // and pyramid's memory).
     std::size_t placedBytes() const;
-    // Bytes of the map's arrays in memory now (mincore over the sparse blocks).
+    // Bytes of the map's and pyramid's arrays in memory now (mincore over the sparse blocks).
     std::size_t residentMapBytes() const;
 
   private:
     struct Placed {
-        int sourceLevel = 0;  // 0: the tile itself; k > 0: upsampled from level k
+        int sourceLevel = 0;  // the tile's own level: itself; a coarser one: upsampled from it
         bool failed = false;  // its own read failed
     };
-    using Cell = std::pair<int, int>;  // (tx, ty) of level 0
+    // One level's arrays: display (samples w x h, colours, cell maxima) or nodes (w x h,
+    // stored complemented).
+    struct Grid {
+        int w = 0, h = 0;
+        std::uint16_t* heights = nullptr;
+        Rgb8* colors = nullptr;
+        std::uint16_t* cellMax = nullptr;
+        std::uint16_t* nodes = nullptr;
+    };
 
+    Grid grid(TileKind kind, int level) const;
+    // The level-0 tiles an exact cast along (eye, dir) can read before its hit (renderFrame's
+    // control points): those its ground track crosses where it is within the terrain's height
+    // range and not above the finest resident bound on the tile (a node covering it).
+    void addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir, std::set<TileKey>& out) const;
+    // A bound (metres) on the surface over level-0 tile (tx, ty): the finest resident node
+    // covering it, else the map's highest point.
+    double tileBound(int tx, int ty) const;
     TileKey tileUnder(double x, double y) const;
     PagedFrameStats page(const std::set<TileKey>& required, const std::set<TileKey>& prefetch,
                          bool wait);
     void copyTile(const TerrainTile& tile);
-    void fillFromCoarser(int tx, int ty, const TerrainTile& coarse);
-    void updateCellMax(int tx, int ty);
-    void release(int tx, int ty);
-    bool samplePlaced(int x, int y) const;
+    void fillFromCoarser(const TileKey& key, const TerrainTile& coarse);
+    void updateCellMax(const TileKey& key);
+    void release(const TileKey& key);
+    // Whether a placed display tile of `level` other than `self` holds sample (x, y), exact
+    // only (the tile itself, not a stand-in) if `exact`.
+    bool sampleHeld(int level, int x, int y, const TileKey* self, bool exact) const;
 
     const TerrainDb& db_;
     Options options_;
     TileCache cache_;
     TerrainMap map_;
-    std::map<Cell, Placed> placed_;
-    std::set<Cell> reported_;  // failed tiles already reported
+    std::shared_ptr<TerrainPyramid> pyramid_;
+    std::shared_ptr<const SlopeBlocks> slopes_;
+    std::map<TileKey, Placed> placed_;
+    std::set<TileKey> reported_;  // failed tiles already reported
     std::uint64_t frame_ = 0;
 };
 

@@ -32,17 +32,19 @@ void fillCellMax(PyramidLevel& level, LargeVector<std::uint16_t>& cellMax) {
 
 }  // namespace
 
-TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map) {
+void TerrainPyramid::shape(int maxLevels, bool sparse) {
     PyramidLevel base;
-    base.width = map.width();
-    base.height = map.height();
-    base.heights = map.rawHeights().data();
-    base.colors = map.colors().data();
-    base.cellMax = map.cellMaxData();
+    base.width = map_.width();
+    base.height = map_.height();
+    base.heights = map_.rawHeights().data();
+    base.colors = map_.colors().data();
+    base.cellMax = map_.cellMaxData();
     levels_.push_back(base);
     store_.emplace_back();
-    if (map.width() < 2 || map.height() < 2) return;
-
+    if (map_.width() < 2 || map_.height() < 2) return;
+    auto array16 = [&](std::size_t n) {
+        return LargeVector<std::uint16_t>(n, LargeAllocator<std::uint16_t>(sparse));
+    };
     // Display levels.
     while (maxLevels < 0 || levelCount() <= maxLevels) {
         const PyramidLevel& fine = levels_.back();
@@ -54,8 +56,40 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
         coarse.shift = fine.shift + 1;
         LevelStore s;
         const std::size_t n = static_cast<std::size_t>(coarse.width) * coarse.height;
-        s.heights.resize(n);
-        s.colors.resize(n);
+        s.heights = array16(n);
+        s.colors = LargeVector<Rgb8>(n, LargeAllocator<Rgb8>(sparse));
+        s.cellMax = array16(static_cast<std::size_t>(cw) * ch);
+        coarse.heights = s.heights.data();
+        coarse.colors = s.colors.data();
+        coarse.cellMax = s.cellMax.data();
+        store_.push_back(std::move(s));
+        levels_.push_back(coarse);
+    }
+    // Node levels.
+    nodes_.emplace_back();
+    nodeW_.push_back(map_.width() - 1);
+    nodeH_.push_back(map_.height() - 1);
+    while (nodeW_.back() > 1 || nodeH_.back() > 1 || nodes_.size() < 2) {
+        const int nw = ceilHalf(nodeW_.back()), nh = ceilHalf(nodeH_.back());
+        nodes_.push_back(array16(static_cast<std::size_t>(nw) * nh));
+        nodeW_.push_back(nw);
+        nodeH_.push_back(nh);
+    }
+}
+
+TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels, Sparse) : map_(map) {
+    shape(maxLevels, true);
+}
+
+TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map) {
+    shape(maxLevels, false);
+    if (map.width() < 2 || map.height() < 2) return;
+
+    // Display levels.
+    for (int k = 1; k < levelCount(); ++k) {
+        const PyramidLevel& fine = levels_[k - 1];
+        PyramidLevel& coarse = levels_[k];
+        LevelStore& s = store_[k];
         tbb::parallel_for(
             tbb::blocked_range<int>(0, coarse.height), [&](const tbb::blocked_range<int>& rows) {
                 for (int j = rows.begin(); j < rows.end(); ++j) {
@@ -74,23 +108,14 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
             });
         adviseHugePages(s.heights.data(), s.heights.size() * sizeof(std::uint16_t));
         adviseHugePages(s.colors.data(), s.colors.size() * sizeof(Rgb8));
-        coarse.heights = s.heights.data();
-        coarse.colors = s.colors.data();
         fillCellMax(coarse, s.cellMax);
-        store_.push_back(std::move(s));
-        levels_.push_back(coarse);
     }
 
     // Max nodes, bottom-up: the cells below and the display level of the same size.
-    const int cells0X = map.width() - 1, cells0Y = map.height() - 1;
-    nodes_.emplace_back();
-    nodeW_.push_back(cells0X);
-    nodeH_.push_back(cells0Y);
-    while (nodeW_.back() > 1 || nodeH_.back() > 1 || nodes_.size() < 2) {
-        const int j = static_cast<int>(nodes_.size());
-        const int nw = ceilHalf(nodeW_.back()), nh = ceilHalf(nodeH_.back());
-        const int fw = nodeW_.back(), fh = nodeH_.back();
-        LargeVector<std::uint16_t> node(static_cast<std::size_t>(nw) * nh);
+    for (int j = 1; j < nodeLevelCount(); ++j) {
+        const int nw = nodeW_[j], nh = nodeH_[j];
+        const int fw = nodeW_[j - 1], fh = nodeH_[j - 1];
+        LargeVector<std::uint16_t>& node = nodes_[j];
         auto finer = [&](int fx, int fy) -> std::uint16_t {
             return j == 1 ? map.cellMaxRaw(fx, fy)
                           : nodes_[j - 1][static_cast<std::size_t>(fy) * fw + fx];
@@ -110,9 +135,6 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
                 }
             }
         });
-        nodes_.push_back(std::move(node));
-        nodeW_.push_back(nw);
-        nodeH_.push_back(nh);
     }
 
     // Top-down: a node also lies inside one cell of every coarser display level.
@@ -137,6 +159,10 @@ TerrainPyramid::TerrainPyramid(const TerrainMap& map, int maxLevels) : map_(map)
             node[i] = std::max(node[i], upFiner[i]);
         up.swap(upFiner);
     }
+    // Stored complemented (nodeMaxRaw).
+    for (std::size_t j = 1; j < nodes_.size(); ++j)
+        for (std::uint16_t& v : nodes_[j])
+            v = static_cast<std::uint16_t>(~v);
 }
 
 std::size_t TerrainPyramid::bytes() const {

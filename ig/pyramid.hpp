@@ -71,6 +71,13 @@ class TerrainPyramid {
     // Builds coarser levels until a level has fewer than 2 cells along either axis, at most
     // `maxLevels` of them (-1: no limit). Level 0 is a view of `map`, which must outlive this.
     explicit TerrainPyramid(const TerrainMap& map, int maxLevels = -1);
+    // The same levels and nodes, as sparse blocks never written (ig/terrain.hpp) for whoever
+    // fills them from elsewhere (a terrain database's tiles, PagedTerrain): display samples
+    // read zero and nodes read 65535 (no bound) until written.
+    struct Sparse {};
+    TerrainPyramid(const TerrainMap& map, int maxLevels, Sparse);
+    TerrainPyramid(const TerrainPyramid&) = delete;
+    TerrainPyramid& operator=(const TerrainPyramid&) = delete;
 
     const TerrainMap& map() const { return map_; }
     // Display levels, level 0 (the map itself) included.
@@ -84,14 +91,28 @@ class TerrainPyramid {
     int nodeLevelCount() const { return static_cast<int>(nodes_.size()); }
     int nodesX(int j) const { return nodeW_[j]; }
     int nodesY(int j) const { return nodeH_[j]; }
+    // Nodes are stored complemented (~max), so that a node of a sparse pyramid never written
+    // reads 65535: no bound, which only makes a march look closer.
     std::uint16_t nodeMaxRaw(int j, int nx, int ny) const {
-        return nodes_[j][static_cast<std::size_t>(ny) * static_cast<std::size_t>(nodeW_[j]) + nx];
+        return static_cast<std::uint16_t>(
+            ~nodes_[j][static_cast<std::size_t>(ny) * static_cast<std::size_t>(nodeW_[j]) + nx]);
     }
+
+    // A sparse pyramid's arrays, to fill: display level k >= 1 (heights, colours, cell maxima,
+    // rows of width(k), width(k) - 1 and so on as PyramidLevel), and node level j >= 1 (rows
+    // of nodesX(j), each node stored as ~max).
+    std::uint16_t* levelHeights(int k) { return store_[k].heights.data(); }
+    Rgb8* levelColors(int k) { return store_[k].colors.data(); }
+    std::uint16_t* levelCellMax(int k) { return store_[k].cellMax.data(); }
+    std::uint16_t* nodesComplement(int j) { return nodes_[j].data(); }
 
     // Bytes held by the coarser levels and the nodes (level 0 belongs to the map).
     std::size_t bytes() const;
 
   private:
+    // The levels' and nodes' sizes, their arrays allocated (sparse blocks or not).
+    void shape(int maxLevels, bool sparse);
+
     struct LevelStore {
         LargeVector<std::uint16_t> heights;
         LargeVector<Rgb8> colors;

@@ -7,16 +7,37 @@
 
 namespace ig {
 
-SlopeBlocks::SlopeBlocks(const TerrainMap& map) {
-    const int cellsX = std::max(map.width() - 1, 1), cellsY = std::max(map.height() - 1, 1);
-    blocksX_ = (cellsX + kBlock - 1) / kBlock;
-    blocksY_ = (cellsY + kBlock - 1) / kBlock;
-    blockMetresX_ = kBlock * map.spacingX();
-    blockMetresY_ = kBlock * map.spacingY();
+namespace {
+
+void blockGeometry(const TerrainMap& map, int& blocksX, int& blocksY, double& metresX,
+                   double& metresY) {
+    blocksX = SlopeBlocks::blocksAlong(map.width());
+    blocksY = SlopeBlocks::blocksAlong(map.height());
+    metresX = SlopeBlocks::kBlock * map.spacingX();
+    metresY = SlopeBlocks::kBlock * map.spacingY();
+}
+
+}  // namespace
+
+float SlopeBlocks::boundOf(int dx, int dy, double sx, double sy) {
+    const double gx = dx * sx, gy = dy * sy;
+    const double g = std::sqrt(gx * gx + gy * gy);
+    float f = static_cast<float>(g);
+    if (f < g) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+}
+
+SlopeBlocks::SlopeBlocks(const TerrainMap& map, const float* bounds) : bound_(bounds) {
+    blockGeometry(map, blocksX_, blocksY_, blockMetresX_, blockMetresY_);
     invBlockX_ = 1.0 / blockMetresX_;
     invBlockY_ = 1.0 / blockMetresY_;
-    // Per block, as TerrainMap's global bound: over a cell the bilinear surface's x-slope lies
-    // between its two edge slopes (likewise y), so the largest sample differences bound it.
+}
+
+SlopeBlocks::SlopeBlocks(const TerrainMap& map) {
+    blockGeometry(map, blocksX_, blocksY_, blockMetresX_, blockMetresY_);
+    invBlockX_ = 1.0 / blockMetresX_;
+    invBlockY_ = 1.0 / blockMetresY_;
+    // Per block, as TerrainMap's global bound: the largest sample differences.
     std::vector<int> dx(static_cast<std::size_t>(blocksX_) * blocksY_, 0), dy(dx.size(), 0);
     for (int cy = 0; cy + 1 < map.height(); ++cy) {
         const int by = cy / kBlock;
@@ -28,16 +49,12 @@ SlopeBlocks::SlopeBlocks(const TerrainMap& map) {
             dy[b] = std::max({dy[b], std::abs(h01 - h00), std::abs(h11 - h10)});
         }
     }
-    bound_.resize(dx.size());
+    owned_.resize(dx.size());
     const double sx = std::abs(map.heightScale()) / map.spacingX();
     const double sy = std::abs(map.heightScale()) / map.spacingY();
-    for (std::size_t k = 0; k < bound_.size(); ++k) {
-        const double gx = dx[k] * sx, gy = dy[k] * sy;
-        const double g = std::sqrt(gx * gx + gy * gy);
-        float f = static_cast<float>(g);
-        if (f < g) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-        bound_[k] = f;
-    }
+    for (std::size_t k = 0; k < owned_.size(); ++k)
+        owned_[k] = boundOf(dx[k], dy[k], sx, sy);
+    bound_ = owned_.data();
 }
 
 double SlopeBlocks::at(double x, double y) const {
@@ -53,7 +70,7 @@ double SlopeBlocks::maxOver(double x0, double y0, double x1, double y1) const {
     const int by1 = static_cast<int>(std::clamp(y1 * invBlockY_, 0.0, blocksY_ - 1.0));
     float m = 0.0f;
     for (int by = by0; by <= by1; ++by) {
-        const float* row = bound_.data() + static_cast<std::size_t>(by) * blocksX_;
+        const float* row = bound_ + static_cast<std::size_t>(by) * blocksX_;
         for (int bx = bx0; bx <= bx1; ++bx)
             m = std::max(m, row[bx]);
     }

@@ -9,6 +9,7 @@
 
 #include <glm/vec2.hpp>
 
+#include <algorithm>
 #include <vector>
 
 namespace ig {
@@ -18,9 +19,23 @@ namespace ig {
 class SlopeBlocks {
   public:
     static constexpr int kBlock = 8;
+    // Computed from the whole map.
     explicit SlopeBlocks(const TerrainMap& map);
+    // Read from elsewhere (a terrain database's slope section): blocksX(map) x blocksY(map)
+    // bounds, rows south first, which must outlive this.
+    SlopeBlocks(const TerrainMap& map, const float* bounds);
+    SlopeBlocks(const SlopeBlocks&) = delete;
+    SlopeBlocks& operator=(const SlopeBlocks&) = delete;
+
+    // Blocks along each axis of a width x height sample map.
+    static int blocksAlong(int samples) { return (std::max(samples - 1, 1) + kBlock - 1) / kBlock; }
+    // A block's bound from the largest raw sample differences of its cells along x and y (over
+    // a cell the bilinear surface's x-slope lies between its two edge slopes, likewise y), with
+    // sx = |height scale| / spacing x, sy likewise: rounded up to a float.
+    static float boundOf(int dx, int dy, double sx, double sy);
 
     int blocksX() const { return blocksX_; }
+    const float* data() const { return bound_; }  // blocksX() x blocksY(), rows south first
     int blocksY() const { return blocksY_; }
     double blockMetresX() const { return blockMetresX_; }
     double blockMetresY() const { return blockMetresY_; }
@@ -35,7 +50,8 @@ class SlopeBlocks {
     int blocksX_ = 1, blocksY_ = 1;
     double blockMetresX_ = 1.0, blockMetresY_ = 1.0;
     double invBlockX_ = 1.0, invBlockY_ = 1.0;
-    std::vector<float> bound_;
+    std::vector<float> owned_;      // the bounds when computed here
+    const float* bound_ = nullptr;  // owned_'s, or the supplied ones
 };
 
 // One image column's slope bound as a function of horizontal distance from the eye: the largest

@@ -6,9 +6,11 @@
 
 #include "base/check.hpp"
 #include "ig/error.hpp"
+#include "ig/slope_bound.hpp"
 
 #include <fcntl.h>
 #include <lz4.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -20,6 +22,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 namespace ig {
 
@@ -53,6 +56,13 @@ std::uint32_t crc32Of(const std::uint8_t* p, std::size_t n) {
         n -= chunk;
     }
     return static_cast<std::uint32_t>(c);
+}
+
+// The slope section lies right after the header.
+constexpr std::uint64_t kSlopeOffset = kHeaderBytes;
+std::uint64_t slopeSectionBytes(int width, int height) {
+    return static_cast<std::uint64_t>(SlopeBlocks::blocksAlong(width)) *
+           static_cast<std::uint64_t>(SlopeBlocks::blocksAlong(height)) * sizeof(float);
 }
 
 int ceilHalf(int n) {
@@ -300,7 +310,9 @@ TerrainDbWriter::TerrainDbWriter(const std::string& path, const TerrainDbLayout&
     // The header stays zero (no magic) until finish().
     const std::vector<std::uint8_t> zero(kHeaderBytes, 0);
     writeAll(fd_, zero.data(), zero.size(), 0, tmpPath_);
-    end_ = kHeaderBytes;
+    // The slope section's place is reserved; its rows come as the level-0 rows do.
+    const int width = layout_.levelWidth(0), height = layout_.levelHeight(0);
+    end_ = kSlopeOffset + slopeSectionBytes(width, height);
     index_.assign(static_cast<std::size_t>(layout_.entryCount()) * kEntryBytes, 0);
     written_.assign(static_cast<std::size_t>(layout_.entryCount()), 0);
 }
@@ -325,6 +337,16 @@ void TerrainDbWriter::append(const TileKey& key, const std::vector<std::uint8_t>
     written_[static_cast<std::size_t>(i)] = 1;
 }
 
+void TerrainDbWriter::writeSlopeRow(int by, const float* bounds) {
+    const int bx = SlopeBlocks::blocksAlong(layout_.levelWidth(0));
+    const int rows = SlopeBlocks::blocksAlong(layout_.levelHeight(0));
+    CHECK(by == slopeRowsWritten_ && by < rows);
+    const std::size_t bytes = static_cast<std::size_t>(bx) * sizeof(float);
+    writeAll(fd_, reinterpret_cast<const std::uint8_t*>(bounds), bytes,
+             kSlopeOffset + static_cast<std::uint64_t>(by) * bytes, tmpPath_);
+    ++slopeRowsWritten_;
+}
+
 void TerrainDbWriter::write(const TerrainTile& tile) {
     std::uint32_t raw = 0;
     const std::vector<std::uint8_t> stored = encodeTile(tile, codec_, raw);
@@ -334,6 +356,20 @@ void TerrainDbWriter::write(const TerrainTile& tile) {
 std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info) {
     CHECK(!finished_);
     CHECK(std::all_of(written_.begin(), written_.end(), [](std::uint8_t w) { return w != 0; }));
+    CHECK(slopeRowsWritten_ == SlopeBlocks::blocksAlong(layout_.levelHeight(0)));
+    // The slope section's checksum, read back (its rows were written as they came).
+    const std::uint64_t slopeBytes =
+        slopeSectionBytes(layout_.levelWidth(0), layout_.levelHeight(0));
+    uLong slopeCrc = crc32(0L, Z_NULL, 0);
+    {
+        std::vector<std::uint8_t> chunk(std::size_t{1} << 20);
+        for (std::uint64_t at = 0; at < slopeBytes; at += chunk.size()) {
+            const std::size_t n =
+                static_cast<std::size_t>(std::min<std::uint64_t>(chunk.size(), slopeBytes - at));
+            CHECK(readAll(fd_, chunk.data(), n, kSlopeOffset + at, tmpPath_));
+            slopeCrc = crc32(slopeCrc, chunk.data(), static_cast<uInt>(n));
+        }
+    }
     const std::uint64_t indexOffset = end_;
     writeAll(fd_, index_.data(), index_.size(), indexOffset, tmpPath_);
     const std::uint64_t crsOffset = indexOffset + index_.size();
@@ -361,6 +397,10 @@ std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info) {
     put<std::uint32_t>(h + 104, crc32Of(index_.data(), index_.size()));
     put<std::uint32_t>(h + 108, static_cast<std::uint32_t>(info.crs.size()));
     put<std::uint64_t>(h + 112, crsOffset);
+    put<std::uint64_t>(h + 120, kSlopeOffset);
+    put<std::uint32_t>(h + 128, static_cast<std::uint32_t>(slopeCrc));
+    put<std::uint16_t>(h + 132, info.maxDx);
+    put<std::uint16_t>(h + 134, info.maxDy);
     put<std::uint32_t>(h + 252, crc32Of(h, 252));
     writeAll(fd_, h, kHeaderBytes, 0, tmpPath_);
     if (::fsync(fd_) != 0) throw InputError(tmpPath_ + ": cannot sync: " + sysError());
@@ -383,8 +423,14 @@ TerrainDb::TerrainDb(TerrainDb&& o) noexcept
       codec_(o.codec_),
       fileBytes_(o.fileBytes_),
       indexOffset_(o.indexOffset_),
-      index_(std::move(o.index_)) {
+      index_(std::move(o.index_)),
+      mapped_(o.mapped_),
+      mappedBytes_(o.mappedBytes_),
+      slopes_(o.slopes_) {
     o.fd_ = -1;
+    o.mapped_ = nullptr;
+    o.mappedBytes_ = 0;
+    o.slopes_ = nullptr;
 }
 
 TerrainDb& TerrainDb::operator=(TerrainDb&& o) noexcept {
@@ -399,12 +445,24 @@ TerrainDb& TerrainDb::operator=(TerrainDb&& o) noexcept {
         fileBytes_ = o.fileBytes_;
         indexOffset_ = o.indexOffset_;
         index_ = std::move(o.index_);
+        if (mapped_) ::munmap(mapped_, mappedBytes_);
+        mapped_ = std::exchange(o.mapped_, nullptr);
+        mappedBytes_ = std::exchange(o.mappedBytes_, 0);
+        slopes_ = std::exchange(o.slopes_, nullptr);
     }
     return *this;
 }
 
 TerrainDb::~TerrainDb() {
     if (fd_ >= 0) ::close(fd_);
+    if (mapped_) ::munmap(mapped_, mappedBytes_);
+}
+
+double TerrainDbInfo::maxSlope() const {
+    // As TerrainMap::updateRange computes it.
+    const double gx = maxDx * std::abs(heightScale) / spacingX;
+    const double gy = maxDy * std::abs(heightScale) / spacingY;
+    return std::sqrt(gx * gx + gy * gy);
 }
 
 TerrainDb TerrainDb::open(const std::string& path) {
@@ -476,6 +534,34 @@ TerrainDb TerrainDb::open(const std::string& path) {
         fail("truncated (" + std::to_string(db.fileBytes_) + " bytes; the header places the " +
              "index and CRS up to byte " + std::to_string(crsOffset + crsBytes) + ")");
     }
+    info.maxDx = get<std::uint16_t>(h + 132);
+    info.maxDy = get<std::uint16_t>(h + 134);
+    const std::uint64_t slopeBytes = slopeSectionBytes(info.width, info.height);
+    if (get<std::uint64_t>(h + 120) != kSlopeOffset) fail("header: slope section out of place");
+    if (kSlopeOffset + slopeBytes > indexOffset) {
+        fail("header: the slope section (" + std::to_string(slopeBytes) +
+             " bytes) overlaps the index");
+    }
+    {
+        uLong crc = crc32(0L, Z_NULL, 0);
+        std::vector<std::uint8_t> chunk(std::size_t{1} << 20);
+        for (std::uint64_t at = 0; at < slopeBytes; at += chunk.size()) {
+            const std::size_t n =
+                static_cast<std::size_t>(std::min<std::uint64_t>(chunk.size(), slopeBytes - at));
+            if (!readAll(db.fd_, chunk.data(), n, kSlopeOffset + at, path)) {
+                fail("truncated slope section");
+            }
+            crc = crc32(crc, chunk.data(), static_cast<uInt>(n));
+        }
+        if (static_cast<std::uint32_t>(crc) != get<std::uint32_t>(h + 128)) {
+            fail("slope section checksum mismatch (corrupt slope bounds)");
+        }
+    }
+    db.mappedBytes_ = static_cast<std::size_t>(kSlopeOffset + slopeBytes);
+    void* m = ::mmap(nullptr, db.mappedBytes_, PROT_READ, MAP_SHARED, db.fd_, 0);
+    if (m == MAP_FAILED) fail("cannot map the slope section: " + sysError());
+    db.mapped_ = m;
+    db.slopes_ = reinterpret_cast<const float*>(static_cast<const std::uint8_t*>(m) + kSlopeOffset);
     db.indexOffset_ = indexOffset;
     db.index_.resize(indexBytes);
     if (!readAll(db.fd_, db.index_.data(), indexBytes, indexOffset, path)) fail("truncated index");
@@ -495,7 +581,8 @@ TerrainDb TerrainDb::open(const std::string& path) {
         db.layout_.tileExtent(key, x0, y0, tw, th);
         const std::uint64_t off = get<std::uint64_t>(e);
         const std::uint32_t stored = get<std::uint32_t>(e + 8);
-        if (off < kHeaderBytes || stored < kTileHeaderBytes || off + stored > indexOffset ||
+        if (off < kSlopeOffset + slopeBytes || stored < kTileHeaderBytes ||
+            off + stored > indexOffset ||
             get<std::uint32_t>(e + 12) != payloadBytes(key.kind, tw, th)) {
             fail("index entry of " + describeTile(key) +
                  " disagrees with the layout (offset, size or payload size out of place)");

@@ -12,7 +12,7 @@
 
 namespace ig {
 
-inline constexpr std::uint32_t kTerrainDbVersion = 1;
+inline constexpr std::uint32_t kTerrainDbVersion = 2;
 inline constexpr int kMinDbTileSize = 16, kMaxDbTileSize = 4096;
 
 enum class TileCodec : std::uint8_t { None = 0, Lz4 = 1, Zstd = 2 };
@@ -87,6 +87,11 @@ struct TerrainDbInfo {
     double originX = 0.0, originY = 0.0;
     std::string crs;
     std::uint16_t minRaw = 0, maxRaw = 0;  // raw height range of level 0
+    // The largest raw difference between neighbouring level-0 samples along x and along y
+    // (what TerrainMap's global slope bound is made of).
+    std::uint16_t maxDx = 0, maxDy = 0;
+    // The global slope bound, m/m: TerrainMap::maxSlope() of the whole map, to the bit.
+    double maxSlope() const;
 };
 
 // Encodes a tile as stored (tile header + payload, compressed by `codec`); thread-safe.
@@ -109,6 +114,9 @@ class TerrainDbWriter {
     void append(const TileKey& key, const std::vector<std::uint8_t>& stored,
                 std::uint32_t rawPayloadBytes);
     void write(const TerrainTile& tile);
+    // Writes row `by` of the slope section: SlopeBlocks::blocksAlong(width) bounds, as
+    // SlopeBlocks computes them over the map. Every row must be written once.
+    void writeSlopeRow(int by, const float* bounds);
     // Writes index and header, syncs and renames; returns the file's size.
     std::uint64_t finish(const TerrainDbInfo& info);
 
@@ -121,6 +129,7 @@ class TerrainDbWriter {
     std::uint64_t end_ = 0;
     std::vector<std::uint8_t> index_;  // entryCount * entry bytes
     std::vector<std::uint8_t> written_;
+    int slopeRowsWritten_ = 0;
     bool finished_ = false;
 };
 
@@ -144,6 +153,10 @@ class TerrainDb {
     TerrainTile readTile(const TileKey& key) const;
     // Level 0 assembled into a map (heights, colours; ranges recomputed).
     TerrainMap loadMap() const;
+    // The slope section: SlopeBlocks::blocksAlong(width) x blocksAlong(height) per-block slope
+    // bounds, rows south first, equal to SlopeBlocks(map) of the whole map (checked against
+    // its CRC-32 at open; mapped from the file, so only the pages read take memory).
+    const float* slopeBounds() const { return slopes_; }
 
   private:
     TerrainDb() = default;
@@ -154,6 +167,9 @@ class TerrainDb {
     TileCodec codec_ = TileCodec::None;
     std::uint64_t fileBytes_ = 0, indexOffset_ = 0;
     std::vector<std::uint8_t> index_;
+    void* mapped_ = nullptr;  // header and slope section, read-only
+    std::size_t mappedBytes_ = 0;
+    const float* slopes_ = nullptr;
 };
 
 }  // namespace ig

@@ -13,6 +13,7 @@
 #include "base/check.hpp"
 #include "ig/error.hpp"
 #include "ig/pyramid.hpp"
+#include "ig/slope_bound.hpp"
 #include "ig/synthetic.hpp"
 
 #include <fcntl.h>
@@ -209,6 +210,7 @@ class Builder {
                 const auto [mn, mx] = std::minmax_element(hs.begin() + o, hs.begin() + o + w);
                 lo = std::min(lo, *mn);
                 hi = std::max(hi, *mx);
+                if (disp_[0].produced > 0) addSlopeCells(disp_[0].heights.back().data(), &hs[o]);
                 disp_[0].heights.emplace_back(hs.begin() + o, hs.begin() + o + w);
                 disp_[0].colors.emplace_back(cs.begin() + o, cs.begin() + o + w);
                 ++disp_[0].produced;
@@ -227,6 +229,8 @@ class Builder {
         finishNodes();
         info_.minRaw = lo;
         info_.maxRaw = hi;
+        info_.maxDx = static_cast<std::uint16_t>(maxDx_);
+        info_.maxDy = static_cast<std::uint16_t>(maxDy_);
         DbBuildStats stats;
         stats.fileBytes = writer_.finish(info_);
         stats.samples = static_cast<std::uint64_t>(w) * h;
@@ -250,6 +254,38 @@ class Builder {
         const std::uint16_t* h16(int y) const { return heights[y - first].data(); }
         const Rgb8* rgb(int y) const { return colors[y - first].data(); }
     };
+
+    // The cells between level-0 sample rows `a` (row y - 1) and `b` (row y) into the slope
+    // section's current block row (SlopeBlocks' per-block bounds and TerrainMap's global one,
+    // from the same sample differences), written out when the row of blocks is complete.
+    void addSlopeCells(const std::uint16_t* a, const std::uint16_t* b) {
+        const int w = info_.width, bx = SlopeBlocks::blocksAlong(w);
+        if (slopeDx_.empty()) {
+            slopeDx_.assign(static_cast<std::size_t>(bx), 0);
+            slopeDy_.assign(slopeDx_.size(), 0);
+            slopeRow_.resize(slopeDx_.size());
+        }
+        for (int cx = 0; cx + 1 < w; ++cx) {
+            const int h00 = a[cx], h10 = a[cx + 1], h01 = b[cx], h11 = b[cx + 1];
+            const int dx = std::max(std::abs(h10 - h00), std::abs(h11 - h01));
+            const int dy = std::max(std::abs(h01 - h00), std::abs(h11 - h10));
+            const std::size_t k = static_cast<std::size_t>(cx / SlopeBlocks::kBlock);
+            slopeDx_[k] = std::max(slopeDx_[k], dx);
+            slopeDy_[k] = std::max(slopeDy_[k], dy);
+        }
+        const int cy = slopeCellRows_++;
+        if ((cy + 1) % SlopeBlocks::kBlock != 0 && cy + 2 < info_.height) return;
+        const double sx = std::abs(info_.heightScale) / info_.spacingX;
+        const double sy = std::abs(info_.heightScale) / info_.spacingY;
+        for (std::size_t k = 0; k < slopeRow_.size(); ++k) {
+            slopeRow_[k] = SlopeBlocks::boundOf(slopeDx_[k], slopeDy_[k], sx, sy);
+            maxDx_ = std::max(maxDx_, slopeDx_[k]);
+            maxDy_ = std::max(maxDy_, slopeDy_[k]);
+        }
+        writer_.writeSlopeRow(cy / SlopeBlocks::kBlock, slopeRow_.data());
+        std::fill(slopeDx_.begin(), slopeDx_.end(), 0);
+        std::fill(slopeDy_.begin(), slopeDy_.end(), 0);
+    }
 
     // Does whatever the rows and bands at hand allow, until nothing more can be done.
     void pump() {
@@ -469,6 +505,10 @@ class Builder {
     int t_;
     TerrainDbLayout layout_;
     TerrainDbWriter writer_;
+    std::vector<int> slopeDx_, slopeDy_;  // the block row being gathered
+    std::vector<float> slopeRow_;
+    int slopeCellRows_ = 0;
+    int maxDx_ = 0, maxDy_ = 0;
     ScratchFile scratch_;
     std::vector<Display> disp_;
     std::vector<std::deque<Band>> bq_;  // bottom-up node bands (level 0: level-0 cell maxima)

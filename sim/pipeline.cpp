@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -139,6 +140,78 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
             clipBeyondFar(frame, g.farM, sky);
             return frame;
         };
+}
+
+FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
+                                const RenderGeometry& geometry, ig::CasterKind kind,
+                                const ig::RenderOptions& options, std::shared_ptr<PagingLog> log) {
+    ig::PagedTerrain::Options po = paging;
+    po.pyramid = kind == ig::CasterKind::Fast;
+    po.levels = options.levels;
+    // What one process renders with, and the last frame's pose and time (for the motion the
+    // prefetch follows).
+    struct State {
+        pid_t pid = -1;
+        std::unique_ptr<ig::PagedTerrain> paged;
+        std::shared_ptr<const ig::Caster> caster;
+        bool have = false;
+        ig::Pose pose;
+        double time = 0.0;
+    };
+    auto state = std::make_shared<State>();
+    const ig::SkyModel sky = options.sky;
+    return [&db, po, kind, options, state, geometry, sky, log](const ig::Pose& pose, double time,
+                                                               std::uint64_t sequence) {
+        State& s = *state;
+        if (s.pid != ::getpid()) {
+            // A forked copy's paged map has no loader threads: left alone (never destroyed,
+            // which would join them), and this process makes its own.
+            s.caster.reset();
+            (void)s.paged.release();
+            s.paged = std::make_unique<ig::PagedTerrain>(db, po);
+            ig::RenderOptions o = options;
+            o.pyramid = s.paged->pyramid();
+            o.slopes = s.paged->slopes();
+            s.caster = ig::makeCaster(kind, s.paged->map(), o);
+            s.pid = ::getpid();
+            s.have = false;
+        }
+        const RenderGeometry g = viewed(geometry, requestView());
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        const ig::Intrinsics intr = renderIntrinsics(g, pose);
+        glm::dvec3 velocity(0.0);
+        double yawRate = 0.0;
+        if (s.have && time > s.time) {
+            const double dt = time - s.time;
+            velocity = (pose.position - s.pose.position) / dt;
+            yawRate = std::remainder(pose.yaw - s.pose.yaw, 2.0 * std::numbers::pi) / dt;
+            if (!std::isfinite(glm::dot(velocity, velocity)) || !std::isfinite(yawRate)) {
+                velocity = glm::dvec3(0.0);
+                yawRate = 0.0;
+            }
+        }
+        const auto start = std::chrono::steady_clock::now();
+        const ig::PagedFrameStats st =
+            s.paged->prepare(ig::Camera(level, intr), !s.have, velocity, yawRate);
+        const double pageMs =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count();
+        s.have = true;
+        s.pose = pose;
+        s.time = time;
+        if (log) {
+            const ig::TileCacheStats cs = s.paged->cache().stats();
+            log->frames.push_back(PagingLog::Frame{time, st.required, st.substituted, st.failed,
+                                                   st.nodesMissing, pageMs, cs.tilesRead,
+                                                   cs.bytesRead});
+            log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
+        }
+        ig::RenderedFrame frame =
+            ig::renderFrame(*s.caster, s.paged->map(), level, intr, time, sequence, g.nearM);
+        clipBeyondFar(frame, g.farM, sky);
+        return frame;
+    };
 }
 
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,

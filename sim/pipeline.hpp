@@ -3,6 +3,7 @@
 
 #include "ig/caster.hpp"
 #include "ig/frame.hpp"
+#include "ig/paged_terrain.hpp"
 #include "io/field_clock.hpp"
 #include "io/frame_sink.hpp"
 #include "prp/processor.hpp"
@@ -73,6 +74,37 @@ std::size_t maxFramePixels(const RenderGeometry& geometry);
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                  ig::CasterKind kind = ig::CasterKind::Fast,
                                  const ig::RenderOptions& options = {});
+
+// What paging a database did before each frame (makePagedRenderer): written on the renderer's
+// thread, read once the run is over.
+struct PagingLog {
+    struct Frame {
+        double time = 0.0;             // the frame's simulation time
+        std::size_t required = 0;      // display tiles its footprint needed
+        std::size_t substituted = 0;   // of those, drawn from a coarser level
+        std::size_t failed = 0;        // of those, unreadable
+        std::size_t nodesMissing = 0;  // node tiles not resident (their nodes give no bound)
+        double pageMs = 0.0;           // the placing, on the renderer's thread
+        std::uint64_t tilesRead = 0;   // by the cache's loaders since the start (all levels)
+        std::uint64_t bytesRead = 0;
+    };
+    std::vector<Frame> frames;
+    std::vector<std::string> failures;  // each unreadable tile, once
+};
+
+// A caster over a terrain database paged by the view (ig/paged_terrain.hpp): before each frame,
+// on the renderer's thread, the tiles of that frame's footprint are placed and those along the
+// motion (from the poses of the frames so far) prefetched. The first frame waits for its tiles;
+// later ones never wait, drawing what is not resident yet from a coarser level. The fast
+// caster renders on the paged pyramid (with `options.levels`), the others level 0. The paged
+// map is made by the process that renders, at its first frame (a renderer process makes its
+// own: a forked copy has no loader threads); `db` must outlive the renderer. `log`, when
+// given, gets each frame's paging as that process sees it (the field process's only with the
+// renderer in a thread).
+FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
+                                const RenderGeometry& geometry, ig::CasterKind kind,
+                                const ig::RenderOptions& options,
+                                std::shared_ptr<PagingLog> log = nullptr);
 
 // A caster over `map` drawing `scene`'s objects: the static layer as loaded, and the moving
 // objects stamped at each frame's instant into a layer of their own, which is all that changes

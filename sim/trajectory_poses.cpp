@@ -11,10 +11,11 @@ namespace sim {
 
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
                               const std::string& name, double clearance, double step,
-                              double duration) {
+                              double duration, const std::function<double(double, double)>& at) {
     auto check = [&](double t) {
         const ig::Pose p = trajectory.poseAt(t);
-        const double ground = map.surfaceHeight(p.position.x, p.position.y);
+        const double ground =
+            at ? at(p.position.x, p.position.y) : map.surfaceHeight(p.position.x, p.position.y);
         if (p.position.z < ground + clearance) {
             char buf[256];
             std::snprintf(buf, sizeof buf,

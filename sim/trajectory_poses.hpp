@@ -5,6 +5,7 @@
 #include "sim/pose_source.hpp"
 #include "sim/trajectory.hpp"
 
+#include <functional>
 #include <limits>
 #include <string>
 
@@ -31,8 +32,11 @@ class TrajectoryPoses final : public PoseSource {
 // its start that a run flies), or when every sample lies further from the map
 // than the map's own size (positions in another frame, such as UTM or degrees,
 // instead of metres from the map's south-west sample).
+// `ground`, when given, answers the terrain's surface height at (x, y) instead of the map (a
+// map paged from a database, whose tiles it places first).
 void checkTrajectoryClearance(const Trajectory& trajectory, const ig::TerrainMap& map,
                               const std::string& name, double clearance = 1.0, double step = 0.05,
-                              double duration = std::numeric_limits<double>::infinity());
+                              double duration = std::numeric_limits<double>::infinity(),
+                              const std::function<double(double, double)>& ground = {});
 
 }  // namespace sim

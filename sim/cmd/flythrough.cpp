@@ -3,9 +3,12 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/paged_terrain.hpp"
 #include "ig/scene.hpp"
 #include "ig/stereo.hpp"
 #include "ig/sticks.hpp"
+#include "ig/terrain_db.hpp"
+#include "ig/terrain_db_build.hpp"
 #include "io/contact_sheet.hpp"
 #include "io/field_clock.hpp"
 #include "io/field_weaver.hpp"
@@ -251,6 +254,42 @@ std::string fieldLogLine(const prp::Field& field, const ig::Pose& pose,
 }
 
 }  // namespace
+
+// What paging a database did over the run (sim::PagingLog), for the summary and --json.
+nlohmann::json pagingSummary(const sim::PagingLog& log, double cacheMb, bool rendererProcess) {
+    nlohmann::json j;
+    j["budget_mb"] = cacheMb;
+    j["frames"] = log.frames.size();
+    j["in_renderer_process"] = rendererProcess;
+    std::size_t substituted = 0, withSub = 0, withSubLate = 0, maxSub = 0, failed = 0;
+    double pageSum = 0.0, pageMax = 0.0;
+    const double t0 = log.frames.empty() ? 0.0 : log.frames.front().time;
+    for (const sim::PagingLog::Frame& f : log.frames) {
+        substituted += f.substituted;
+        withSub += f.substituted > 0;
+        withSubLate += f.substituted > 0 && f.time >= t0 + 1.0;
+        maxSub = std::max(maxSub, f.substituted);
+        failed += f.failed;
+        pageSum += f.pageMs;
+        pageMax = std::max(pageMax, f.pageMs);
+    }
+    const double span = log.frames.size() > 1 ? log.frames.back().time - t0 : 0.0;
+    const std::uint64_t read = log.frames.empty() ? 0 : log.frames.back().tilesRead;
+    j["substituted_tiles"] = substituted;
+    j["frames_with_substitutions"] = withSub;
+    j["frames_with_substitutions_after_1s"] = withSubLate;
+    j["max_substituted_per_frame"] = maxSub;
+    j["mean_substituted_per_frame"] =
+        log.frames.empty() ? 0.0 : static_cast<double>(substituted) / log.frames.size();
+    j["failed_tiles"] = failed;
+    j["tiles_read"] = read;
+    j["bytes_read"] = log.frames.empty() ? 0 : log.frames.back().bytesRead;
+    j["tiles_read_per_s"] = span > 0.0 ? static_cast<double>(read) / span : 0.0;
+    j["page_ms_mean"] = log.frames.empty() ? 0.0 : pageSum / log.frames.size();
+    j["page_ms_max"] = pageMax;
+    j["peak_rss_mb"] = static_cast<double>(ig::peakResidentBytes()) / 1048576.0;
+    return j;
+}
 
 int main(int argc, char** argv) {
     CLI::App app{
@@ -597,7 +636,41 @@ int main(int argc, char** argv) {
         // Where things went: standard output, unless an output is written there.
         std::FILE* report = io::usesStdout(paths) ? stderr : stdout;
 
-        ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
+        // A database over --cache-mb is paged by the view (ig/paged_terrain.hpp): the renderer
+        // places each frame's tiles; this process holds a small paged map of its own for the
+        // ground under the start and the trajectory, read before the run.
+        std::optional<ig::TerrainDb> pagedDb;
+        std::unique_ptr<ig::PagedTerrain> pagedGround;
+        if (!terrain.db.empty()) {
+            ig::checkDatabaseOptions(terrain);
+            pagedDb.emplace(ig::TerrainDb::open(terrain.db));
+            if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
+                const char* why = cigi                     ? "--cigi (a host's height queries)"
+                                  : !scenePath.empty()     ? "--scene"
+                                  : stereo                 ? "--stereo"
+                                  : trajectoryPath.empty() ? "a stick or the default scenario (the "
+                                                             "flight model's ground)"
+                                  : casterKind == ig::CasterKind::Span ? "--caster span"
+                                                                       : nullptr;
+                if (why) {
+                    throw ig::InputError(
+                        terrain.db + " is over --cache-mb and is paged: a flight " +
+                        "over it takes a --trajectory, with --caster fast, naive " +
+                        "or reference, not " + why + " (or give a larger --cache-mb)");
+                }
+                ig::PagedTerrain::Options ground;
+                ground.cache.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 64.0) * 1048576.0);
+                pagedGround = std::make_unique<ig::PagedTerrain>(*pagedDb, ground);
+            } else {
+                pagedDb.reset();
+            }
+        }
+        ig::TerrainMap loadedMap =
+            pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
+        // The paged map is written only by pagedGround's own placing, here before the run.
+        ig::TerrainMap& map =
+            pagedGround ? const_cast<ig::TerrainMap&>(pagedGround->map()) : loadedMap;
         if (!cigiBind.empty() && cigiOrigin.empty()) {
             const auto geo = ig::geodeticOrigin(map.georeference());
             if (!geo) {
@@ -608,7 +681,14 @@ int main(int argc, char** argv) {
             cigiOptions.origin.latDeg = (*geo)[0];
             cigiOptions.origin.lonDeg = (*geo)[1];
         }
-        ig::applyAppearance(ig::parseAppearance(look, terrain, map), map, renderOptions);
+        // A paged map draws the database's colours: the lit ramp needs the whole map.
+        if (pagedGround && look.colors == "auto") look.colors = "image";
+        const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
+        if (pagedGround && (appearance.ramp || appearance.shade)) {
+            throw ig::InputError(std::string(appearance.ramp ? "--colors ramp" : "--shade") +
+                                 ": not with a database paged beyond --cache-mb");
+        }
+        ig::applyAppearance(appearance, map, renderOptions);
         // The scene: the static layer once, the moving objects per frame (the renderer).
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;
@@ -675,9 +755,16 @@ int main(int argc, char** argv) {
             poses = std::move(source);
         } else if (!trajectoryPath.empty()) {
             sim::Trajectory trajectory = sim::Trajectory::loadCsv(trajectoryPath);
+            std::function<double(double, double)> ground;
+            if (pagedGround) {
+                ground = [&](double x, double y) {
+                    pagedGround->placeAround(x, y);
+                    return map.surfaceHeight(x, y);
+                };
+            }
             sim::checkTrajectoryClearance(
                 trajectory, map, trajectoryPath, 1.0, 0.05,
-                duration.value_or(trajectory.endTime() - trajectory.startTime()));
+                duration.value_or(trajectory.endTime() - trajectory.startTime()), ground);
             flightSeconds = trajectory.endTime() - trajectory.startTime();
             flightName = "trajectory " + trajectoryPath;
             poses = std::make_unique<sim::TrajectoryPoses>(std::move(trajectory));
@@ -843,13 +930,21 @@ int main(int argc, char** argv) {
                 };
             }
         }
+        std::shared_ptr<sim::PagingLog> pagingLog;
+        ig::PagedTerrain::Options pagedOptions;
+        if (pagedDb) {
+            pagingLog = std::make_shared<sim::PagingLog>();
+            pagedOptions.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
+        }
         sim::FrameRenderer renderer =
             stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,
                                                       renderOptions, *scene, *motion, hostObjects)
-            : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene  ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
-                                              *motion, hostObjects)
-                     : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            : stereo  ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+            : scene   ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
+                                               *motion, hostObjects)
+            : pagedDb ? sim::makePagedRenderer(*pagedDb, pagedOptions, geometry, casterKind,
+                                               renderOptions, pagingLog)
+                      : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.
@@ -913,7 +1008,10 @@ int main(int argc, char** argv) {
         // On the wall clock the field process keeps its memory resident: no field waits on a
         // page fault (the renderer process, forked later, does not inherit the lock).
         io::MemoryLock memoryLock;
-        if (!simulated) {
+        if (pagedDb) {
+            // Locking every mapping would fault in the whole of the paged map's address range.
+            memoryLock.error = "not locked: the terrain database is paged";
+        } else if (!simulated) {
             memoryLock = io::lockAllMemory();
             if (!memoryLock.locked) {
                 std::fprintf(stderr, "flythrough: memory not locked: %s\n",
@@ -942,6 +1040,31 @@ int main(int argc, char** argv) {
                          io::stopSignalNumber(), static_cast<std::size_t>(result.stats.fields));
         }
         std::fprintf(stderr, "%s", sim::formatSummary(result.stats).c_str());
+        nlohmann::json pagingJson;
+        if (pagingLog) {
+            pagingJson = pagingSummary(*pagingLog, terrain.cacheMb, rendererProcess);
+            if (pagingLog->frames.empty()) {
+                std::fprintf(stderr,
+                             "paging: in the renderer process (its figures with "
+                             "--renderer thread)\n");
+            } else {
+                std::fprintf(
+                    stderr,
+                    "paging: %zu frames, %zu tiles drawn from a coarser level in %zu frames "
+                    "(%zu after the first second), %llu tiles read (%.0f a second), placing "
+                    "%.2f ms mean, %.2f ms max; peak RSS %.0f MB (--cache-mb %g)\n",
+                    pagingLog->frames.size(), pagingJson["substituted_tiles"].get<std::size_t>(),
+                    pagingJson["frames_with_substitutions"].get<std::size_t>(),
+                    pagingJson["frames_with_substitutions_after_1s"].get<std::size_t>(),
+                    static_cast<unsigned long long>(pagingJson["tiles_read"].get<std::uint64_t>()),
+                    pagingJson["tiles_read_per_s"].get<double>(),
+                    pagingJson["page_ms_mean"].get<double>(),
+                    pagingJson["page_ms_max"].get<double>(),
+                    pagingJson["peak_rss_mb"].get<double>(), terrain.cacheMb);
+            }
+            for (const std::string& m : pagingLog->failures)
+                std::fprintf(stderr, "paging: %s (drawn from a coarser level)\n", m.c_str());
+        }
         if (cigiSource) {
             const sim::CigiStats& c = cigiSource->session().stats();
             std::fprintf(stderr,
@@ -1021,6 +1144,7 @@ int main(int argc, char** argv) {
             }
             j["render_hz_cap"] = renderHz;
             j["stopped_by_signal"] = result.stopped ? io::stopSignalNumber() : 0;
+            if (pagingLog) j["paging"] = pagingJson;
             j["memory_locked"] = memoryLock.locked;
             j["memory_lock_error"] = memoryLock.error;
             j["memory_locked_mib"] = static_cast<double>(io::lockedBytes()) / (1 << 20);

@@ -433,23 +433,28 @@ struct PagedRequest {
     ig::CasterKind kind = ig::CasterKind::Reference;
     ig::Intrinsics intr;
     int threads = 0;
+    int levels = 0;
+    ig::CasterKernel kernel = ig::CasterKernel::Auto;
     double nearM = 0.0;
 };
 
 // One frame from a database over --cache-mb: the tiles its footprint needs are read (waiting
-// for each: no deadline here) into the sparse map the caster reads (ig/paged_terrain.hpp), so
-// the image is the in-memory render's wherever every tile could be read; an unreadable tile is
-// drawn from a coarser level and reported.
+// for each: no deadline here) into the sparse map (and, for the fast caster, the sparse
+// pyramid) the caster reads (ig/paged_terrain.hpp), so the image is the in-memory render's
+// wherever every tile could be read; an unreadable tile is drawn from a coarser level and
+// reported.
 int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
                 const ig::AppearanceOptions& look, const PagedRequest& r) {
-    if (r.kind != ig::CasterKind::Reference && r.kind != ig::CasterKind::Naive) {
+    if (r.kind == ig::CasterKind::Span) {
         throw ig::InputError("--caster " + r.casterText + ": " + terrain.db +
-                             " is over --cache-mb and is rendered paged, which the reference "
-                             "and naive casters do; use --caster reference or naive, or a "
-                             "larger --cache-mb");
+                             " is over --cache-mb and is rendered paged, which the reference, "
+                             "naive and fast casters do; use one of them, or a larger --cache-mb");
     }
+    const bool fast = r.kind == ig::CasterKind::Fast;
     ig::PagedTerrain::Options po;
     po.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
+    po.pyramid = fast;
+    po.levels = r.levels;
     ig::PagedTerrain paged(db, po);
     const ig::TerrainMap& map = paged.map();
     const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
@@ -467,8 +472,18 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
         paged.placeAround(where.position.x, where.position.y);
         pose = ig::parsePose(r.poseText, map);
     }
+    if (fast && pose.roll != 0.0) {
+        throw ig::InputError(
+            "--pose: the fast caster renders roll = 0 (roll is applied by the "
+            "post-rendering processor); use --caster naive or reference for a "
+            "truly rolled view");
+    }
     ig::RenderOptions options;
     options.threads = r.threads;
+    options.levels = r.levels;
+    options.kernel = r.kernel;
+    options.pyramid = paged.pyramid();
+    options.slopes = paged.slopes();
     options.sky.hazeDistance = appearance.hazeDistance;
     options.supersample = appearance.supersample;
     options.supersampleMax = appearance.supersampleMax;
@@ -500,6 +515,7 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     const ig::TileCacheStats cs = paged.cache().stats();
     nlohmann::json j;
     j["caster"] = r.casterText;
+    j["kernel"] = std::string(frame.stats.kernel);
     j["width"] = frame.width();
     j["height"] = frame.height();
     j["render_ms"] = frame.stats.renderMs;
@@ -508,6 +524,8 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     j["paging"] = {{"budget_mb", terrain.cacheMb},
                    {"tiles_needed", st.required},
                    {"tiles_substituted", st.substituted},
+                   {"node_tiles_needed", st.nodesRequired},
+                   {"node_tiles_missing", st.nodesMissing},
                    {"tiles_failed", st.failed},
                    {"tiles_read", cs.tilesRead},
                    {"bytes_read", cs.bytesRead},
@@ -693,6 +711,13 @@ int main(int argc, char** argv) {
                 req.kind = kind;
                 req.intr = ig::Intrinsics::fromFov(w, h, ig::degToRad(fovDeg), margin);
                 req.threads = threads;
+                req.levels = ig::parseLevels(levelsText);
+                req.kernel = ig::parseCasterKernel(kernelText);
+                if (kind != ig::CasterKind::Fast && req.kernel != ig::CasterKernel::Auto) {
+                    throw ig::InputError("--kernel " + kernelText +
+                                         ": only the fast caster has kernels; drop --kernel or "
+                                         "use --caster fast");
+                }
                 req.nearM = batch.nearM;
                 return renderPaged(terrain, db, look, req);
             }

@@ -14,18 +14,23 @@ cmp -s "$tmp/a.db" "$tmp/b.db" || fail "two builds of the same input differ"
 [ -e "$tmp/a.db.partial" ] && fail "partial file left after a finished build"
 
 # The database as a map for every program (--db): the same frame as the map it was built from;
-# a map over --cache-mb is rendered paged by the reference and naive casters (the same image
-# as the whole map's), refused with the others and by programs that load the map whole.
+# a map over --cache-mb is rendered paged by the reference, naive and fast casters (the same
+# image as the whole map's, the fast one at every level setting), refused with the span caster
+# and by programs that load the map whole.
 if [ -x "$bin/ig-render" ]; then
     "$bin/ig-render" --synthetic 256:5 --pose 800,600,+300,40,-20,0 --size 64x48 \
         --out "$tmp/syn.png" >/dev/null || fail "render --synthetic"
     "$bin/ig-render" --db "$tmp/a.db" --pose 800,600,+300,40,-20,0 --size 64x48 \
         --out "$tmp/db.png" >/dev/null || fail "render --db"
     cmp -s "$tmp/syn.png" "$tmp/db.png" || fail "--db renders another frame than the map"
-    for caster in reference naive; do
-        "$bin/ig-render" --db "$tmp/a.db" --caster $caster --pose 800,600,+300,40,-20,0 \
-            --size 64x48 --out "$tmp/whole_$caster.png" >/dev/null 2>&1 || fail "render $caster"
-        "$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.4 --caster $caster \
+    for caster in reference naive fast:auto fast:0 fast:2; do
+        c=${caster%%:*}
+        levels=()
+        [ "$c" = fast ] && levels=(--levels "${caster#*:}")
+        "$bin/ig-render" --db "$tmp/a.db" --caster $c "${levels[@]}" \
+            --pose 800,600,+300,40,-20,0 --size 64x48 --out "$tmp/whole_$caster.png" \
+            >/dev/null 2>&1 || fail "render $caster"
+        "$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.4 --caster $c "${levels[@]}" \
             --pose 800,600,+300,40,-20,0 --size 64x48 --out "$tmp/paged_$caster.png" \
             --json "$tmp/paged_$caster.json" >/dev/null 2>&1 || fail "render $caster paged"
         cmp -s "$tmp/whole_$caster.png" "$tmp/paged_$caster.png" ||
@@ -39,11 +44,12 @@ if [ -x "$bin/ig-render" ]; then
         fail "render paged below the frame's tiles: $msg"
     grep -q "of the frame's .* tiles did not fit --cache-mb 0.1: drawn from a coarser level" \
         <<<"$msg" || fail "paged below the frame's tiles: $msg"
-    msg=$("$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.1 --size 64x48 --out "$tmp/x.png" 2>&1)
+    msg=$("$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.1 --caster span --size 64x48 \
+        --out "$tmp/x.png" 2>&1)
     rc=$?
-    [ "$rc" -eq 2 ] || fail "--cache-mb below the map, fast caster: exit $rc"
-    grep -q -- "--caster fast: .*a.db is over --cache-mb and is rendered paged" <<<"$msg" ||
-        fail "--cache-mb below the map, fast caster: $msg"
+    [ "$rc" -eq 2 ] || fail "--cache-mb below the map, span caster: exit $rc"
+    grep -q -- "--caster span: .*a.db is over --cache-mb and is rendered paged" <<<"$msg" ||
+        fail "--cache-mb below the map, span caster: $msg"
     [ -e "$tmp/x.png" ] && fail "--cache-mb below the map: an image was written"
     msg=$("$bin/ig-render" --db "$tmp/a.db" --synthetic 64 --size 64x48 --out "$tmp/x.png" 2>&1)
     grep -q -- "--db: the database holds the map" <<<"$msg" || fail "--db with --synthetic: $msg"

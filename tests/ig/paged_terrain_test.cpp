@@ -75,6 +75,10 @@ void expectSameImage(const RenderedFrame& a, const RenderedFrame& b, const std::
     for (std::size_t i = 0; i < a.color.size(); ++i)
         diff += !(a.color[i] == b.color[i]) || a.depth[i] != b.depth[i];
     EXPECT_EQ(diff, 0u) << what << ": pixels differ";
+    for (std::size_t i = 0; i < a.controlPoints.size(); ++i) {
+        EXPECT_EQ(a.controlPoints[i].world, b.controlPoints[i].world)
+            << what << ": control point " << i;
+    }
 }
 
 TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
@@ -113,6 +117,128 @@ TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
     EXPECT_GT(s.bytesRead, paged.cache().budgetBytes());
     EXPECT_LE(paged.cache().residentBytes(), paged.cache().budgetBytes());
     EXPECT_EQ(s.failures, 0u);
+}
+
+// The fast caster over the paged map and the sparse pyramid the paging fills, at every level
+// setting and with its kernels, through a cache far smaller than the map and its pyramid: with
+// all levels (the default) or level 0 alone, each frame of the sweep is the in-memory render to
+// the bit (colour and depth). With a few coarser levels the in-memory pyramid's nodes bound only
+// the levels kept, the database's every level (looser): the marches skip elsewhere, and a hit
+// found by interpolation between grid lines from another start may round differently (one
+// pixel of the sweep, 5 cm at 1.5 km); colours stay equal and depths within 1e-4 of range.
+TEST(PagedTerrain, FastCasterEqualsTheInMemoryRenderBitForBitOverASweep) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    struct Case {
+        int levels;
+        CasterKernel kernel;
+        int supersample;
+    };
+    for (const Case c :
+         {Case{kLevelsAuto, CasterKernel::Auto, 1}, Case{0, CasterKernel::Auto, 1},
+          Case{2, CasterKernel::Scalar, 1}, Case{kLevelsAuto, CasterKernel::Scalar, 3},
+          Case{kLevelsAuto, CasterKernel::Auto, kSupersampleAuto}}) {
+        SCOPED_TRACE("levels " + std::to_string(c.levels) + " kernel " +
+                     std::string(casterKernelName(c.kernel)) + " supersample " +
+                     std::to_string(c.supersample));
+        PagedTerrain::Options po = smallBudget();
+        po.cache.budgetBytes = std::size_t{5} << 18;  // 1.25 MB
+        po.pyramid = true;
+        po.levels = c.levels;
+        PagedTerrain paged(db, po);
+        ASSERT_TRUE(paged.pyramid());
+        RenderOptions o;
+        o.levels = c.levels;
+        o.kernel = c.kernel;
+        o.supersample = c.supersample;
+        const auto inMemory = makeCaster(CasterKind::Fast, f.map, o);
+        o.pyramid = paged.pyramid();
+        o.slopes = paged.slopes();
+        const auto fromCache = makeCaster(CasterKind::Fast, paged.map(), o);
+        EXPECT_EQ(paged.pyramid()->levelCount(), TerrainPyramid(f.map, c.levels).levelCount());
+        int pose = 0;
+        std::size_t coarse = 0;
+        for (const Pose& p : lowSweep(f.map, 24)) {
+            const Camera camera(p, kView);
+            const PagedFrameStats st = paged.prepare(camera, true);
+            EXPECT_EQ(st.substituted, 0u) << "pose " << pose << " of " << st.required << " tiles";
+            EXPECT_EQ(st.nodesMissing, 0u) << "pose " << pose;
+            EXPECT_GT(st.nodesRequired, 0u);
+            coarse += st.requiredCoarse;
+            const RenderedFrame a = renderFrame(*inMemory, f.map, p, kView);
+            const RenderedFrame b = renderFrame(*fromCache, paged.map(), p, kView);
+            if (c.levels == kLevelsAuto || c.levels == 0) {
+                expectSameImage(a, b, "fast pose " + std::to_string(pose));
+            } else {
+                std::size_t colour = 0, depth = 0;
+                for (std::size_t i = 0; i < a.color.size(); ++i) {
+                    colour += !(a.color[i] == b.color[i]);
+                    depth += !(std::abs(a.depth[i] - b.depth[i]) <= 1e-4 * std::abs(a.depth[i]));
+                }
+                EXPECT_EQ(colour + depth, 0u) << "pose " << pose;
+            }
+            // With every level the nodes are the in-memory pyramid's, so the marches are too.
+            // With fewer, the database's nodes also bound the levels the caster leaves out
+            // (looser): other skips, the same image.
+            if (c.levels == kLevelsAuto) {
+                EXPECT_EQ(a.stats.steps, b.stats.steps) << "pose " << pose;
+            }
+            EXPECT_LE(paged.residentMapBytes(), paged.placedBytes());
+            ++pose;
+        }
+        // The map and its pyramid take about 9.3 bytes a sample: a frame's pages stay.
+        const std::size_t whole = static_cast<std::size_t>(f.map.width()) * f.map.height() * 9;
+        EXPECT_LT(paged.residentMapBytes(), whole / 4);
+        const TileCacheStats s = paged.cache().stats();
+        EXPECT_GT(s.evictions, 0u) << "the sweep must page";
+        EXPECT_EQ(s.failures, 0u);
+        if (c.levels != 0) {
+            EXPECT_GT(coarse, 0u) << "coarser levels paged";
+        } else {
+            EXPECT_EQ(coarse, 0u);
+        }
+    }
+}
+
+// Node tiles that never come leave their nodes reading "no bound" (nodes are stored complemented
+// in the sparse pyramid): the fast caster then looks closer where it would have skipped, and
+// draws the same image, to the bit.
+TEST(PagedTerrain, MissingNodeTilesOnlySlowTheFastCaster) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain::Options po;
+    po.cache.budgetBytes = std::size_t{4} << 20;
+    po.pyramid = true;
+    po.levels = kLevelsAuto;
+    PagedTerrain paged(db, po);
+    EXPECT_EQ(paged.pyramid()->nodeMaxRaw(1, 0, 0), 65535) << "a node never placed";
+    // Every node tile below the cache's pinned levels (those are loaded at construction).
+    paged.cache().setWithheld([](const TileKey& k) { return k.kind == TileKind::Nodes; });
+    RenderOptions o;
+    o.levels = kLevelsAuto;
+    const auto inMemory = makeCaster(CasterKind::Fast, f.map, o);
+    o.pyramid = paged.pyramid();
+    o.slopes = paged.slopes();
+    const auto fromCache = makeCaster(CasterKind::Fast, paged.map(), o);
+    std::uint64_t stepsWhole = 0, stepsPaged = 0;
+    std::size_t missing = 0;
+    int pose = 0;
+    for (const Pose& p : lowSweep(f.map, 8)) {
+        const Camera camera(p, kView);
+        const PagedFrameStats st = paged.prepare(camera, true);
+        EXPECT_EQ(st.substituted, 0u);
+        missing += st.nodesMissing;
+        const RenderedFrame a = renderFrame(*inMemory, f.map, p, kView);
+        const RenderedFrame b = renderFrame(*fromCache, paged.map(), p, kView);
+        expectSameImage(a, b, "no nodes, pose " + std::to_string(pose));
+        stepsWhole += a.stats.steps;
+        stepsPaged += b.stats.steps;
+        ++pose;
+    }
+    std::printf("without node tiles: %zu node tiles missing, %llu steps against %llu\n", missing,
+                static_cast<unsigned long long>(stepsPaged),
+                static_cast<unsigned long long>(stepsWhole));
+    EXPECT_GT(missing, 0u);
 }
 
 // The slow twin of a stand-in: level-0 tile (tx, ty) of `map` replaced by the bilinear
@@ -228,6 +354,65 @@ TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
     const RenderedFrame back =
         renderFrame(*makeCaster(CasterKind::Reference, paged.map()), paged.map(), pose, kView);
     expectSameImage(back, full, "after the tile arrived");
+}
+
+// The fast caster with a level-0 tile and a coarser-level tile withheld: neither stalls the
+// frame, each is drawn from a coarser resident level, the image stays near the full one, and
+// when the tiles arrive the next frame is the full image again, to the bit.
+TEST(PagedTerrain, FastCasterWithheldTilesComeFromCoarserLevels) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    Pose pose = lookingDown(f.map);
+    pose.pitch = -12.0 * M_PI / 180.0;  // far enough to read the coarser levels
+    const Camera camera(pose, kView);
+    RenderOptions o;
+    o.levels = kLevelsAuto;
+    const RenderedFrame full =
+        renderFrame(*makeCaster(CasterKind::Fast, f.map, o), f.map, pose, kView);
+    const auto [tx, ty] = centreTile(full, camera, 16, f.map);
+    // A level-2 tile of the frame's footprint.
+    const Footprint fp = frameFootprint(camera, db.layout(), db.info(),
+                                        LevelSelection::forCamera(kView, db.info(), kLevelsAuto));
+    std::vector<TileKey> level2;
+    for (const TileKey& k : fp.tiles)
+        if (k.kind == TileKind::Display && k.level == 2) level2.push_back(k);
+    ASSERT_FALSE(level2.empty());
+    const TileKey coarse = level2[level2.size() / 2];
+    const TileKey fine{TileKind::Display, 0, tx, ty};
+
+    PagedTerrain::Options po;
+    po.cache.budgetBytes = std::size_t{4} << 20;
+    po.pyramid = true;
+    po.levels = kLevelsAuto;
+    PagedTerrain paged(db, po);
+    paged.cache().setWithheld([&](const TileKey& k) { return k == fine || k == coarse; });
+    o.pyramid = paged.pyramid();
+    o.slopes = paged.slopes();
+    const auto caster = makeCaster(CasterKind::Fast, paged.map(), o);
+    const PagedFrameStats st = paged.prepare(camera, true);  // returns: the tiles never come
+    EXPECT_EQ(st.substituted, 2u);
+    EXPECT_EQ(paged.substitutedTiles(), 2u);
+    const RenderedFrame got = renderFrame(*caster, paged.map(), pose, kView);
+    std::size_t differ = 0;
+    double sum = 0.0;
+    for (std::size_t i = 0; i < full.color.size(); ++i) {
+        const int d = std::abs(full.color[i].r - got.color[i].r) +
+                      std::abs(full.color[i].g - got.color[i].g) +
+                      std::abs(full.color[i].b - got.color[i].b);
+        differ += d > 0;
+        sum += d / 3.0;
+    }
+    std::printf("fast, withheld %s and %s: %zu of %zu pixels differ, mean colour error %.3f\n",
+                describeTile(fine).c_str(), describeTile(coarse).c_str(), differ, full.color.size(),
+                sum / full.color.size());
+    EXPECT_GT(differ, 0u) << "the withheld level-0 tile is in view";
+    EXPECT_LT(sum / full.color.size(), 4.0) << "mean colour error over the frame, levels";
+
+    paged.cache().setWithheld(nullptr);
+    const PagedFrameStats again = paged.prepare(camera, true);
+    EXPECT_EQ(again.substituted, 0u);
+    EXPECT_EQ(again.copied, 2u) << "only the stand-ins are replaced";
+    expectSameImage(renderFrame(*caster, paged.map(), pose, kView), full, "after the tiles came");
 }
 
 TEST(PagedTerrain, CorruptTileInFlightIsAReportedHoleAndFramesGoOn) {

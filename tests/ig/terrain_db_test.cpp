@@ -24,6 +24,7 @@
 #include "ig/error.hpp"
 #include "ig/paged_terrain.hpp"
 #include "ig/pyramid.hpp"
+#include "ig/slope_bound.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_db_build.hpp"
 #include "ig/terrain_io.hpp"
@@ -144,6 +145,11 @@ TEST(TerrainDb, StreamedLevelsEqualThePyramidBitForBit) {
         EXPECT_EQ(db.info().spacingY, 7.0);
         EXPECT_EQ(db.info().heightOffset, -30.0);
         expectMatchesPyramid(db, map);
+        // The slope section and the global bound: what the fast caster computes from the map.
+        const ig::SlopeBlocks blocks(map);
+        const std::size_t nb = static_cast<std::size_t>(blocks.blocksX()) * blocks.blocksY();
+        EXPECT_EQ(std::memcmp(db.slopeBounds(), blocks.data(), nb * sizeof(float)), 0);
+        EXPECT_EQ(db.info().maxSlope(), map.maxSlope());
     }
 }
 
@@ -278,9 +284,15 @@ TEST(TerrainDb, BadFilesAreClearErrorsNamingFileAndTile) {
     expectError(bad, "not a terrain database");
 
     std::vector<char> f = bytes;
-    f[8] = 2;  // version
+    f[8] = 3;  // version
     writeFile(bad, f);
-    expectError(bad, "format version 2");
+    expectError(bad, "format version 3");
+
+    // A flipped byte in the slope section (right after the header).
+    f = bytes;
+    f[256 + 5] ^= 0x10;
+    writeFile(bad, f);
+    expectError(bad, "slope section checksum mismatch");
 
     writeFile(bad, std::vector<char>(bytes.begin(), bytes.begin() + bytes.size() / 2));
     expectError(bad, "truncated");

@@ -1,0 +1,108 @@
+// The real-time renderer over a terrain database paged by the view (sim::makePagedRenderer):
+// frames along a flight, none of them waiting after the first, equal the in-memory render to
+// the bit wherever their tiles were resident, and the misses are counted.
+#include "sim/pipeline.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "common/small_terrain_db.hpp"
+#include "ig/caster.hpp"
+#include "ig/synthetic.hpp"
+#include "ig/terrain_db.hpp"
+#include "ig/terrain_db_build.hpp"
+
+namespace {
+
+// A 1025 x 1025 synthetic map (10 m) in tiles of 16, paged through 2 MB.
+struct Database {
+    ig::TerrainMap map = ig::makeSyntheticTerrain(1024, 11);
+    std::string path =
+        vig_test::testTmpPath("paged_renderer", "map_" + std::to_string(::getpid()) + ".db");
+    Database() {
+        auto source = ig::mapRowSource(map);
+        ig::DbBuildOptions o;
+        o.tileSize = 16;
+        ig::buildTerrainDb(*source, path, o);
+    }
+    ~Database() { std::filesystem::remove(path); }
+};
+
+bool sameFrame(const ig::RenderedFrame& a, const ig::RenderedFrame& b) {
+    if (a.color.size() != b.color.size()) return false;
+    for (std::size_t i = 0; i < a.color.size(); ++i)
+        if (!(a.color[i] == b.color[i]) || a.depth[i] != b.depth[i]) return false;
+    for (std::size_t i = 0; i < a.controlPoints.size(); ++i)
+        if (a.controlPoints[i].world != b.controlPoints[i].world) return false;
+    return true;
+}
+
+TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
+    const Database d;
+    const ig::TerrainDb db = ig::TerrainDb::open(d.path);
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 96;
+    geometry.windowHeight = 64;
+    geometry.margin = 8;
+    ig::RenderOptions options;
+    options.levels = ig::kLevelsAuto;
+    ig::PagedTerrain::Options paging;
+    paging.cache.budgetBytes = std::size_t{2} << 20;
+    for (const ig::CasterKind kind : {ig::CasterKind::Fast}) {
+        SCOPED_TRACE(std::string(ig::casterName(kind)));
+        auto log = std::make_shared<sim::PagingLog>();
+        sim::FrameRenderer paged = sim::makePagedRenderer(db, paging, geometry, kind, options, log);
+        sim::FrameRenderer whole = sim::makeCasterRenderer(d.map, geometry, kind, options);
+        // 300 m/s low over the map, turning 60 degrees a second, a frame every 1/30 s.
+        std::size_t exact = 0;
+        ig::Pose pose;
+        const int frames = 45;
+        for (int i = 0; i < frames; ++i) {
+            const double t = i / 30.0;
+            pose.yaw = 0.4 + t * M_PI / 3.0;
+            pose.position = {2000.0 + 300.0 * t * std::sin(0.4 + t * M_PI / 6.0),
+                             2000.0 + 300.0 * t * std::cos(0.4 + t * M_PI / 6.0), 0.0};
+            pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
+            pose.pitch = -0.25;
+            const ig::RenderedFrame a = paged(pose, t, static_cast<std::uint64_t>(i));
+            ASSERT_EQ(log->frames.size(), static_cast<std::size_t>(i + 1));
+            const sim::PagingLog::Frame& f = log->frames.back();
+            EXPECT_GT(f.required, 0u);
+            if (i == 0) {
+                EXPECT_EQ(f.substituted, 0u) << "the first frame waits for its tiles";
+            }
+            if (f.substituted == 0) {
+                const ig::RenderedFrame b = whole(pose, t, static_cast<std::uint64_t>(i));
+                EXPECT_TRUE(sameFrame(a, b))
+                    << "frame " << i << ": every tile resident, yet not the in-memory frame";
+                ++exact;
+            }
+        }
+        // The same pose again once the loaders have caught up: the full frame.
+        bool caughtUp = false;
+        for (int tries = 0; tries < 200 && !caughtUp; ++tries) {
+            const ig::RenderedFrame a = paged(pose, 10.0 + tries, 1000);
+            if (log->frames.back().substituted == 0) {
+                caughtUp = true;
+                EXPECT_TRUE(sameFrame(a, whole(pose, 10.0 + tries, 1000)));
+            } else {
+                std::this_thread::sleep_for(std::chrono::milliseconds(10));
+            }
+        }
+        EXPECT_TRUE(caughtUp) << "the tiles never came";
+        EXPECT_GT(log->frames.back().tilesRead, 0u);
+        std::printf("%s: %zu of %d frames with every tile resident, %llu tiles read\n",
+                    std::string(ig::casterName(kind)).c_str(), exact, frames,
+                    static_cast<unsigned long long>(log->frames.back().tilesRead));
+        EXPECT_GE(exact, 1u);
+    }
+}
+
+}  // namespace
