@@ -37,27 +37,6 @@ TerrainMap makeSparseMap(const TerrainDbInfo& info) {
                               info.maxSlope());
 }
 
-// Gives back the pages of an array (elements of `elemBytes`, `rowLen` a row, `total` in all)
-// that overlap elements [first, first + count) and hold no element `used(row, c0, c1)` claims.
-template <typename Used>
-void releaseRange(void* base, std::size_t elemBytes, std::size_t rowLen, std::size_t total,
-                  std::size_t first, std::size_t count, Used used) {
-    if (count == 0 || rowLen == 0) return;
-    const std::size_t b0 = first * elemBytes / kPage * kPage;
-    const std::size_t b1 = (first + count) * elemBytes;
-    for (std::size_t pb = b0; pb < b1; pb += kPage) {
-        const std::size_t e0 = pb / elemBytes;
-        const std::size_t e1 = std::min(total, (pb + kPage + elemBytes - 1) / elemBytes);
-        bool inUse = false;
-        for (std::size_t row = e0 / rowLen; !inUse && row * rowLen < e1; ++row) {
-            const std::size_t c0 = std::max(e0, row * rowLen) - row * rowLen;
-            const std::size_t c1 = std::min(e1, (row + 1) * rowLen) - 1 - row * rowLen;
-            inUse = used(static_cast<int>(row), static_cast<int>(c0), static_cast<int>(c1));
-        }
-        if (!inUse) releaseSparsePages(static_cast<char*>(base) + pb, kPage);
-    }
-}
-
 }  // namespace
 
 PagedTerrain::PagedTerrain(const TerrainDb& db, const Options& options)
@@ -114,13 +93,7 @@ std::size_t PagedTerrain::substitutedTiles() const {
 }
 
 std::size_t PagedTerrain::placedBytes() const {
-    const std::size_t t = static_cast<std::size_t>(db_.layout().tileSize());
-    // Display tiles: heights, colours and cell maxima, rows of at most T + 1 samples, each row
-    // spanning at most two pages per array; node tiles: T rows.
-    std::size_t bytes = 0;
-    for (const auto& [key, p] : placed_)
-        bytes += (key.kind == TileKind::Display ? (t + 1) * 3 : t) * 2 * kPage;
-    return bytes;
+    return pageRefs_.size() * kPage;
 }
 
 std::size_t PagedTerrain::residentMapBytes() const {
@@ -250,43 +223,69 @@ void PagedTerrain::updateCellMax(const TileKey& key) {
     }
 }
 
-void PagedTerrain::release(const TileKey& key) {
+void PagedTerrain::tilePages(const TileKey& key, std::vector<std::uintptr_t>& out) const {
+    out.clear();
     int x0, y0, tw, th;
     db_.layout().tileExtent(key, x0, y0, tw, th);
-    const int t = db_.layout().tileSize();
     const Grid g = grid(key.kind, key.level);
     const std::size_t w = static_cast<std::size_t>(g.w);
-    const std::size_t n = w * static_cast<std::size_t>(g.h);
-    // Cells (and nodes) belong to exactly one tile.
-    auto ownedUsed = [&](int row, int c0, int c1) {
-        for (int sx = c0 / t; sx <= c1 / t; ++sx)
-            if (placed_.count(TileKey{key.kind, key.level, sx, row / t})) return true;
-        return false;
-    };
-    if (key.kind == TileKind::Nodes) {
-        for (int r = 0; r < th; ++r) {
-            releaseRange(g.nodes, sizeof(std::uint16_t), w, n,
-                         static_cast<std::size_t>(y0 + r) * w + x0, tw, ownedUsed);
-        }
-        return;
-    }
-    // Samples: a placed tile's extent includes its edges.
-    auto samplesUsed = [&](int row, int c0, int c1) {
-        for (int sy = std::max(0, (row + t - 1) / t - 1); sy <= row / t; ++sy)
-            for (int sx = std::max(0, (c0 + t - 1) / t - 1); sx <= c1 / t; ++sx)
-                if (placed_.count(TileKey{TileKind::Display, key.level, sx, sy})) return true;
-        return false;
+    auto add = [&](const void* base, std::size_t elemBytes, std::size_t first, std::size_t count) {
+        const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(base) + first * elemBytes;
+        const std::uintptr_t e = b + count * elemBytes;
+        for (std::uintptr_t page = b & ~(kPage - 1); page < e; page += kPage)
+            out.push_back(page);
     };
     for (int r = 0; r < th; ++r) {
         const std::size_t o = static_cast<std::size_t>(y0 + r) * w + x0;
-        releaseRange(g.heights, sizeof(std::uint16_t), w, n, o, tw, samplesUsed);
-        releaseRange(g.colors, sizeof(Rgb8), w, n, o, tw, samplesUsed);
+        if (key.kind == TileKind::Nodes) {
+            add(g.nodes, sizeof(std::uint16_t), o, static_cast<std::size_t>(tw));
+            continue;
+        }
+        add(g.heights, sizeof(std::uint16_t), o, static_cast<std::size_t>(tw));
+        add(g.colors, sizeof(Rgb8), o, static_cast<std::size_t>(tw));
         if (r + 1 < th) {
-            const std::size_t oc = static_cast<std::size_t>(y0 + r) * (w - 1) + x0;
-            releaseRange(g.cellMax, sizeof(std::uint16_t), w - 1, (w - 1) * (g.h - 1), oc, tw - 1,
-                         ownedUsed);
+            add(g.cellMax, sizeof(std::uint16_t), static_cast<std::size_t>(y0 + r) * (w - 1) + x0,
+                static_cast<std::size_t>(tw - 1));
         }
     }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+void PagedTerrain::hold(const TileKey& key) {
+    tilePages(key, pages_);
+    for (const std::uintptr_t page : pages_)
+        ++pageRefs_[page];
+}
+
+void PagedTerrain::place(const TileKey& key, const Placed& p) {
+    placed_[key] = p;
+    if (held_.insert(key).second) hold(key);
+}
+
+void PagedTerrain::release(const TileKey& key, std::vector<std::uintptr_t>& freed) {
+    tilePages(key, pages_);
+    for (const std::uintptr_t page : pages_) {
+        const auto it = pageRefs_.find(page);
+        if (it == pageRefs_.end()) continue;
+        if (--it->second == 0) {
+            pageRefs_.erase(it);
+            freed.push_back(page);
+        }
+    }
+}
+
+void PagedTerrain::givePagesBack(std::vector<std::uintptr_t>& freed) {
+    // One call per run of adjacent pages.
+    std::sort(freed.begin(), freed.end());
+    for (std::size_t i = 0; i < freed.size();) {
+        std::size_t j = i + 1;
+        while (j < freed.size() && freed[j] == freed[j - 1] + kPage)
+            ++j;
+        releaseSparsePages(reinterpret_cast<void*>(freed[i]), (j - i) * kPage);
+        i = j;
+    }
+    freed.clear();
 }
 
 TileKey PagedTerrain::tileUnder(double x, double y) const {
@@ -419,15 +418,36 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     cache_.beginFrame(frame_, required, prefetch);
     if (wait) cache_.waitIdle();
 
-    // Tiles no longer needed leave first (their pages go back unless a kept tile touches them).
-    std::vector<TileKey> gone;
-    for (const auto& [key, p] : placed_)
-        if (!required.count(key)) gone.push_back(key);
-    for (const TileKey& k : gone)
-        placed_.erase(k);
-    for (const TileKey& k : gone)
-        release(k);
-    st.released = gone.size();
+    // Tiles no longer needed leave first. Their pages stay (a page is counted once per tile
+    // holding it) until the pages held pass the map's budget; then the oldest leavers give
+    // theirs back, down to half of it.
+    for (auto it = placed_.begin(); it != placed_.end();) {
+        if (!required.count(it->first)) {
+            leaving_[it->first] = frame_;
+            it = placed_.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    for (const TileKey& k : required)
+        leaving_.erase(k);
+    const std::size_t budget =
+        options_.mapBudgetBytes > 0 ? options_.mapBudgetBytes : cache_.budgetBytes();
+    if (pageRefs_.size() * kPage > budget && !leaving_.empty()) {
+        std::vector<std::pair<std::uint64_t, TileKey>> oldest;
+        for (const auto& [key, f] : leaving_)
+            oldest.emplace_back(f, key);
+        std::sort(oldest.begin(), oldest.end());
+        std::vector<std::uintptr_t> freed;
+        for (const auto& [f, key] : oldest) {
+            if (pageRefs_.size() * kPage <= budget / 2) break;
+            leaving_.erase(key);
+            held_.erase(key);
+            release(key, freed);
+            ++st.released;
+        }
+        givePagesBack(freed);
+    }
 
     for (const TileKey& key : required) {
         auto it = placed_.find(key);
@@ -437,7 +457,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             ++st.nodesRequired;
             if (tile && !placedExact) copyTile(*tile);
             if (tile || placedExact) {
-                placed_[key] = Placed{key.level, false};
+                place(key, Placed{key.level, false});
             } else {
                 ++st.nodesMissing;  // not placed: its nodes read "no bound"
             }
@@ -464,14 +484,14 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
                     fillFromCoarser(key, *tile);
                     ++st.copied;
                 }
-                placed_[key] = Placed{tile->key.level, !failure.empty()};
+                place(key, Placed{tile->key.level, !failure.empty()});
                 continue;
             }
             --st.substituted;  // loaded meanwhile
         }
         copyTile(*tile);
         ++st.copied;
-        placed_[key] = Placed{key.level, false};
+        place(key, Placed{key.level, false});
     }
     // Stand-ins' cell maxima from the map as it now is (an exact neighbour may have replaced
     // a shared edge).

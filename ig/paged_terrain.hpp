@@ -24,6 +24,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -38,7 +39,7 @@ struct PagedFrameStats {
     std::size_t substituted = 0;        // needed, not resident: filled from a coarser level
     std::size_t failed = 0;             // of those, unreadable (corrupt, truncated): reported holes
     std::size_t holes = 0;              // nothing resident above either: left as they were
-    std::size_t released = 0;           // placed tiles no longer needed, their pages given back
+    std::size_t released = 0;           // tiles no longer needed whose pages were given back
     std::size_t nodesRequired = 0;      // node tiles the footprint needs (fast caster)
     std::size_t nodesMissing = 0;       // of those, not resident: those nodes give no bound
     std::vector<std::string> failures;  // messages of failed tiles, each reported once
@@ -58,6 +59,11 @@ class PagedTerrain {
         // (kLevelsAuto, -1: all; 0: none, the max-height nodes only), as RenderOptions::levels.
         bool pyramid = false;
         int levels = 0;
+        // Tiles no longer needed keep their pages (a tile that comes back is copied again)
+        // until the pages the tiles placed and waiting hold pass this many bytes; then the
+        // oldest waiting give theirs back, down to half of it (giving pages back is a system
+        // call and a TLB shootdown across the renderer's threads). 0: the cache's budget.
+        std::size_t mapBudgetBytes = 0;
     };
 
     // `db` must outlive this. Loads the cache's resident coarse levels (InputError when the
@@ -92,8 +98,8 @@ class PagedTerrain {
     // Display tiles placed in the map (and pyramid) now, and how many of them are stand-ins.
     std::size_t placedTiles() const;
     std::size_t substitutedTiles() const;
-    // Bytes of the pages that placed tiles (display and node) can cover (a bound on the map's
-    // and pyramid's memory).
+    // Bytes of the pages that placed tiles (display and node), and those whose pages are not
+    // given back yet, have written: the most the map's and pyramid's arrays can hold.
     std::size_t placedBytes() const;
     // Bytes of the map's and pyramid's arrays in memory now (mincore over the sparse blocks).
     std::size_t residentMapBytes() const;
@@ -127,7 +133,14 @@ class PagedTerrain {
     void copyTile(const TerrainTile& tile);
     void fillFromCoarser(const TileKey& key, const TerrainTile& coarse);
     void updateCellMax(const TileKey& key);
-    void release(const TileKey& key);
+    // The pages a tile's data lie in (sorted, each once).
+    void tilePages(const TileKey& key, std::vector<std::uintptr_t>& out) const;
+    // A tile enters the map: placed, and holding its pages.
+    void place(const TileKey& key, const Placed& p);
+    void hold(const TileKey& key);
+    // A tile's pages no longer held by it; those no tile holds now go to `freed`.
+    void release(const TileKey& key, std::vector<std::uintptr_t>& freed);
+    void givePagesBack(std::vector<std::uintptr_t>& freed);
     // Whether a placed display tile of `level` other than `self` holds sample (x, y), exact
     // only (the tile itself, not a stand-in) if `exact`.
     bool sampleHeld(int level, int x, int y, const TileKey* self, bool exact) const;
@@ -139,7 +152,12 @@ class PagedTerrain {
     std::shared_ptr<TerrainPyramid> pyramid_;
     std::shared_ptr<const SlopeBlocks> slopes_;
     std::map<TileKey, Placed> placed_;
-    std::set<TileKey> reported_;  // failed tiles already reported
+    // Tiles no longer placed whose pages are not given back yet: the frame they left.
+    std::map<TileKey, std::uint64_t> leaving_;
+    std::set<TileKey> held_;  // placed_ and leaving_: the tiles holding pages
+    std::unordered_map<std::uintptr_t, std::uint32_t> pageRefs_;  // page -> tiles holding it
+    std::vector<std::uintptr_t> pages_;                           // scratch
+    std::set<TileKey> reported_;                                  // failed tiles already reported
     std::uint64_t frame_ = 0;
 };
 

@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# A real-time flight over a terrain database far larger than the memory it may use, for
+# docs/results.md: a synthetic map built into a database (ig-build-db), a trajectory that turns
+# one full field of view (60 degrees) a second for a third of the run and then flies at 300 m/s
+# low over the terrain, flown by flythrough on the wall clock at 720x486 with the renderer paging
+# the database through --cache-mb (peak RSS, missed fields, tiles drawn from a coarser level,
+# tiles read a second); and the cost of paging itself: the same flight over a 4096^2 database
+# paged and loaded whole, render time per frame side by side.
+# Usage: scripts/bench-paged-flight.sh [BUILD_DIR] [SCRATCH_DIR] [SIZE] [CACHE_MB] [SECONDS]
+#   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60
+#   (65536 needs ~45 GB free and hours to build on a 2-core machine)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-$root/build/release}
+scratch=${2:-/tmp/vig-paged-flight}
+size=${3:-16384}
+cacheMb=${4:-512}
+seconds=${5:-60}
+data=$root/docs/results/data
+bin=$build/bin
+mkdir -p "$scratch" "$data"
+
+db() {  # db SIZE: the synthetic map SIZE:1 in tiles of 64, built once
+    local out="$scratch/synthetic_$1.db"
+    [ -s "$out" ] || "$bin/ig-build-db" --synthetic "$1:1" --out "$out" --quiet \
+        --json "$scratch/build_$1.json" >&2
+    echo "$out"
+}
+
+# trajectory DB OUT SECONDS: the flight over DB's map, its heights read from the database's
+# level-0 tiles (docs/formats.md): a third of the run turning 60 degrees a second at 100 m/s,
+# 250 m above the highest ground near the circle; the rest at 300 m/s, 60 m above the highest
+# ground within 200 m of the track, looking 6 degrees down.
+trajectory() {
+    python3 - "$1" "$2" "$3" <<'PY'
+import math, struct, sys
+path, out, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+f = open(path, "rb")
+h = f.read(256)
+tile, w, hh = struct.unpack_from("<III", h, 12)
+sx, sy, scale, offset = struct.unpack_from("<dddd", h, 32)
+index_off, = struct.unpack_from("<Q", h, 88)
+tiles_x = (w - 1 + tile - 1) // tile
+cache = {}
+def tile_heights(tx, ty):
+    if (tx, ty) not in cache:
+        f.seek(index_off + (ty * tiles_x + tx) * 24)
+        off, stored = struct.unpack("<QI", f.read(12))
+        f.seek(off)
+        t = f.read(stored)
+        tw, th = struct.unpack_from("<II", t, 16)
+        cache[(tx, ty)] = (tw, struct.unpack_from(f"<{tw * th}H", t, 24))
+    return cache[(tx, ty)]
+def height(x, y):
+    i = min(max(int(round(x / sx)), 0), w - 1)
+    j = min(max(int(round(y / sy)), 0), hh - 1)
+    tx, ty = min(i // tile, tiles_x - 1), min(j // tile, tiles_x - 1)
+    tw, hs = tile_heights(tx, ty)
+    return hs[(j - ty * tile) * tw + (i - tx * tile)] * scale + offset
+def highest(x, y, r):
+    return max(height(x + a * r / 2, y + b * r / 2) for a in range(-2, 3) for b in range(-2, 3))
+ext_x, ext_y = (w - 1) * sx, (hh - 1) * sy
+x, y, yaw = 0.3 * ext_x, 0.3 * ext_y, 45.0
+turn = seconds / 3
+rows = ["t,x,y,z,yaw_deg,pitch_deg,roll_deg"]
+t, dt = 0.0, 0.25
+while t <= seconds + 1e-9:
+    if t <= turn:
+        z = highest(x, y, 250.0) + 250.0
+        rows.append(f"{t:.3f},{x:.2f},{y:.2f},{z:.2f},{yaw:.3f},-15,0")
+        speed, rate = 100.0, 60.0
+    else:
+        z = highest(x, y, 200.0) + 60.0
+        weave = 10.0 * math.sin(2 * math.pi * (t - turn) / 20.0)
+        rows.append(f"{t:.3f},{x:.2f},{y:.2f},{z:.2f},{yaw + weave:.3f},-6,0")
+        speed, rate = 300.0, 0.0
+    x += speed * dt * math.sin(math.radians(yaw))
+    y += speed * dt * math.cos(math.radians(yaw))
+    yaw = (yaw + rate * dt) % 360.0
+    t += dt
+open(out, "w").write("\n".join(rows) + "\n")
+PY
+}
+
+fly() {  # fly NAME DB CACHE_MB SECONDS TRAJECTORY: one wall-clock flight, its JSON kept
+    local dropped=0
+    sync
+    if echo 3 >/proc/sys/vm/drop_caches 2>/dev/null; then dropped=1; fi
+    "$bin/flythrough" --db "$2" --cache-mb "$3" --trajectory "$5" --duration "$4" \
+        --renderer thread --colors image --out null --contact none --quiet \
+        --json "$scratch/$1.json" >&2
+    python3 - "$scratch/$1.json" "$dropped" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+j["page_cache_dropped"] = sys.argv[2] == "1"
+json.dump(j, open(sys.argv[1], "w"), indent=2)
+PY
+}
+
+big=$(db "$size")
+trajectory "$big" "$scratch/flight_$size.csv" "$seconds"
+fly "paged_$size" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv"
+
+small=$(db 4096)
+short=$((seconds < 30 ? seconds : 30))
+trajectory "$small" "$scratch/flight_4096.csv" "$short"
+fly paged_4096 "$small" 64 "$short" "$scratch/flight_4096.csv"
+fly whole_4096 "$small" 4096 "$short" "$scratch/flight_4096.csv"
+
+python3 - "$data/paged_flight.json" "$scratch" "$size" "$cacheMb" "$seconds" <<'PY'
+import json, os, sys
+out, scratch, size, cache_mb, seconds = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5]
+def load(name):
+    return json.load(open(os.path.join(scratch, name + ".json")))
+build = os.path.join(scratch, f"build_{size}.json")
+doc = {
+    "command": f"scripts/bench-paged-flight.sh build/release /tmp/vig-paged-flight {size} "
+               f"{cache_mb} {seconds}",
+    "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
+    "size": int(size), "cache_mb": float(cache_mb), "seconds": float(seconds),
+    "db_bytes": os.path.getsize(os.path.join(scratch, f"synthetic_{size}.db")),
+    "build": json.load(open(build)) if os.path.exists(build) else None,
+    "big": load(f"paged_{size}"), "paged_4096": load("paged_4096"),
+    "whole_4096": load("whole_4096")}
+json.dump(doc, open(out, "w"), indent=2)
+PY
+echo "wrote $data/paged_flight.json"
