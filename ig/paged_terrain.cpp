@@ -12,7 +12,9 @@
 #include "ig/paged_terrain.hpp"
 
 #include "ig/caster.hpp"
+#include "ig/error.hpp"
 #include "ig/pyramid.hpp"
+#include "ig/terrain_io.hpp"
 
 #include <sys/mman.h>
 
@@ -29,6 +31,18 @@ namespace {
 
 constexpr std::size_t kPage = 4096;
 
+// The casters index a map with 32-bit lanes: at most kMaxImageSamples samples, paged or not.
+const TerrainDbInfo& checkedSize(const TerrainDb& db) {
+    const TerrainDbInfo& info = db.info();
+    if (static_cast<std::size_t>(info.width) * static_cast<std::size_t>(info.height) >
+        kMaxImageSamples) {
+        throw InputError(db.path() + ": the map (" + std::to_string(info.width) + " x " +
+                         std::to_string(info.height) + ") has more than 2^30 samples, the most " +
+                         "the casters index; not rendered, paged or whole");
+    }
+    return info;
+}
+
 TerrainMap makeSparseMap(const TerrainDbInfo& info) {
     const double a = info.minRaw * info.heightScale + info.heightOffset;
     const double b = info.maxRaw * info.heightScale + info.heightOffset;
@@ -40,7 +54,7 @@ TerrainMap makeSparseMap(const TerrainDbInfo& info) {
 }  // namespace
 
 PagedTerrain::PagedTerrain(const TerrainDb& db, const Options& options)
-    : db_(db), options_(options), cache_(db, options.cache), map_(makeSparseMap(db.info())) {
+    : db_(db), options_(options), cache_(db, options.cache), map_(makeSparseMap(checkedSize(db))) {
     Georeference g;
     g.originX = db.info().originX;
     g.originY = db.info().originY;
@@ -369,6 +383,29 @@ void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir,
         }
         if (tx < 0 || ty < 0 || tx >= tilesX || ty >= tilesY) break;
     }
+}
+
+void PagedTerrain::warmUp(const Camera& camera, int headings) {
+    const LevelSelection selection =
+        LevelSelection::forCamera(camera.intrinsics(), db_.info(), pyramid_ ? options_.levels : 0);
+    std::set<TileKey> all;
+    for (int i = 0; i < headings; ++i) {
+        Pose p = camera.pose();
+        p.yaw += 2.0 * M_PI * i / headings;
+        const Camera turned(p, camera.intrinsics());
+        const Footprint fp = frameFootprint(turned, db_.layout(), db_.info(), selection);
+        for (const TileKey& k : fp.tiles) {
+            if (k.kind == TileKind::Nodes
+                    ? pyramid_ != nullptr
+                    : k.level == 0 || (pyramid_ && k.level < pyramid_->levelCount())) {
+                all.insert(k);
+            }
+        }
+    }
+    // As a prefetch of a frame of its own: nothing placed, so nothing is evicted for it that
+    // a placed tile needs.
+    cache_.beginFrame(++frame_, {}, all);
+    cache_.waitIdle();
 }
 
 PagedFrameStats PagedTerrain::placeAround(double x, double y) {

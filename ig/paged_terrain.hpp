@@ -90,6 +90,11 @@ class PagedTerrain {
     PagedFrameStats prepare(const Camera& camera, bool wait, const glm::dvec3& velocity = {},
                             double yawRate = 0.0);
 
+    // Before a flight's first frame: loads (waiting) the tiles of `camera`'s view turned to
+    // `headings` headings all round, so that a turn from the start finds its tiles resident
+    // (within the cache's budget). Places nothing: the next prepare() places its frame's.
+    void warmUp(const Camera& camera, int headings = 6);
+
     // Places the level-0 tile under world (x, y) (clamped to the map), waiting for it, and
     // only it (what a program needs before its first frame: the ground under a pose given as
     // a height above it). The next prepare() keeps it only if its frame needs it.

@@ -5,7 +5,7 @@
 # low over the terrain, flown by flythrough on the wall clock at 720x486 with the renderer paging
 # the database through --cache-mb (peak RSS, missed fields, tiles drawn from a coarser level,
 # tiles read a second); and the cost of paging itself: the same flight over a 4096^2 database
-# paged and loaded whole, render time per frame side by side.
+# paged and loaded whole, three times each in turn, render time per frame side by side.
 # Usage: scripts/bench-paged-flight.sh [BUILD_DIR] [SCRATCH_DIR] [SIZE] [CACHE_MB] [SECONDS]
 #   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60
 #   (65536 needs ~45 GB free and hours to build on a 2-core machine)
@@ -102,10 +102,12 @@ trajectory "$big" "$scratch/flight_$size.csv" "$seconds"
 fly "paged_$size" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv"
 
 small=$(db 4096)
-short=$((seconds < 30 ? seconds : 30))
+short=$((seconds < 15 ? seconds : 15))
 trajectory "$small" "$scratch/flight_4096.csv" "$short"
-fly paged_4096 "$small" 64 "$short" "$scratch/flight_4096.csv"
-fly whole_4096 "$small" 4096 "$short" "$scratch/flight_4096.csv"
+for rep in 1 2 3; do  # in turn, so the machine's drift falls on both alike
+    fly "paged_4096_$rep" "$small" 64 "$short" "$scratch/flight_4096.csv"
+    fly "whole_4096_$rep" "$small" 4096 "$short" "$scratch/flight_4096.csv"
+done
 
 python3 - "$data/paged_flight.json" "$scratch" "$size" "$cacheMb" "$seconds" <<'PY'
 import json, os, sys
@@ -120,8 +122,9 @@ doc = {
     "size": int(size), "cache_mb": float(cache_mb), "seconds": float(seconds),
     "db_bytes": os.path.getsize(os.path.join(scratch, f"synthetic_{size}.db")),
     "build": json.load(open(build)) if os.path.exists(build) else None,
-    "big": load(f"paged_{size}"), "paged_4096": load("paged_4096"),
-    "whole_4096": load("whole_4096")}
+    "big": load(f"paged_{size}"),
+    "paged_4096": [load(f"paged_4096_{r}") for r in (1, 2, 3)],
+    "whole_4096": [load(f"whole_4096_{r}") for r in (1, 2, 3)]}
 json.dump(doc, open(out, "w"), indent=2)
 PY
 echo "wrote $data/paged_flight.json"

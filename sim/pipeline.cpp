@@ -192,6 +192,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             }
         }
         const auto start = std::chrono::steady_clock::now();
+        // Before the first frame, the view all round: a turn from the start finds its tiles.
+        if (!s.have) s.paged->warmUp(ig::Camera(level, intr));
         const ig::PagedFrameStats st =
             s.paged->prepare(ig::Camera(level, intr), !s.have, velocity, yawRate);
         const double pageMs =

@@ -282,6 +282,10 @@ nlohmann::json pagingSummary(const sim::PagingLog& log, double cacheMb, bool ren
     j["mean_substituted_per_frame"] =
         log.frames.empty() ? 0.0 : static_cast<double>(substituted) / log.frames.size();
     j["failed_tiles"] = failed;
+    std::vector<double> late;  // the instants of frames with substitutions after the first second
+    for (const sim::PagingLog::Frame& f : log.frames)
+        if (f.substituted > 0 && f.time >= t0 + 1.0) late.push_back(f.time);
+    j["substitution_times_after_1s"] = late;
     j["tiles_read"] = read;
     j["bytes_read"] = log.frames.empty() ? 0 : log.frames.back().bytesRead;
     j["tiles_read_per_s"] = span > 0.0 ? static_cast<double>(read) / span : 0.0;
@@ -322,6 +326,7 @@ int main(int argc, char** argv) {
     std::optional<double> stereoSeparation;
     std::string stereoLayoutText = "sbs";
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
+    double prefetchSeconds = 0.5;
     std::string faultText;
     std::string levelsText = "auto";
     std::string casterText = "fast";
@@ -413,6 +418,10 @@ int main(int argc, char** argv) {
                    "process (its own process, restarted if it crashes, hangs or sends garbage) "
                    "| thread (a thread of the field process)")
         ->capture_default_str();
+    app.add_option("--prefetch-s", prefetchSeconds,
+                   "With a database paged beyond --cache-mb: how far ahead along the motion and "
+                   "the turn the renderer prefetches tiles, seconds (0..10)")
+        ->capture_default_str();
     app.add_option("--render-timeout-ms", renderTimeoutMs,
                    "Renderer process silent this long is killed and restarted (0: 500 ms or "
                    "eight renders, whichever is longer)")
@@ -499,6 +508,10 @@ int main(int argc, char** argv) {
         if (!(renderTimeoutMs >= 0.0 && renderTimeoutMs <= 600000.0)) {
             throw ig::InputError("--render-timeout-ms " + base::number(renderTimeoutMs) +
                                  ": must be 0 (automatic) .. 600000");
+        }
+        if (!(prefetchSeconds >= 0.0 && prefetchSeconds <= 10.0)) {
+            throw ig::InputError("--prefetch-s " + base::number(prefetchSeconds) +
+                                 ": must be 0..10 seconds");
         }
         if (!(holdAfterMs >= 0.0 && holdAfterMs <= 3600000.0)) {
             throw ig::InputError("--hold-after-ms " + base::number(holdAfterMs) +

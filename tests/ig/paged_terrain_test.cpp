@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/small_terrain_db.hpp"
@@ -79,6 +80,20 @@ void expectSameImage(const RenderedFrame& a, const RenderedFrame& b, const std::
         EXPECT_EQ(a.controlPoints[i].world, b.controlPoints[i].world)
             << what << ": control point " << i;
     }
+}
+
+// Pixels whose colour differs between two frames, and the sum over the frame of the mean
+// absolute difference of their channels (levels of 255).
+std::pair<std::size_t, double> colourDifference(const RenderedFrame& a, const RenderedFrame& b) {
+    std::size_t differ = 0;
+    double sum = 0.0;
+    for (std::size_t i = 0; i < a.color.size(); ++i) {
+        const int d = std::abs(a.color[i].r - b.color[i].r) +
+                      std::abs(a.color[i].g - b.color[i].g) + std::abs(a.color[i].b - b.color[i].b);
+        differ += d > 0;
+        sum += d / 3.0;
+    }
+    return {differ, sum};
 }
 
 TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
@@ -335,15 +350,7 @@ TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
     expectSameImage(got, expected, "stand-in");
 
     // And near the full image: the tile shows, coarser, and the rest is unchanged.
-    std::size_t differ = 0;
-    double sum = 0.0;
-    for (std::size_t i = 0; i < full.color.size(); ++i) {
-        const int d = std::abs(full.color[i].r - got.color[i].r) +
-                      std::abs(full.color[i].g - got.color[i].g) +
-                      std::abs(full.color[i].b - got.color[i].b);
-        differ += d > 0;
-        sum += d / 3.0;
-    }
+    const auto [differ, sum] = colourDifference(full, got);
     std::printf(
         "withheld tile (%d, %d) from level %d: %zu of %zu pixels differ, mean colour "
         "error %.3f levels\n",
@@ -398,15 +405,7 @@ TEST(PagedTerrain, FastCasterWithheldTilesComeFromCoarserLevels) {
     EXPECT_EQ(st.substituted, 2u);
     EXPECT_EQ(paged.substitutedTiles(), 2u);
     const RenderedFrame got = renderFrame(*caster, paged.map(), pose, kView);
-    std::size_t differ = 0;
-    double sum = 0.0;
-    for (std::size_t i = 0; i < full.color.size(); ++i) {
-        const int d = std::abs(full.color[i].r - got.color[i].r) +
-                      std::abs(full.color[i].g - got.color[i].g) +
-                      std::abs(full.color[i].b - got.color[i].b);
-        differ += d > 0;
-        sum += d / 3.0;
-    }
+    const auto [differ, sum] = colourDifference(full, got);
     std::printf("fast, withheld %s and %s: %zu of %zu pixels differ, mean colour error %.3f\n",
                 describeTile(fine).c_str(), describeTile(coarse).c_str(), differ, full.color.size(),
                 sum / full.color.size());
