@@ -12,9 +12,7 @@
 #include "ig/paged_terrain.hpp"
 
 #include "ig/caster.hpp"
-#include "ig/error.hpp"
 #include "ig/pyramid.hpp"
-#include "ig/terrain_io.hpp"
 
 #include <sys/mman.h>
 
@@ -31,19 +29,9 @@ namespace {
 
 constexpr std::size_t kPage = 4096;
 
-// The casters index a map with 32-bit lanes: at most kMaxImageSamples samples, paged or not.
-const TerrainDbInfo& checkedSize(const TerrainDb& db) {
+TerrainMap makeSparseMap(const TerrainDb& db) {
+    db.checkIndexable();
     const TerrainDbInfo& info = db.info();
-    if (static_cast<std::size_t>(info.width) * static_cast<std::size_t>(info.height) >
-        kMaxImageSamples) {
-        throw InputError(db.path() + ": the map (" + std::to_string(info.width) + " x " +
-                         std::to_string(info.height) + ") has more than 2^30 samples, the most " +
-                         "the casters index; not rendered, paged or whole");
-    }
-    return info;
-}
-
-TerrainMap makeSparseMap(const TerrainDbInfo& info) {
     const double a = info.minRaw * info.heightScale + info.heightOffset;
     const double b = info.maxRaw * info.heightScale + info.heightOffset;
     return TerrainMap::sparse(info.width, info.height, info.spacingX, info.spacingY,
@@ -54,7 +42,7 @@ TerrainMap makeSparseMap(const TerrainDbInfo& info) {
 }  // namespace
 
 PagedTerrain::PagedTerrain(const TerrainDb& db, const Options& options)
-    : db_(db), options_(options), cache_(db, options.cache), map_(makeSparseMap(checkedSize(db))) {
+    : db_(db), options_(options), cache_(db, options.cache), map_(makeSparseMap(db)) {
     Georeference g;
     g.originX = db.info().originX;
     g.originY = db.info().originY;
@@ -74,7 +62,8 @@ PagedTerrain::Grid PagedTerrain::grid(TileKind kind, int level) const {
         g.h = pyramid_->nodesY(level);
         g.nodes = pyramid_->nodesComplement(level);
     } else if (level == 0) {
-        // The map's arrays: written only here, between frames (the map is the casters' const).
+        // This object's own map, which the casters see as const: its arrays are written by
+        // the placing, between frames.
         TerrainMap& m = const_cast<TerrainMap&>(map_);
         g.w = m.width();
         g.h = m.height();
@@ -141,14 +130,14 @@ std::size_t PagedTerrain::residentMapBytes() const {
     return total;
 }
 
-bool PagedTerrain::sampleHeld(int level, int x, int y, const TileKey* self, bool exact) const {
+bool PagedTerrain::heldByExactNeighbour(const TileKey& self, int x, int y) const {
     const int t = db_.layout().tileSize();
     for (int ty = std::max(0, (y + t - 1) / t - 1); ty <= y / t; ++ty) {
         for (int tx = std::max(0, (x + t - 1) / t - 1); tx <= x / t; ++tx) {
-            const TileKey k{TileKind::Display, level, tx, ty};
-            if (self && k == *self) continue;
+            const TileKey k{TileKind::Display, self.level, tx, ty};
+            if (k == self) continue;
             const auto it = placed_.find(k);
-            if (it != placed_.end() && (!exact || it->second.sourceLevel == level)) return true;
+            if (it != placed_.end() && it->second.sourceLevel == self.level) return true;
         }
     }
     return false;
@@ -198,7 +187,7 @@ void PagedTerrain::fillFromCoarser(const TileKey& key, const TerrainTile& coarse
             const int x = x0 + c;
             // An edge sample an exact neighbour holds stays as it is.
             const bool edge = r == 0 || c == 0 || r == th - 1 || c == tw - 1;
-            if (edge && sampleHeld(key.level, x, y, &key, true)) continue;
+            if (edge && heldByExactNeighbour(key, x, y)) continue;
             const double u = std::clamp(std::ldexp(static_cast<double>(x), -shift) - coarse.x0, 0.0,
                                         static_cast<double>(coarse.width - 1));
             const int i = std::min(static_cast<int>(u), std::max(coarse.width - 2, 0));

@@ -146,9 +146,9 @@ class PagedTerrain {
     // A tile's pages no longer held by it; those no tile holds now go to `freed`.
     void release(const TileKey& key, std::vector<std::uintptr_t>& freed);
     void givePagesBack(std::vector<std::uintptr_t>& freed);
-    // Whether a placed display tile of `level` other than `self` holds sample (x, y), exact
-    // only (the tile itself, not a stand-in) if `exact`.
-    bool sampleHeld(int level, int x, int y, const TileKey* self, bool exact) const;
+    // Whether an exact placed tile (not a stand-in) of `self`'s level other than `self` holds
+    // sample (x, y) of that level.
+    bool heldByExactNeighbour(const TileKey& self, int x, int y) const;
 
     const TerrainDb& db_;
     Options options_;

@@ -666,14 +666,17 @@ TerrainTile TerrainDb::readTile(const TileKey& key) const {
     return tile;
 }
 
-TerrainMap TerrainDb::loadMap() const {
-    // As every loader: the casters index a map with 32-bit lanes.
+void TerrainDb::checkIndexable() const {
     if (static_cast<std::size_t>(info_.width) * static_cast<std::size_t>(info_.height) >
         kMaxImageSamples) {
         throw InputError(path_ + ": the map (" + std::to_string(info_.width) + " x " +
                          std::to_string(info_.height) +
                          ") has more than 2^30 samples, the most the casters index");
     }
+}
+
+TerrainMap TerrainDb::loadMap() const {
+    checkIndexable();
     TerrainMap map(info_.width, info_.height, info_.spacingX, info_.spacingY, info_.heightScale,
                    info_.heightOffset);
     const int nx = layout_.tilesX(TileKind::Display, 0), ny = layout_.tilesY(TileKind::Display, 0);

@@ -151,6 +151,9 @@ class TerrainDb {
     // Stored bytes of a tile (header, payload, as on disk).
     std::uint32_t storedBytes(const TileKey& key) const;
     TerrainTile readTile(const TileKey& key) const;
+    // InputError when the map has more samples than the casters index (kMaxImageSamples,
+    // 2^30: their gathers take 32-bit lanes), loaded whole or paged.
+    void checkIndexable() const;
     // Level 0 assembled into a map (heights, colours; ranges recomputed).
     TerrainMap loadMap() const;
     // The slope section: SlopeBlocks::blocksAlong(width) x blocksAlong(height) per-block slope
