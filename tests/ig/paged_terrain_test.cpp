@@ -223,7 +223,7 @@ TEST(PagedTerrain, FastCasterEqualsTheInMemoryRenderBitForBitOverASweep) {
 // Node tiles that never come leave their nodes reading "no bound" (nodes are stored complemented
 // in the sparse pyramid): the fast caster then looks closer where it would have skipped, and
 // draws the same image, to the bit.
-TEST(PagedTerrain, MissingNodeTilesOnlySlowTheFastCaster) {
+TEST(PagedTerrain, MissingNodeTilesLeaveTheFastCastersImageUnchanged) {
     const PagedFixture& f = fixture();
     const TerrainDb db = TerrainDb::open(f.path);
     PagedTerrain::Options po;
