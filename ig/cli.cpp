@@ -120,6 +120,147 @@ std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& o) {
     return src;
 }
 
+void addInsetOptions(CLI::App& app, InsetOptions& o) {
+    app.add_option("--inset", o.specs,
+                   "High-resolution inset (repeatable): synthetic:X,Y,CX,CY,FACTOR (with "
+                   "--synthetic), HEIGHT[,COLOR]@X,Y,FACTOR (first sample on global sample X,Y, "
+                   "FACTOR times finer), or HEIGHT[,COLOR] placed by its georeference");
+    app.add_option("--inset-blend", o.blendCells,
+                   "Fine cells over which an inset's rim blends into the global terrain")
+        ->capture_default_str();
+}
+
+namespace {
+
+// A whole number within [lo, hi] from `text`, or InputError naming `what`.
+int parseWhole(const std::string& text, const std::string& what, int lo, int hi) {
+    const double v = parseNumber(text, what);
+    if (v != std::floor(v) || v < lo || v > hi) {
+        throw InputError(what + ": " + base::quoted(text) + " must be a whole number " +
+                         std::to_string(lo) + ".." + std::to_string(hi));
+    }
+    return static_cast<int>(v);
+}
+
+// A raster inset, loaded and placed.
+InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
+                        const TerrainOptions& terrain) {
+    const std::string what = "--inset " + base::quoted(spec);
+    const std::size_t at = spec.find('@');
+    const std::vector<std::string> files = split(spec.substr(0, at), ',');
+    if (files.empty() || files.size() > 2 || files[0].empty()) {
+        throw InputError(what + ": expected HEIGHT[,COLOR][@X,Y,FACTOR]");
+    }
+    TerrainSource src;
+    src.heightPath = files[0];
+    if (files.size() == 2) src.colorPath = files[1];
+    src.heightScale = terrain.heightScale;
+    src.heightOffset = terrain.heightOffset;
+    src.voidHeight = terrain.voidHeight;
+    InsetSource in;
+    in.name = "--inset " + files[0];
+    if (at != std::string::npos) {
+        const std::vector<std::string> p = split(spec.substr(at + 1), ',');
+        if (p.size() != 3) throw InputError(what + ": expected @X,Y,FACTOR after the files");
+        in.x0 = parseWhole(p[0], what + " X", 0, global.width() - 2);
+        in.y0 = parseWhole(p[1], what + " Y", 0, global.height() - 2);
+        in.factor = parseWhole(p[2], what + " FACTOR", 2, 256);
+        src.spacing = global.spacingX() / in.factor;
+        if (std::abs(global.spacingX() - global.spacingY()) > 1e-9 * global.spacingX()) {
+            throw InputError(what +
+                             ": the global map's cells are not square (give a "
+                             "georeferenced inset)");
+        }
+    }
+    TerrainMap fine = loadTerrain(src);
+    if (at == std::string::npos) {
+        const Georeference& g = global.georeference();
+        const Georeference& f = fine.georeference();
+        if (!g.present() || !f.present()) {
+            throw InputError(what + ": " + (g.present() ? "the inset" : "the global map") +
+                             " has no georeference; place it with @X,Y,FACTOR");
+        }
+        if (g.crs != f.crs) {
+            throw InputError(what + ": its coordinate system is not the global map's");
+        }
+        const double ratio = global.spacingX() / fine.spacingX();
+        in.factor = static_cast<int>(std::lround(ratio));
+        if (std::abs(ratio - in.factor) > 1e-6 * ratio ||
+            std::abs(global.spacingY() / fine.spacingY() - in.factor) > 1e-6 * ratio) {
+            throw InputError(what + ": its spacing " + base::number(fine.spacingX()) +
+                             " m is not the global " + base::number(global.spacingX()) +
+                             " m over a whole number");
+        }
+        const double gx = (f.originX - g.originX) / global.spacingX();
+        const double gy = (f.originY - g.originY) / global.spacingY();
+        in.x0 = static_cast<int>(std::lround(gx));
+        in.y0 = static_cast<int>(std::lround(gy));
+        if (std::abs(gx - in.x0) > 1e-6 || std::abs(gy - in.y0) > 1e-6) {
+            throw InputError(what + ": its first sample lies between global samples (" +
+                             base::number(gx) + ", " + base::number(gy) +
+                             "); an inset's grid must continue the global one");
+        }
+    }
+    // Whole global cells: samples past the last one are dropped.
+    const int cx = (fine.width() - 1) / std::max(in.factor, 1);
+    const int cy = (fine.height() - 1) / std::max(in.factor, 1);
+    if (cx < 1 || cy < 1) {
+        throw InputError(what + ": " + std::to_string(fine.width()) + " x " +
+                         std::to_string(fine.height()) + " samples span no whole global cell");
+    }
+    const int w = cx * in.factor + 1, h = cy * in.factor + 1;
+    if (w != fine.width() || h != fine.height()) {
+        TerrainMap cut(w, h, fine.spacingX(), fine.spacingY(), fine.heightScale(),
+                       fine.heightOffset());
+        for (int v = 0; v < h; ++v) {
+            for (int u = 0; u < w; ++u) {
+                cut.setRaw(u, v, fine.raw(u, v));
+                cut.setColor(u, v, fine.colorAt(u, v));
+            }
+        }
+        cut.updateRange();
+        fine = std::move(cut);
+    }
+    in.fine = std::move(fine);
+    return in;
+}
+
+}  // namespace
+
+NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
+                                const InsetOptions& o) {
+    if (!terrain.db.empty() && o.any()) {
+        throw InputError(
+            "--inset: not with --db (insets are nested in maps loaded from files "
+            "or the generator)");
+    }
+    std::vector<InsetSource> sources;
+    for (const std::string& spec : o.specs) {
+        if (spec.rfind("synthetic:", 0) == 0) {
+            const std::string what = "--inset " + base::quoted(spec);
+            const auto syn = parseSyntheticOption(terrain, 16384);
+            if (!syn) throw InputError(what + ": a synthetic inset needs --synthetic");
+            const std::vector<std::string> p = split(spec.substr(10), ',');
+            if (p.size() != 5) throw InputError(what + ": expected synthetic:X,Y,CX,CY,FACTOR");
+            const int x = parseWhole(p[0], what + " X", 0, global.width() - 2);
+            const int y = parseWhole(p[1], what + " Y", 0, global.height() - 2);
+            const int cx = parseWhole(p[2], what + " CX", 1, global.width() - 1);
+            const int cy = parseWhole(p[3], what + " CY", 1, global.height() - 1);
+            const int f = parseWhole(p[4], what + " FACTOR", 2, 256);
+            if ((f & (f - 1)) != 0) {
+                throw InputError(what + ": FACTOR " + std::to_string(f) +
+                                 " must be a power of two");
+            }
+            InsetSource src = syntheticInset(syn->seed, syn->spacing, x, y, cx, cy, f);
+            src.name = "--inset " + spec;
+            sources.push_back(std::move(src));
+        } else {
+            sources.push_back(rasterInset(spec, global, terrain));
+        }
+    }
+    return NestedTerrain(std::move(global), std::move(sources), o.blendCells);
+}
+
 bool usesShippedMap(const TerrainOptions& o) {
     return o.height.empty() && o.synthetic.empty() && o.db.empty();
 }

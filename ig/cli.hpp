@@ -4,6 +4,7 @@
 #include "ig/appearance.hpp"
 #include "ig/camera.hpp"
 #include "ig/caster.hpp"
+#include "ig/inset.hpp"
 #include "ig/lighting_pass.hpp"
 #include "ig/terrain.hpp"
 #include "ig/terrain_db.hpp"
@@ -16,6 +17,7 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace ig {
 
@@ -60,6 +62,29 @@ std::optional<SyntheticSpec> parseSyntheticOption(const TerrainOptions& options,
 std::optional<TerrainSource> terrainSourceFromOptions(const TerrainOptions& options);
 // One line describing a loaded map, for logs.
 std::string describeTerrain(const TerrainMap& map);
+
+// High-resolution insets (docs/design/insets.md), repeatable:
+//   --inset synthetic:X,Y,CX,CY,FACTOR   the synthetic generator's samples over global cells
+//                                        [X, X + CX) x [Y, Y + CY), FACTOR times finer (with
+//                                        --synthetic: the same seed)
+//   --inset HEIGHT[,COLOR]@X,Y,FACTOR    a raster (any --height format) whose first sample lies
+//                                        on global sample (X, Y), at the global spacing / FACTOR
+//   --inset HEIGHT[,COLOR]               a georeferenced raster in the global map's CRS, placed
+//                                        by its georeference (on a global sample, at the global
+//                                        spacing over a power of two)
+//   --inset-blend CELLS                  fine cells over which an inset's rim blends into the
+//                                        global terrain (default 16)
+// A raster is cut to whole global cells. The height scale and offset flags apply to both.
+struct InsetOptions {
+    std::vector<std::string> specs;
+    int blendCells = 16;
+    bool any() const { return !specs.empty(); }
+};
+void addInsetOptions(CLI::App& app, InsetOptions& options);
+// Nests the insets the flags name into `global` (loaded from `terrain`). Throws InputError
+// naming the --inset and what is wrong.
+NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
+                                const InsetOptions& insets);
 
 // Appearance flags every rendering program shares (docs/design/appearance.md):
 //   --haze METRES|auto         distance for a 63 % blend to the horizon colour (0: off; auto: a

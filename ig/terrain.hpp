@@ -133,6 +133,9 @@ class TerrainMap {
     double maxHeight() const { return maxHeight_; }
     double minHeight() const { return minHeight_; }
     void updateRange();
+    // Lowers the lowest height to `z` (metres) where it lies above: the box the casters clip
+    // rays to then reaches down to z (a bound, not a sample; updateRange() resets it).
+    void extendFloor(double z) { minHeight_ = std::min(minHeight_, z); }
     // Samples the source had no data for, filled by the loader (0 for most maps).
     std::size_t filledSamples() const { return filledSamples_; }
     void setFilledSamples(std::size_t n) { filledSamples_ = n; }

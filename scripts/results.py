@@ -215,6 +215,38 @@ def paged_flight(p):
           status(statistics.median(rs) <= 1.3), cmd)
 
 
+def insets(p):
+    """render_insets_*.json (bench-render insets): a synthetic map with a high-resolution
+    inset, the frame's cost and error against the whole fine terrain rendered in memory and the
+    global map alone, at 720×486 and 1920×1080."""
+    p.group = "Terrain database"
+    for image in ("720x486", "1920x1080"):
+        doc = (p.load(f"render_insets_{image}.json") or {}).get("insets")
+        if not doc:
+            continue
+        cmd = p.command(f"render_insets_{image}", "insets")
+        rows = doc["rows"]
+        size = doc["map"].split()[-1]
+        what = (f"Insets: a synthetic {size}² map at {fmt(doc['spacing_m'], 0)} m with a "
+                f"{doc['inset']['cells']}-cell inset {doc['inset']['factor']} times finer "
+                f"({fmt(doc['inset']['spacing_m'], 0)} m), three views of it, "
+                f"{image.replace('x', '×')}, 1 thread")
+        p.row(what + ": image where the inset shows against the whole fine terrain rendered in "
+              "memory (mean colour error); the global map alone there", "matches (≤ 0.05 %)",
+              "; ".join(f"{r['view']}: {fmt(r['mae_pct_inset_vs_whole'], 4)} % over "
+                        f"{fmt(100 * r['inset_pixel_share'], 0)} % of the frame (global alone "
+                        f"{fmt(r['mae_pct_global_inset_vs_whole'], 2)} %)" for r in rows),
+              status(max(r["mae_pct_inset_vs_whole"] for r in rows) <= 0.05), cmd)
+        p.row(what + ": frame time with the inset against the global map alone and the whole "
+              "fine terrain in memory", "—",
+              "; ".join(f"{r['view']}: {spread(r['nested']['ms_runs'], 1, ' ms')}, "
+                        f"{spread(ratios(r['nested']['ms_runs'], r['global']['ms_runs']), 2, '×')}"
+                        f" the global map's, "
+                        f"{spread(ratios(r['nested']['ms_runs'], r['whole']['ms_runs']), 2, '×')}"
+                        f" the whole fine map's" for r in rows),
+              NO_TARGET, cmd)
+
+
 # --- claims --------------------------------------------------------------------------------------
 
 def casters(p):
@@ -1245,6 +1277,7 @@ def render(data_dir):
     io_layer(p)
     terrain_db(p)
     paged_flight(p)
+    insets(p)
     objects(p)
     m = p.load("machine.json") or {}
     out = ["# Measured results", "",

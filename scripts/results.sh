@@ -7,7 +7,7 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render appearance warp warp-eval stereo flythrough io restart cigi objects  (default: all)
+#   NAME: machine caster render appearance insets warp warp-eval stereo flythrough io restart cigi objects  (default: all)
 #   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|appearance|warp|warp-eval|stereo|flythrough|io|restart|cigi|objects|field-clock) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, warp, warp-eval, stereo, flythrough, io, restart, cigi, objects or field-clock" >&2
+                machine|caster|render|appearance|insets|warp|warp-eval|stereo|flythrough|io|restart|cigi|objects|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, insets, warp, warp-eval, stereo, flythrough, io, restart, cigi, objects or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -127,6 +127,13 @@ if wanted appearance; then
     run render_lighting "$bin/bench-render" lighting --size 4096 --repeat 3 --cache "$cache" \
         --json "$data/render_lighting.json"
     run render_edge_fill "$bin/bench-render" edge-fill --json "$data/render_edge_fill.json"
+fi
+
+if wanted insets; then
+    for image in 720x486 1920x1080; do
+        run render_insets_$image "$bin/bench-render" insets --image $image --repeat 5 \
+            --json "$data/render_insets_$image.json"
+    done
 fi
 
 if wanted warp; then

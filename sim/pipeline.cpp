@@ -142,6 +142,22 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
         };
 }
 
+FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
+                                 ig::CasterKind kind, const ig::RenderOptions& options) {
+    std::shared_ptr<const ig::Caster> caster = ig::makeNestedCaster(kind, terrain, options);
+    const ig::SkyModel sky = options.sky;
+    return [caster, &terrain, geometry, sky](const ig::Pose& pose, double time,
+                                             std::uint64_t sequence) {
+        const RenderGeometry g = viewed(geometry, requestView());
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        ig::RenderedFrame frame = ig::renderNestedFrame(
+            *caster, terrain, level, renderIntrinsics(g, pose), time, sequence, g.nearM);
+        clipBeyondFar(frame, g.farM, sky);
+        return frame;
+    };
+}
+
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options, std::shared_ptr<PagingLog> log) {

@@ -3,6 +3,7 @@
 
 #include "ig/caster.hpp"
 #include "ig/frame.hpp"
+#include "ig/inset.hpp"
 #include "ig/paged_terrain.hpp"
 #include "io/field_clock.hpp"
 #include "io/frame_sink.hpp"
@@ -72,6 +73,12 @@ std::size_t maxFramePixels(const RenderGeometry& geometry);
 // A caster over `map` rendering `geometry` (the map must outlive the renderer), with the field
 // of view and draw distance of requestView() (sim/render_process.hpp) at each render.
 FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                 ig::CasterKind kind = ig::CasterKind::Fast,
+                                 const ig::RenderOptions& options = {});
+
+// The same over a terrain with insets (ig/inset.hpp): the nested caster, the view checked and
+// the control points cast on the nested surface. The terrain must outlive the renderer.
+FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
                                  ig::CasterKind kind = ig::CasterKind::Fast,
                                  const ig::RenderOptions& options = {});
 

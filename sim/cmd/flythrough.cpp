@@ -308,6 +308,8 @@ int main(int argc, char** argv) {
     look.haze = "auto";
     look.colors = "auto";
     ig::addAppearanceOptions(app, look);
+    ig::InsetOptions insets;
+    ig::addInsetOptions(app, insets);
     std::string trajectoryPath, stickSpec, startText;
     std::optional<double> duration;
     double renderHz = 0.0;
@@ -679,8 +681,25 @@ int main(int argc, char** argv) {
                 pagedDb.reset();
             }
         }
+        // Insets (docs/design/insets.md): the renderer draws the nested terrain; the flight
+        // model, the trajectory's clearance and the start fly over a ground on or above it.
+        std::optional<ig::NestedTerrain> nested;
+        if (insets.any()) {
+            const char* why = !terrain.db.empty()  ? "--db"
+                              : cigi               ? "--cigi (a host's height queries)"
+                              : !scenePath.empty() ? "--scene"
+                              : stereo             ? "--stereo"
+                              : casterKind == ig::CasterKind::Span ? "--caster span"
+                                                                   : nullptr;
+            if (why) throw ig::InputError(std::string("--inset: not with ") + why);
+            if (look.colors == "auto") look.colors = "image";
+        }
         ig::TerrainMap loadedMap =
             pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
+        if (insets.any()) {
+            nested.emplace(ig::loadNestedTerrain(std::move(loadedMap), terrain, insets));
+            loadedMap = nested->upperGround();
+        }
         // The paged map is written only by pagedGround's own placing, here before the run.
         ig::TerrainMap& map =
             pagedGround ? const_cast<ig::TerrainMap&>(pagedGround->map()) : loadedMap;
@@ -697,6 +716,11 @@ int main(int argc, char** argv) {
         // A paged map draws the database's colours: the lit ramp needs the whole map.
         if (pagedGround && look.colors == "auto") look.colors = "image";
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
+        if (nested && (appearance.ramp || appearance.shade)) {
+            throw ig::InputError(std::string("--inset: not with ") +
+                                 (appearance.ramp ? "--colors ramp" : "--shade") +
+                                 " (the sun lights the global map's colours only)");
+        }
         if (pagedGround && (appearance.ramp || appearance.shade)) {
             throw ig::InputError(std::string(appearance.ramp ? "--colors ramp" : "--shade") +
                                  ": not with a database paged beyond --cache-mb");
@@ -957,6 +981,7 @@ int main(int argc, char** argv) {
                                                *motion, hostObjects)
             : pagedDb ? sim::makePagedRenderer(*pagedDb, pagedOptions, geometry, casterKind,
                                                renderOptions, pagingLog)
+            : nested  ? sim::makeNestedRenderer(*nested, geometry, casterKind, renderOptions)
                       : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when

@@ -561,6 +561,7 @@ int main(int argc, char** argv) {
     std::string levelsText = "auto";
     std::string kernelText = "auto";
     ig::AppearanceOptions look;
+    ig::InsetOptions insets;
     BatchFlags batch;
     app.add_option("--pose", poseText,
                    "x,y,z,yaw,pitch,roll (metres, degrees; z may be +H). Default: " + shippedPose +
@@ -615,6 +616,7 @@ int main(int argc, char** argv) {
     app.add_option("--time", sceneTime,
                    "Scene time, seconds, for the moving objects (default: the earliest start of "
                    "their trajectories) and a sun moved by --sun-rate (default 0)");
+    ig::addInsetOptions(app, insets);
     StereoFlags stereo;
     addStereoFlags(app, stereo);
     CLI11_PARSE(app, argc, argv);
@@ -694,6 +696,11 @@ int main(int argc, char** argv) {
         }
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
+            if (insets.any()) {
+                throw ig::InputError(
+                    "--inset: not with --db (insets are nested in maps loaded "
+                    "from files or the generator)");
+            }
             const ig::TerrainDb db = ig::TerrainDb::open(terrain.db);
             if (ig::databaseNeedsPaging(terrain, db)) {
                 if (stereo.enabled() || batchMode || !scenePath.empty() || !objectsOut.empty()) {
@@ -722,8 +729,27 @@ int main(int argc, char** argv) {
                 return renderPaged(terrain, db, look, req);
             }
         }
+        if (insets.any()) {
+            if (stereo.enabled() || batchMode || !scenePath.empty()) {
+                throw ig::InputError("--inset: one frame, without --stereo, --poses or --scene");
+            }
+            // The insets carry their own colours: the map's are drawn, unlit.
+            if (look.colors == "auto") look.colors = "image";
+        }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
+        if (insets.any() && (appearance.ramp || appearance.shade)) {
+            throw ig::InputError(std::string("--inset: not with ") +
+                                 (appearance.ramp ? "--colors ramp" : "--shade") +
+                                 " (the sun lights the global map's colours only)");
+        }
+        // With insets the map is the global one nested with them, and heights in --pose are
+        // above a ground on or over every inset (NestedTerrain::upperGround).
+        std::optional<ig::NestedTerrain> nested;
+        if (insets.any()) {
+            nested.emplace(ig::loadNestedTerrain(std::move(map), terrain, insets));
+            map = nested->upperGround();
+        }
         const bool shippedMap = ig::usesShippedMap(terrain);
         const ig::Pose pose = !poseText.empty() ? ig::parsePose(poseText, map)
                               : shippedMap      ? ig::parsePose(shippedPose, map)
@@ -770,7 +796,8 @@ int main(int argc, char** argv) {
             return renderStereoPair(stereo, kind, map, pose, intr, options, time, depthPath,
                                     jsonPath, sceneJson);
         }
-        const auto caster = ig::makeCaster(kind, map, options);
+        const auto caster = nested ? ig::makeNestedCaster(kind, *nested, options)
+                                   : ig::makeCaster(kind, map, options);
         if (batchMode) {
             nlohmann::json common;
             common["caster"] = casterText;
@@ -799,7 +826,8 @@ int main(int argc, char** argv) {
                                depthPath, jsonPath, common);
         }
         const ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, pose, intr, time, 0, batch.nearM);
+            nested ? ig::renderNestedFrame(*caster, *nested, pose, intr, time, 0, batch.nearM)
+                   : ig::renderFrame(*caster, map, pose, intr, time, 0, batch.nearM);
         if (!objectsOut.empty()) {
             std::string idError;
             if (io::writePng16(objectsOut, frame.width(), frame.height(), frame.objectId,
@@ -838,7 +866,15 @@ int main(int argc, char** argv) {
         j["kernel"] = std::string(frame.stats.kernel);
         if (!frame.stats.path.empty()) j["path"] = std::string(frame.stats.path);
         j["pose"] = poseJson(pose);
-        j["terrain"] = ig::describeTerrain(map);
+        j["terrain"] = ig::describeTerrain(nested ? nested->global() : map);
+        if (nested) {
+            for (const ig::Inset& in : nested->insets()) {
+                j["insets"].push_back({{"name", in.name},
+                                       {"cells", {in.x0, in.y0, in.x1, in.y1}},
+                                       {"factor", in.factor},
+                                       {"spacing_m", in.map.spacingX()}});
+            }
+        }
         for (const ig::ControlPoint& cp : frame.controlPoints) {
             j["control_points"].push_back(
                 {{"px", {cp.pixel.x, cp.pixel.y}},

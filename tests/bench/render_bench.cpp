@@ -6,7 +6,7 @@
 //                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
 //                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream span span-threads autosample lighting edge-fill
+//             frame stream span span-threads autosample lighting edge-fill insets
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -17,6 +17,7 @@
 #include "ig/cli.hpp"
 #include "ig/frame_stream.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/inset.hpp"
 #include "ig/lighting_pass.hpp"
 #include "ig/shading.hpp"
 #include "ig/stereo.hpp"
@@ -25,6 +26,7 @@
 #include "prp/processor.hpp"
 
 #include <tbb/global_control.h>
+#include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include <sched.h>
@@ -958,6 +960,129 @@ std::vector<ig::Rgb8> supersampled(const ig::TerrainMap& map, const ig::RenderOp
 // 1920x1080 on one thread, and its images against the baked relight (the map's colours lit,
 // the pyramid averaging lit colours) and against a 4x4 supersampled reference caster render
 // of the baked relight, over the synthetic map and the shipped one, with haze.
+// Insets (docs/design/insets.md): a 2048^2 synthetic map at 8 m with a 2 km inset four times
+// finer (2 m), against the same world as one map at 2 m (the whole fine terrain in memory, the
+// truth) and the global map alone, at three views of the inset; fast caster, every level, one
+// thread, frames of the three in turn.
+void insetsSection(const Config& c) {
+    const double spacing = 8.0;
+    const int size = 2048, x0 = 896, cells = 256, f = 4;
+    const auto start = Clock::now();
+    std::vector<ig::InsetSource> sources;
+    sources.push_back(ig::syntheticInset(1, spacing, x0, x0, cells, cells, f));
+    const ig::NestedTerrain nested(ig::makeSyntheticTerrain(size, 1, spacing), std::move(sources));
+    const ig::TerrainMap& global = nested.global();
+    const ig::TerrainMap plain = ig::makeSyntheticTerrain(size, 1, spacing);
+    const ig::Inset& in = nested.insets()[0];
+    // The nested surface as one map at the inset's spacing.
+    ig::TerrainMap whole((size - 1) * f + 1, (size - 1) * f + 1, spacing / f, spacing / f,
+                         global.heightScale(), global.heightOffset());
+    for (int v = 0; v < whole.height(); ++v) {
+        for (int u = 0; u < whole.width(); ++u) {
+            if (u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f && v <= in.y1 * f) {
+                const int lu = u - in.mapX0 * f, lv = v - in.mapY0 * f;
+                whole.setRaw(u, v, in.map.raw(lu, lv));
+                whole.setColor(u, v, in.map.colorAt(lu, lv));
+                continue;
+            }
+            const double x = u * whole.spacingX(), y = v * whole.spacingY();
+            whole.setRaw(
+                u, v,
+                static_cast<std::uint16_t>(std::lround(
+                    (global.surfaceHeight(x, y) - global.heightOffset()) / global.heightScale())));
+            float rgb[3];
+            global.surfaceColor(x, y, rgb);
+            whole.setColor(u, v,
+                           ig::Rgb8{static_cast<std::uint8_t>(std::lround(rgb[0])),
+                                    static_cast<std::uint8_t>(std::lround(rgb[1])),
+                                    static_cast<std::uint8_t>(std::lround(rgb[2]))});
+        }
+    }
+    whole.updateRange();
+    ig::RenderOptions o;
+    o.levels = ig::kLevelsAuto;
+    o.threads = 1;
+    o.kernel = gKernel;
+    const auto nestedCaster = ig::makeNestedCaster(ig::CasterKind::Fast, nested, o);
+    const auto wholeCaster = ig::makeCaster(ig::CasterKind::Fast, whole, o);
+    const auto plainCaster = ig::makeCaster(ig::CasterKind::Fast, plain, o);
+    std::printf(
+        "\n## insets: %dx%d, synthetic %d^2 at %g m, a %d-cell inset at %g m (ready in "
+        "%.1f s), one thread\n",
+        c.width, c.height, size, spacing, cells, spacing / f, secondsSince(start));
+    const ig::Intrinsics intr = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+    const double pixels = static_cast<double>(c.width) * c.height;
+    const glm::dvec2 centre = 0.5 * (in.coverMin + in.coverMax);
+    const struct {
+        const char* name;
+        double back, up, pitch, yaw;
+    } views[] = {{"approach, 3 km out", 3000.0, 300.0, -8.0, 30.0},
+                 {"oblique, 1.2 km out", 1200.0, 600.0, -30.0, 120.0},
+                 {"overhead", 300.0, 900.0, -70.0, 200.0}};
+    nlohmann::json rows = nlohmann::json::array();
+    std::printf("| %-22s | %9s | %9s | %9s | %7s | %12s | %12s | %12s |\n", "view", "global ns",
+                "nested ns", "whole ns", "inset %", "MAE frame %", "MAE inset %", "global inset %");
+    for (const auto& v : views) {
+        ig::Pose pose;
+        pose.yaw = ig::degToRad(v.yaw);
+        pose.pitch = ig::degToRad(v.pitch);
+        pose.position = {centre.x - v.back * std::sin(pose.yaw),
+                         centre.y - v.back * std::cos(pose.yaw), 0.0};
+        pose.position.z =
+            nested.upperGround().surfaceHeight(pose.position.x, pose.position.y) + v.up;
+        Timed tg, tn, tw;
+        tg.ms = tn.ms = tw.ms = 1e300;
+        for (int r = 0; r < c.repeat; ++r) {
+            auto keep = [](Timed& t, ig::RenderedFrame frame) {
+                t.runs.push_back(frame.stats.renderMs);
+                if (frame.stats.renderMs < t.ms) {
+                    t.ms = frame.stats.renderMs;
+                    t.frame = std::move(frame);
+                }
+            };
+            keep(tg, ig::renderFrame(*plainCaster, plain, pose, intr));
+            keep(tn, ig::renderNestedFrame(*nestedCaster, nested, pose, intr));
+            keep(tw, ig::renderFrame(*wholeCaster, whole, pose, intr));
+        }
+        // The pixels whose true hit lies over the inset.
+        const ig::Camera cam(pose, intr);
+        std::vector<ig::Rgb8> a, b, g;
+        for (int y = 0; y < intr.height; ++y) {
+            for (int x = 0; x < intr.width; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * intr.width + x;
+                if (!std::isfinite(tw.frame.depth[i])) continue;
+                const glm::dvec3 q =
+                    pose.position +
+                    double(tw.frame.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
+                if (!in.covers(q.x, q.y)) continue;
+                a.push_back(tn.frame.color[i]);
+                b.push_back(tw.frame.color[i]);
+                g.push_back(tg.frame.color[i]);
+            }
+        }
+        const double share = a.size() / pixels;
+        const double maeFrame = ig::meanAbsErrorPct(tn.frame.color, tw.frame.color);
+        const double maeInset = a.empty() ? 0.0 : ig::meanAbsErrorPct(a, b);
+        const double maeGlobal = a.empty() ? 0.0 : ig::meanAbsErrorPct(g, b);
+        std::printf("| %-22s | %9.1f | %9.1f | %9.1f | %7.1f | %12.4f | %12.4f | %12.3f |\n",
+                    v.name, tg.ms * 1e6 / pixels, tn.ms * 1e6 / pixels, tw.ms * 1e6 / pixels,
+                    100.0 * share, maeFrame, maeInset, maeGlobal);
+        rows.push_back({{"view", v.name},
+                        {"global", timedJson("global alone", tg, pixels)},
+                        {"nested", timedJson("nested", tn, pixels)},
+                        {"whole", timedJson("whole fine map", tw, pixels)},
+                        {"inset_pixel_share", share},
+                        {"mae_pct_frame_vs_whole", maeFrame},
+                        {"mae_pct_inset_vs_whole", maeInset},
+                        {"mae_pct_global_inset_vs_whole", maeGlobal}});
+    }
+    nlohmann::json j = sectionJson(c, size);
+    j["spacing_m"] = spacing;
+    j["inset"] = {{"cells", cells}, {"factor", f}, {"spacing_m", spacing / f}};
+    j["rows"] = rows;
+    gJson["insets"] = j;
+}
+
 void lighting(const Config& c) {
     struct Scene {
         std::string name;
@@ -1252,7 +1377,7 @@ int main(int argc, char** argv) {
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
                    a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
                    a == "span-threads" || a == "autosample" || a == "lighting" ||
-                   a == "edge-fill") {
+                   a == "edge-fill" || a == "insets") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
@@ -1260,7 +1385,7 @@ int main(int argc, char** argv) {
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
                 "[stream] [headings] [pitches] [span] [span-threads] [autosample] [lighting] "
-                "[edge-fill] [--size N] "
+                "[edge-fill] [insets] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
@@ -1295,6 +1420,7 @@ int main(int argc, char** argv) {
             if (s == "autosample") autosample(c);
             if (s == "lighting") lighting(c);
             if (s == "edge-fill") edgeFill(c);
+            if (s == "insets") insetsSection(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());

@@ -1,0 +1,510 @@
+#include "ig/inset.hpp"
+
+#include "base/check.hpp"
+#include "ig/caster_impl.hpp"
+#include "ig/error.hpp"
+#include "ig/near_clip.hpp"
+#include "ig/surface_hit.hpp"
+#include "ig/synthetic.hpp"
+
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+
+namespace ig {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Global cells of skirt around each inset's own samples.
+constexpr int kSkirtCells = 4;
+
+bool isPowerOfTwo(int n) {
+    return n > 0 && (n & (n - 1)) == 0;
+}
+
+// Bilinear value at fractional sample (gx, gy) of a row-major grid `at(ix, iy)` of w x h.
+template <typename At>
+double bilinearAt(int w, int h, double gx, double gy, At at) {
+    const int ix = std::clamp(static_cast<int>(std::floor(gx)), 0, w - 2);
+    const int iy = std::clamp(static_cast<int>(std::floor(gy)), 0, h - 2);
+    const double fx = gx - ix, fy = gy - iy;
+    return (at(ix, iy) * (1.0 - fx) + at(ix + 1, iy) * fx) * (1.0 - fy) +
+           (at(ix, iy + 1) * (1.0 - fx) + at(ix + 1, iy + 1) * fx) * fy;
+}
+
+std::uint16_t toRaw(double v) {
+    return static_cast<std::uint16_t>(std::clamp(std::lround(v), 0L, 65535L));
+}
+
+std::uint8_t toByte(double v) {
+    return static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+}
+
+// Checks `src` against `global` and returns its placement (x1, y1); throws InputError.
+std::pair<int, int> checkPlacement(const TerrainMap& global, const InsetSource& src) {
+    const std::string& n = src.name;
+    if (!isPowerOfTwo(src.factor) || src.factor < 2 || src.factor > 256) {
+        throw InputError(n + ": refinement factor " + std::to_string(src.factor) +
+                         " must be a power of two from 2 to 256");
+    }
+    const TerrainMap& f = src.fine;
+    if (f.width() < 2 || f.height() < 2) throw InputError(n + ": the map is empty");
+    if ((f.width() - 1) % src.factor != 0 || (f.height() - 1) % src.factor != 0) {
+        throw InputError(n + ": " + std::to_string(f.width()) + " x " + std::to_string(f.height()) +
+                         " samples do not span whole global cells " + "at factor " +
+                         std::to_string(src.factor) + " (need cells * factor + 1)");
+    }
+    const double sx = global.spacingX() / src.factor, sy = global.spacingY() / src.factor;
+    if (std::abs(f.spacingX() - sx) > 1e-9 * sx || std::abs(f.spacingY() - sy) > 1e-9 * sy) {
+        throw InputError(n + ": spacing " + std::to_string(f.spacingX()) + " x " +
+                         std::to_string(f.spacingY()) + " m is not the global spacing / " +
+                         std::to_string(src.factor) + " (" + std::to_string(sx) + " m)");
+    }
+    const int x1 = src.x0 + (f.width() - 1) / src.factor;
+    const int y1 = src.y0 + (f.height() - 1) / src.factor;
+    if (src.x0 < 0 || src.y0 < 0 || x1 > global.width() - 1 || y1 > global.height() - 1) {
+        throw InputError(n + ": global cells [" + std::to_string(src.x0) + ", " +
+                         std::to_string(x1) + ") x [" + std::to_string(src.y0) + ", " +
+                         std::to_string(y1) + ") lie outside the global map's " +
+                         std::to_string(global.width() - 1) + " x " +
+                         std::to_string(global.height() - 1) + " cells");
+    }
+    return {x1, y1};
+}
+
+}  // namespace
+
+bool Inset::covers(double x, double y) const {
+    return x >= coverMin.x && y >= coverMin.y && x <= coverMax.x && y <= coverMax.y;
+}
+
+NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources, int blendCells)
+    : global_(std::move(global)) {
+    if (global_.width() < 2 || global_.height() < 2) {
+        throw InputError("insets: the global map is empty");
+    }
+    if (blendCells < 0) {
+        throw InputError("insets: blend width " + std::to_string(blendCells) +
+                         " cells must be 0 or more");
+    }
+    const double scale = global_.heightScale(), offset = global_.heightOffset();
+    std::vector<std::vector<std::uint16_t>> fineRaw;
+    for (InsetSource& src : sources) {
+        if (src.name.empty()) src.name = "inset " + std::to_string(insets_.size() + 1);
+        const auto [x1, y1] = checkPlacement(global_, src);
+        for (const Inset& other : insets_) {
+            // A global cell at least between them: each lowers samples of its own only.
+            if (src.x0 <= other.x1 && x1 >= other.x0 && src.y0 <= other.y1 && y1 >= other.y0) {
+                throw InputError(src.name + ": overlaps or touches " + other.name +
+                                 " (insets must be at least one global cell apart)");
+            }
+        }
+        // The fine heights in the global quantisation.
+        const TerrainMap& f = src.fine;
+        std::vector<std::uint16_t> raw(static_cast<std::size_t>(f.width()) * f.height());
+        for (int v = 0; v < f.height(); ++v) {
+            for (int u = 0; u < f.width(); ++u) {
+                const double q = (f.heightAt(u, v) - offset) / scale;
+                if (!(q >= -0.5 && q < 65535.5)) {
+                    throw InputError(
+                        src.name + ": height " + std::to_string(f.heightAt(u, v)) +
+                        " m at sample (" + std::to_string(u) + ", " + std::to_string(v) +
+                        ") is outside the global map's height range (" + std::to_string(offset) +
+                        " to " + std::to_string(offset + 65535.0 * scale) + " m)");
+                }
+                raw[static_cast<std::size_t>(v) * f.width() + u] = toRaw(q);
+            }
+        }
+        Inset in;
+        in.name = src.name;
+        in.x0 = src.x0;
+        in.y0 = src.y0;
+        in.x1 = x1;
+        in.y1 = y1;
+        in.factor = src.factor;
+        in.coverMin = {in.x0 * global_.spacingX(), in.y0 * global_.spacingY()};
+        in.coverMax = {x1 * global_.spacingX(), y1 * global_.spacingY()};
+        insets_.push_back(std::move(in));
+        fineRaw.push_back(std::move(raw));
+    }
+
+    for (std::size_t k = 0; k < insets_.size(); ++k) {
+        Inset& in = insets_[k];
+        const TerrainMap& f = sources[k].fine;
+        const std::vector<std::uint16_t>& raw = fineRaw[k];
+        const int fw = f.width(), fac = in.factor;
+        // The global samples over the inset: the least fine sample of the global cells each
+        // spans inside the inset, so the global bilinear surface stays under the inset's.
+        for (int j = in.y0; j <= in.y1; ++j) {
+            const int v0 = (std::max(j - 1, in.y0) - in.y0) * fac;
+            const int v1 = (std::min(j + 1, in.y1) - in.y0) * fac;
+            for (int i = in.x0; i <= in.x1; ++i) {
+                const int u0 = (std::max(i - 1, in.x0) - in.x0) * fac;
+                const int u1 = (std::min(i + 1, in.x1) - in.x0) * fac;
+                std::uint16_t m = 65535;
+                for (int v = v0; v <= v1; ++v) {
+                    const std::uint16_t* row = raw.data() + static_cast<std::size_t>(v) * fw;
+                    m = std::min(m, *std::min_element(row + u0, row + u1 + 1));
+                }
+                global_.setRaw(i, j, m);
+            }
+        }
+    }
+    // The lowest global sample: the floor of every inset's map.
+    const std::uint16_t floorRaw =
+        *std::min_element(global_.rawHeights().begin(), global_.rawHeights().end());
+    for (std::size_t k = 0; k < insets_.size(); ++k) {
+        Inset& in = insets_[k];
+        const TerrainMap& f = sources[k].fine;
+        const std::vector<std::uint16_t>& raw = fineRaw[k];
+        const int fw = f.width(), fh = f.height(), fac = in.factor;
+        // The inset's map: the fine samples, their outer `blendCells` cells blended toward the
+        // (lowered) global surface and colours, inside a skirt of the global surface (samples
+        // rounded up, so it stays on or over the global one), its box reaching down to the
+        // global floor. The eye is then never under the box, which the fast caster's vertical
+        // coherence needs (a ray entering the box from below breaks the chain of starts up its
+        // column), and a ray enters the map over the skirt, never through the side of the
+        // inset's own data: one that meets the skirt, or its side, has met the global surface
+        // there as near or nearer, so the composite keeps the global hit.
+        const int gw = global_.width(), gh = global_.height();
+        in.mapX0 = std::max(in.x0 - kSkirtCells, 0);
+        in.mapY0 = std::max(in.y0 - kSkirtCells, 0);
+        const int mapX1 = std::min(in.x1 + kSkirtCells, gw - 1);
+        const int mapY1 = std::min(in.y1 + kSkirtCells, gh - 1);
+        const int sx = (in.x0 - in.mapX0) * fac, sy = (in.y0 - in.mapY0) * fac;
+        const int mw = (mapX1 - in.mapX0) * fac + 1, mh = (mapY1 - in.mapY0) * fac + 1;
+        in.origin = {in.mapX0 * global_.spacingX(), in.mapY0 * global_.spacingY()};
+        in.map = TerrainMap(mw, mh, f.spacingX(), f.spacingY(), scale, offset);
+        const double inv = 1.0 / fac;
+        for (int mv = 0; mv < mh; ++mv) {
+            for (int mu = 0; mu < mw; ++mu) {
+                const int u = mu - sx, v = mv - sy;  // fine sample, when inside
+                const bool inside = u >= 0 && v >= 0 && u < fw && v < fh;
+                const int b = inside ? std::min({u, v, fw - 1 - u, fh - 1 - v}) : -1;
+                double h = inside ? raw[static_cast<std::size_t>(v) * fw + u] : 0.0;
+                Rgb8 c = inside ? f.colorAt(u, v) : Rgb8{};
+                if (b < blendCells) {
+                    const double t = b < 0 ? 0.0 : static_cast<double>(b) / blendCells;
+                    const double w = t * t * (3.0 - 2.0 * t);
+                    const double gx = in.mapX0 + mu * inv, gy = in.mapY0 + mv * inv;
+                    const double g0 = bilinearAt(gw, gh, gx, gy, [&](int x, int y) {
+                        return static_cast<double>(global_.raw(x, y));
+                    });
+                    // Rounded up: the inset stays on or over the global surface (the fine
+                    // samples are at least the lowered global ones around them).
+                    h = std::ceil(w * h + (1.0 - w) * g0 - 1e-9);
+                    double rgb[3];
+                    for (int ch = 0; ch < 3; ++ch) {
+                        const double g = bilinearAt(gw, gh, gx, gy, [&](int x, int y) {
+                            const Rgb8 gc = global_.colorAt(x, y);
+                            return static_cast<double>(ch == 0 ? gc.r : ch == 1 ? gc.g : gc.b);
+                        });
+                        const double own = ch == 0 ? c.r : ch == 1 ? c.g : c.b;
+                        rgb[ch] = w * own + (1.0 - w) * g;
+                    }
+                    c = Rgb8{toByte(rgb[0]), toByte(rgb[1]), toByte(rgb[2])};
+                }
+                in.map.setRaw(mu, mv, toRaw(h));
+                in.map.setColor(mu, mv, c);
+            }
+        }
+        in.map.updateRange();
+        in.map.extendFloor(floorRaw * scale + offset);
+    }
+    global_.updateRange();
+}
+
+double NestedTerrain::surfaceHeight(double x, double y) const {
+    for (const Inset& in : insets_) {
+        if (in.covers(x, y)) return in.map.surfaceHeight(x - in.origin.x, y - in.origin.y);
+    }
+    return global_.surfaceHeight(x, y);
+}
+
+RayHit NestedTerrain::intersect(const glm::dvec3& origin, const glm::dvec3& dir) const {
+    const glm::dvec3 d = glm::normalize(dir);
+    RayHit best = intersectTerrain(global_, origin, d);
+    for (const Inset& in : insets_) {
+        const glm::dvec3 shift{in.origin, 0.0};
+        RayHit h = intersectTerrain(in.map, origin - shift, d);
+        if (h.hit && (!best.hit || h.distance <= best.distance)) {
+            h.point += shift;
+            best = h;
+        }
+    }
+    return best;
+}
+
+double NestedTerrain::entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta,
+                                  double tb) const {
+    double best = ig::entryBeyond(global_, TerrainRay(global_, origin, dir), ta, tb);
+    for (const Inset& in : insets_) {
+        const TerrainRay ray(in.map, origin - glm::dvec3{in.origin, 0.0}, dir);
+        const double t = ig::entryBeyond(in.map, ray, ta, tb);
+        if (t >= 0.0 && (best < 0.0 || t <= best)) best = t;
+    }
+    return best;
+}
+
+TerrainMap NestedTerrain::upperGround() const {
+    TerrainMap g = global_;
+    for (const Inset& in : insets_) {
+        const int fac = in.factor;
+        const int sx = (in.x0 - in.mapX0) * fac, sy = (in.y0 - in.mapY0) * fac;
+        for (int j = in.y0; j <= in.y1; ++j) {
+            const int v0 = sy + (std::max(j - 1, in.y0) - in.y0) * fac;
+            const int v1 = sy + (std::min(j + 1, in.y1) - in.y0) * fac;
+            for (int i = in.x0; i <= in.x1; ++i) {
+                const int u0 = sx + (std::max(i - 1, in.x0) - in.x0) * fac;
+                const int u1 = sx + (std::min(i + 1, in.x1) - in.x0) * fac;
+                std::uint16_t m = 0;
+                for (int v = v0; v <= v1; ++v) {
+                    for (int u = u0; u <= u1; ++u)
+                        m = std::max(m, in.map.raw(u, v));
+                }
+                g.setRaw(i, j, m);
+            }
+        }
+    }
+    g.updateRange();
+    return g;
+}
+
+namespace {
+
+// The columns [first, second) of `camera`'s image where the inset's box (its square, from the
+// lowest of its and the global surface to its highest point) can show; the whole width when a
+// corner lies behind the camera plane.
+std::pair<int, int> insetColumns(const Camera& camera, const Inset& in, double low) {
+    const int w = camera.intrinsics().width;
+    const double z0 = std::min(low, in.map.minHeight()), z1 = in.map.maxHeight();
+    double lo = kInf, hi = -kInf;
+    for (const double x : {in.origin.x, in.origin.x + in.map.extentX()}) {
+        for (const double y : {in.origin.y, in.origin.y + in.map.extentY()}) {
+            for (const double z : {z0, z1}) {
+                const auto p = camera.project({x, y, z});
+                if (!p) return {0, w};
+                lo = std::min(lo, p->x);
+                hi = std::max(hi, p->x);
+            }
+        }
+    }
+    // A pixel's rays lie within it (supersampling stacks them vertically): one pixel of slack.
+    const int first = static_cast<int>(std::clamp(std::floor(lo) - 1.0, 0.0, double(w)));
+    const int last = static_cast<int>(std::clamp(std::ceil(hi) + 1.0, 0.0, double(w)));
+    return {first, last};
+}
+
+class NestedCaster final : public Caster {
+  public:
+    NestedCaster(CasterKind kind, const NestedTerrain& terrain, const RenderOptions& options)
+        : terrain_(terrain), options_(options) {
+        if (kind == CasterKind::Span) {
+            throw InputError(
+                "insets: the span caster does not draw insets (use fast, naive or "
+                "reference)");
+        }
+        if (!options.objects.empty()) {
+            throw InputError("insets: objects over a terrain with insets are not drawn");
+        }
+        if (options.lighting) {
+            throw InputError("insets: sun lighting over a terrain with insets is not drawn");
+        }
+        if (options.pyramid || options.slopes) {
+            throw InputError("insets: a paged map takes no insets");
+        }
+        global_ = makeCaster(kind, terrain.global(), options);
+        for (const Inset& in : terrain.insets())
+            inner_.push_back(makeCaster(kind, in.map, options));
+    }
+
+    CasterKind kind() const override { return global_->kind(); }
+    std::string_view kernelName() const override { return global_->kernelName(); }
+
+    void render(const Camera& camera, RenderedFrame& frame) const override {
+        UnitCounters counters;
+        runWithThreads(options_.threads, [&] { renderAll(camera, frame, counters); });
+        frame.stats.steps = counters.steps;
+        frame.stats.restarts = counters.restarts;
+        frame.stats.rays =
+            static_cast<std::uint64_t>(camera.intrinsics().width) * camera.intrinsics().height;
+    }
+    // Every map's passes (near plane, height haze) run on its own frame before the composite.
+    void finishFrame(const Camera&, RenderedFrame&) const override {}
+
+    int workUnits(const Camera&) const override { return 1; }
+    void renderUnit(const Camera& camera, RenderedFrame& frame, int unit,
+                    UnitCounters& counters) const override {
+        CHECK(unit == 0) << "a nested caster renders one unit";
+        renderAll(camera, frame, counters);
+    }
+
+  private:
+    // Renders the units of `caster` over `frame` whose columns meet [c0, c1) (all of a caster
+    // whose units are rows), then its passes.
+    static void renderColumns(const Caster& caster, const Camera& camera, RenderedFrame& frame,
+                              int c0, int c1, UnitCounters& counters) {
+        std::vector<int> units;
+        const int n = caster.workUnits(camera);
+        for (int u = 0; u < n; ++u) {
+            const auto [a, b] = caster.unitColumns(camera, u);
+            if ((a == 0 && b == 0) || (a < c1 && b > c0)) units.push_back(u);
+        }
+        tbb::combinable<UnitCounters> local;
+        tbb::parallel_for(0, static_cast<int>(units.size()), [&](int i) {
+            caster.renderUnit(camera, frame, units[i], local.local());
+        });
+        local.combine_each([&](const UnitCounters& c) {
+            counters.steps += c.steps;
+            counters.restarts += c.restarts;
+        });
+        caster.finishFrame(camera, frame);
+    }
+
+    void renderAll(const Camera& camera, RenderedFrame& frame, UnitCounters& counters) const {
+        const Intrinsics& intr = camera.intrinsics();
+        frame.objectId.clear();
+        renderColumns(*global_, camera, frame, 0, intr.width, counters);
+        const std::vector<Inset>& insets = terrain_.insets();
+        for (std::size_t k = 0; k < insets.size(); ++k) {
+            const Inset& in = insets[k];
+            const auto [c0, c1] = insetColumns(camera, in, terrain_.global().minHeight());
+            if (c0 >= c1) continue;
+            Pose pose = camera.pose();
+            pose.position -= glm::dvec3{in.origin, 0.0};
+            const Camera local(pose, intr);
+            RenderedFrame part;
+            part.intrinsics = intr;
+            part.pose = pose;
+            part.nearM = frame.nearM;
+            part.color.resize(frame.color.size());
+            part.depth.assign(frame.depth.size(), std::numeric_limits<float>::infinity());
+            renderColumns(*inner_[k], local, part, c0, c1, counters);
+            // The nearer surface, pixel by pixel (ties to the inset: its surface is the finer).
+            for (int y = 0; y < intr.height; ++y) {
+                const std::size_t row = static_cast<std::size_t>(y) * intr.width;
+                for (std::size_t i = row + c0; i < row + c1; ++i) {
+                    if (part.depth[i] <= frame.depth[i]) {
+                        frame.depth[i] = part.depth[i];
+                        frame.color[i] = part.color[i];
+                    }
+                }
+            }
+        }
+    }
+
+    const NestedTerrain& terrain_;
+    RenderOptions options_;
+    std::unique_ptr<Caster> global_;
+    std::vector<std::unique_ptr<Caster>> inner_;
+};
+
+}  // namespace
+
+std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
+                                         const RenderOptions& options) {
+    return std::make_unique<NestedCaster>(kind, terrain, options);
+}
+
+RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terrain,
+                                const Pose& pose, const Intrinsics& intrinsics, double time,
+                                std::uint64_t sequence, double nearM) {
+    if (!(nearM >= 0.0) || !std::isfinite(nearM)) {
+        throw InputError("near plane " + std::to_string(nearM) +
+                         " m: must be a finite distance of 0 (none) or more");
+    }
+    validateView(terrain.global(), pose, intrinsics);
+    for (const Inset& in : terrain.insets()) {
+        const glm::dvec3& p = pose.position;
+        if (in.covers(p.x, p.y) && p.z <= terrain.surfaceHeight(p.x, p.y)) {
+            throw InputError("pose: camera at z = " + std::to_string(p.z) +
+                             " m is on or below the surface of " + in.name + " (" +
+                             std::to_string(terrain.surfaceHeight(p.x, p.y)) + " m)");
+        }
+    }
+    RenderedFrame frame;
+    frame.sequence = sequence;
+    frame.time = time;
+    frame.pose = pose;
+    frame.intrinsics = intrinsics;
+    frame.nearM = nearM;
+    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
+    frame.color.resize(n);
+    frame.depth.resize(n);
+    const Camera camera(pose, intrinsics);
+    const auto start = std::chrono::steady_clock::now();
+    caster.render(camera, frame);
+    frame.stats.kernel = caster.kernelName();
+    frame.stats.renderMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+
+    const auto pixels = controlPointPixels(intrinsics);
+    for (int i = 0; i < kControlPointCount; ++i) {
+        const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
+        frame.controlPoints[i].pixel = pixels[i];
+        if (nearM > 0.0) {
+            const double t =
+                terrain.entryBeyond(pose.position, dir, nearPlaneRange(camera, dir, nearM), kInf);
+            frame.controlPoints[i].world =
+                t >= 0.0 ? glm::dvec4{pose.position + t * dir, 1.0} : glm::dvec4{dir, 0.0};
+            continue;
+        }
+        const RayHit hit = terrain.intersect(pose.position, dir);
+        frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
+    }
+    return frame;
+}
+
+InsetSource syntheticInset(std::uint64_t seed, double spacing, int x0, int y0, int cellsX,
+                           int cellsY, int factor) {
+    InsetSource src;
+    src.x0 = x0;
+    src.y0 = y0;
+    src.factor = factor;
+    if (!isPowerOfTwo(factor) || factor < 2 || factor > 256 || cellsX < 1 || cellsY < 1 || x0 < 0 ||
+        y0 < 0) {
+        throw InputError(
+            "synthetic inset: cells must be positive, the corner not negative and "
+            "the factor a power of two from 2 to 256");
+    }
+    const double fine = spacing / factor;
+    const long long need =
+        std::max(static_cast<long long>(x0 + cellsX), static_cast<long long>(y0 + cellsY)) *
+            factor +
+        1;
+    long long size = 2;
+    while (size < need)
+        size *= 2;
+    if (size > kMaxSyntheticStreamSize) {
+        throw InputError("synthetic inset: the finer map would need " + std::to_string(size) +
+                         " samples a side, more than the generator's " +
+                         std::to_string(kMaxSyntheticStreamSize));
+    }
+    const int n = static_cast<int>(size);
+    const int w = cellsX * factor + 1, h = cellsY * factor + 1;
+    const int j0 = y0 * factor, u0 = x0 * factor;
+    std::vector<std::uint16_t> heights(static_cast<std::size_t>(n) * h);
+    std::vector<Rgb8> colors(heights.size());
+    generateSyntheticRows(n, seed, fine, j0, j0 + h, heights.data(), colors.data());
+    src.fine = TerrainMap(w, h, fine, fine, kSyntheticHeightScale, kSyntheticHeightOffset);
+    for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+            const std::size_t i = static_cast<std::size_t>(v) * n + u0 + u;
+            src.fine.setRaw(u, v, heights[i]);
+            src.fine.setColor(u, v, colors[i]);
+        }
+    }
+    src.fine.updateRange();
+    src.name = "synthetic inset at cell (" + std::to_string(x0) + ", " + std::to_string(y0) + ")";
+    return src;
+}
+
+}  // namespace ig

@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# High-resolution insets from the command line (docs/design/insets.md): ig-render draws one
+# nested in a synthetic map and one read from a raster placed on a global sample; flythrough
+# flies over them on the field clock; what cannot take insets is refused, naming why.
+# Usage: insets.sh BIN_DIR TMP_DIR
+set -u
+bin=$1
+tmp=$2/insets
+rm -rf "$tmp"; mkdir -p "$tmp"
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+pose=3600,3000,+300,20,-25,0
+common=(--synthetic 1024:3 --spacing 8 --pose $pose --size 160x100 --levels auto)
+"$bin/ig-render" "${common[@]}" --inset synthetic:400,400,128,128,4 --out "$tmp/nested.png" \
+    --json "$tmp/nested.json" 2>/dev/null || fail "render with a synthetic inset"
+"$bin/ig-render" "${common[@]}" --colors image --out "$tmp/plain.png" 2>/dev/null ||
+    fail "render without"
+cmp -s "$tmp/nested.png" "$tmp/plain.png" && fail "the inset changed nothing"
+python3 - "$tmp/nested.json" <<'PY' || fail "json"
+import json, sys
+j = json.load(open(sys.argv[1]))
+(i,) = j["insets"]
+assert i["cells"] == [400, 400, 528, 528] and i["factor"] == 4 and i["spacing_m"] == 2.0, i
+PY
+
+# A raster inset placed by hand: a 16-bit PNG of 33 x 33 heights (metres, a 40 m dome) on
+# global sample (410, 410), four times finer: drawn (seen from above), named in the JSON.
+python3 - "$tmp/dome.png" <<'PY' || fail "write the PNG"
+import math, struct, sys, zlib
+n = 33
+rows = b""
+for r in range(n):
+    row = b"\x00"
+    for c in range(n):
+        d = math.hypot(c - 16, r - 16) / 16.0
+        row += struct.pack(">H", int(60 + 40 * max(0.0, 1.0 - d * d)))
+    rows += row
+def chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", n, n, 16, 0, 0, 0, 0))
+png += chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
+open(sys.argv[1], "wb").write(png)
+PY
+down=(--synthetic 1024:3 --spacing 8 --pose 3312,2950,+300,0,-60,0 --size 160x100)
+"$bin/ig-render" "${down[@]}" --inset "$tmp/dome.png@410,410,4" --out "$tmp/dome_view.png" \
+    --json "$tmp/dome.json" 2>"$tmp/err.txt" || fail "render with a PNG inset: $(cat "$tmp/err.txt")"
+"$bin/ig-render" "${down[@]}" --colors image --out "$tmp/dome_plain.png" 2>/dev/null ||
+    fail "render without the PNG inset"
+cmp -s "$tmp/dome_view.png" "$tmp/dome_plain.png" && fail "the PNG inset changed nothing"
+python3 - "$tmp/dome.json" <<'PY' || fail "json (PNG inset)"
+import json, sys
+(i,) = json.load(open(sys.argv[1]))["insets"]
+assert i["cells"] == [410, 410, 418, 418] and i["factor"] == 4, i
+PY
+
+"$bin/ig-render" --inset synthetic:1,1,2,2,2 --pose 20000,20000,+900,45,-20,0 --size 64x48 \
+    --out "$tmp/x.png" 2>"$tmp/err.txt" && fail "a synthetic inset without --synthetic accepted"
+grep -q -- "--synthetic" "$tmp/err.txt" || fail "message: $(cat "$tmp/err.txt")"
+
+expect_refused() {  # DESCRIPTION WORDS... -- COMMAND...
+    local what=$1; shift
+    local words=()
+    while [ "$1" != "--" ]; do words+=("$1"); shift; done
+    shift
+    "$@" >"$tmp/out.txt" 2>&1
+    local rc=$?
+    [ $rc -eq 2 ] || fail "$what: exit $rc, expected 2: $(cat "$tmp/out.txt")"
+    for w in "${words[@]}"; do
+        grep -q -- "$w" "$tmp/out.txt" || fail "$what: message lacks '$w': $(cat "$tmp/out.txt")"
+    done
+}
+expect_refused "a factor of 3" "FACTOR" -- "$bin/ig-render" "${common[@]}" \
+    --inset synthetic:400,400,16,16,3 --out "$tmp/x.png"
+expect_refused "an inset off the map" "outside" -- "$bin/ig-render" "${common[@]}" \
+    --inset synthetic:1000,1000,64,64,2 --out "$tmp/x.png"
+expect_refused "two insets that touch" "touches" -- "$bin/ig-render" "${common[@]}" \
+    --inset synthetic:400,400,16,16,2 --inset synthetic:416,400,16,16,2 --out "$tmp/x.png"
+expect_refused "the lit ramp" "--colors ramp" -- "$bin/ig-render" "${common[@]}" \
+    --inset synthetic:400,400,16,16,2 --colors ramp --out "$tmp/x.png"
+expect_refused "the span caster" "span" -- "$bin/ig-render" "${common[@]}" \
+    --inset synthetic:400,400,16,16,2 --caster span --out "$tmp/x.png"
+expect_refused "a raster that does not exist" "nothere.tif" -- "$bin/ig-render" "${common[@]}" \
+    --inset "$tmp/nothere.tif@10,10,2" --out "$tmp/x.png"
+expect_refused "a raster without a georeference or a place" "georeference" -- \
+    "$bin/ig-render" "${common[@]}" --inset "$tmp/dome.png" --out "$tmp/x.png"
+[ -e "$tmp/x.png" ] && fail "a refused run wrote its output"
+
+# flythrough over the inset on the simulated field clock: every field, none missed.
+printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,3600,2600,700,20,-20,0\n2,3800,3200,700,30,-20,0\n' \
+    >"$tmp/traj.csv"
+for renderer in thread process; do
+    msg=$("$bin/flythrough" --synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4 \
+        --trajectory "$tmp/traj.csv" --renderer $renderer --clock simulated --out null \
+        --contact none --json "$tmp/fly.json" 2>&1) || fail "fly ($renderer): $msg"
+    python3 - "$tmp/fly.json" <<'PY' || fail "fly ($renderer): $msg"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120, j["fields"]
+assert j["missed_deadlines"] == 0, j["missed_deadlines"]
+assert j["frames_rendered"] > 10, j["frames_rendered"]
+PY
+done
+# A stick flight starts and flies over the ground under the inset.
+"$bin/flythrough" --synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4 \
+    --start 3600,2800,+40,20 --clock simulated --duration 2 --out null --contact none \
+    >/dev/null 2>&1 || fail "stick flight over an inset"
+expect_refused "flythrough with --stereo" "--stereo" -- "$bin/flythrough" --synthetic 1024:3 \
+    --spacing 8 --inset synthetic:400,400,16,16,2 --trajectory "$tmp/traj.csv" --stereo 0.065 \
+    --clock simulated --out null --contact none
+echo "insets: ok"
