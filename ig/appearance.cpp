@@ -85,6 +85,10 @@ double parseUtcDateTime(const std::string& text, const std::string& what) {
 }
 
 LargeVector<Rgb8> elevationRampAlbedo(const TerrainMap& map) {
+    return elevationRampAlbedo(map, map);
+}
+
+LargeVector<Rgb8> elevationRampAlbedo(const TerrainMap& map, const TerrainMap& rangeOf) {
     struct Stop {
         double metres;
         double r, g, b;
@@ -98,30 +102,34 @@ LargeVector<Rgb8> elevationRampAlbedo(const TerrainMap& map) {
                                                    {2400.0, 178, 172, 166},
                                                    {2900.0, 246, 248, 252}}};
     const Rgb8 water{45, 85, 130};
-    const double relief = map.maxHeight() - map.minHeight();
+    const double relief = rangeOf.maxHeight() - rangeOf.minHeight();
     // Little relief: the map's own range over lowland to rock.
     const bool spread = relief < 300.0;
     const std::uint16_t lowest = [&] {
         std::uint16_t lo = std::numeric_limits<std::uint16_t>::max();
-        for (const std::uint16_t v : map.rawHeights())
+        for (const std::uint16_t v : rangeOf.rawHeights())
             lo = std::min(lo, v);
         return lo;
     }();
+    // Water: a sample at rangeOf's lowest raw height (in map's quantisation) with its four
+    // neighbours there too.
+    const double lowestMetres = lowest * rangeOf.heightScale() + rangeOf.heightOffset();
     LargeVector<Rgb8> albedo(map.rawHeights().size());
     const int w = map.width(), h = map.height();
     for (int iy = 0; iy < h; ++iy) {
         for (int ix = 0; ix < w; ++ix) {
             auto low = [&](int x, int y) {
-                return map.raw(std::clamp(x, 0, w - 1), std::clamp(y, 0, h - 1)) == lowest;
+                return map.heightAt(std::clamp(x, 0, w - 1), std::clamp(y, 0, h - 1)) ==
+                       lowestMetres;
             };
             if (!spread && low(ix, iy) && low(ix - 1, iy) && low(ix + 1, iy) && low(ix, iy - 1) &&
                 low(ix, iy + 1)) {
                 albedo[map.index(ix, iy)] = water;
                 continue;
             }
-            const double z =
-                spread ? (map.heightAt(ix, iy) - map.minHeight()) / std::max(relief, 1e-9) * 2000.0
-                       : map.heightAt(ix, iy);
+            const double z = spread ? (map.heightAt(ix, iy) - rangeOf.minHeight()) /
+                                          std::max(relief, 1e-9) * 2000.0
+                                    : map.heightAt(ix, iy);
             std::size_t k = 1;
             while (k + 1 < kRamp.size() && z > kRamp[k].metres)
                 ++k;

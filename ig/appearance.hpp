@@ -32,6 +32,9 @@ double parseUtcDateTime(const std::string& text, const std::string& what);
 // lowest level where it is flat, lowland green, forest, rock, snow above about 2900 m. Maps
 // with little relief (under 300 m) spread the same ramp over their own range instead.
 LargeVector<Rgb8> elevationRampAlbedo(const TerrainMap& map);
+// The same ramp over `map` with the range and water level of `rangeOf` (a map nested in it, as
+// an inset: both then take the same colour at the same height).
+LargeVector<Rgb8> elevationRampAlbedo(const TerrainMap& map, const TerrainMap& rangeOf);
 
 // The lighting of one map: its albedo (a ramp or the photo) and a unit normal per sample from
 // central differences of the heights, kept so a new sun only re-lights (no reload, no normals

@@ -229,11 +229,6 @@ InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
 
 NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
                                 const InsetOptions& o) {
-    if (!terrain.db.empty() && o.any()) {
-        throw InputError(
-            "--inset: not with --db (insets are nested in maps loaded from files "
-            "or the generator)");
-    }
     std::vector<InsetSource> sources;
     for (const std::string& spec : o.specs) {
         if (spec.rfind("synthetic:", 0) == 0) {
@@ -472,6 +467,21 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
     if (a.ramp && !a.sun) a.sun = Sun{degToRad(135.0), degToRad(30.0)};
     if (a.sun) a.sunClock.sun = *a.sun;
     return a;
+}
+
+void applyAppearance(const Appearance& a, NestedTerrain& terrain, RenderOptions& render) {
+    render.sky.hazeDistance = a.hazeDistance;
+    render.sky.hazeFalloff = a.hazeFalloff;
+    render.supersample = a.supersample;
+    render.supersampleMax = a.supersampleMax;
+    render.lighting = nullptr;
+    if (!a.ramp && !a.shade) return;
+    if (a.ramp) terrain.applyRamp();
+    auto lighting = std::make_shared<SunLighting>();
+    lighting->normals = std::make_shared<const TerrainNormals>(terrain.global());
+    lighting->clock = a.sunClock;
+    lighting->photo = !a.ramp;
+    render.lighting = std::move(lighting);
 }
 
 void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render) {

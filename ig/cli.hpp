@@ -134,6 +134,9 @@ Appearance parseAppearance(const AppearanceOptions& options, const TerrainOption
 // Applies it: the ramp's albedo into `map` when it asks for the ramp, the haze, supersampling
 // and sun lighting (the normals of `map`) of `render`.
 void applyAppearance(const Appearance& appearance, TerrainMap& map, RenderOptions& render);
+// The same over a terrain with insets: the ramp over every map, the lighting by the global
+// map's normals (the nested caster lights each inset by its own).
+void applyAppearance(const Appearance& appearance, NestedTerrain& terrain, RenderOptions& render);
 // Whether the terrain flags give a colour image (the shipped map's included).
 bool terrainHasImage(const TerrainOptions& terrain);
 // The shipped map's centre, degrees (for --sun-time without LAT,LON).

@@ -1,8 +1,10 @@
 #include "ig/inset.hpp"
 
 #include "base/check.hpp"
+#include "ig/appearance.hpp"
 #include "ig/caster_impl.hpp"
 #include "ig/error.hpp"
+#include "ig/lighting_pass.hpp"
 #include "ig/near_clip.hpp"
 #include "ig/surface_hit.hpp"
 #include "ig/synthetic.hpp"
@@ -254,6 +256,12 @@ double NestedTerrain::entryBeyond(const glm::dvec3& origin, const glm::dvec3& di
     return best;
 }
 
+void NestedTerrain::applyRamp() {
+    for (Inset& in : insets_)
+        in.map.colors() = elevationRampAlbedo(in.map, global_);
+    global_.colors() = elevationRampAlbedo(global_);
+}
+
 TerrainMap NestedTerrain::upperGround() const {
     TerrainMap g = global_;
     for (const Inset& in : insets_) {
@@ -315,15 +323,20 @@ class NestedCaster final : public Caster {
         if (!options.objects.empty()) {
             throw InputError("insets: objects over a terrain with insets are not drawn");
         }
-        if (options.lighting) {
-            throw InputError("insets: sun lighting over a terrain with insets is not drawn");
-        }
         if (options.pyramid || options.slopes) {
             throw InputError("insets: a paged map takes no insets");
         }
         global_ = makeCaster(kind, terrain.global(), options);
-        for (const Inset& in : terrain.insets())
-            inner_.push_back(makeCaster(kind, in.map, options));
+        for (const Inset& in : terrain.insets()) {
+            // Each map lit by its own normals (the lighting pass runs on each pass's frame).
+            RenderOptions o = options;
+            if (options.lighting) {
+                auto lit = std::make_shared<SunLighting>(*options.lighting);
+                lit->normals = std::make_shared<const TerrainNormals>(in.map);
+                o.lighting = std::move(lit);
+            }
+            inner_.push_back(makeCaster(kind, in.map, o));
+        }
     }
 
     CasterKind kind() const override { return global_->kind(); }
@@ -385,6 +398,7 @@ class NestedCaster final : public Caster {
             part.intrinsics = intr;
             part.pose = pose;
             part.nearM = frame.nearM;
+            part.time = frame.time;  // the sun's
             part.color.resize(frame.color.size());
             part.depth.assign(frame.depth.size(), std::numeric_limits<float>::infinity());
             renderColumns(*inner_[k], local, part, c0, c1, counters);
@@ -491,17 +505,9 @@ InsetSource syntheticInset(std::uint64_t seed, double spacing, int x0, int y0, i
     const int n = static_cast<int>(size);
     const int w = cellsX * factor + 1, h = cellsY * factor + 1;
     const int j0 = y0 * factor, u0 = x0 * factor;
-    std::vector<std::uint16_t> heights(static_cast<std::size_t>(n) * h);
-    std::vector<Rgb8> colors(heights.size());
-    generateSyntheticRows(n, seed, fine, j0, j0 + h, heights.data(), colors.data());
     src.fine = TerrainMap(w, h, fine, fine, kSyntheticHeightScale, kSyntheticHeightOffset);
-    for (int v = 0; v < h; ++v) {
-        for (int u = 0; u < w; ++u) {
-            const std::size_t i = static_cast<std::size_t>(v) * n + u0 + u;
-            src.fine.setRaw(u, v, heights[i]);
-            src.fine.setColor(u, v, colors[i]);
-        }
-    }
+    generateSyntheticWindow(n, seed, fine, u0, u0 + w, j0, j0 + h, src.fine.rawHeights().data(),
+                            src.fine.colors().data());
     src.fine.updateRange();
     src.name = "synthetic inset at cell (" + std::to_string(x0) + ", " + std::to_string(y0) + ")";
     return src;

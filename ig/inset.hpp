@@ -73,6 +73,9 @@ class NestedTerrain {
     // samples around each: a surface on or above the nested one everywhere (a flight model's
     // floor that keeps the eye above every inset), the global one away from the insets.
     TerrainMap upperGround() const;
+    // Colours every map by the elevation ramp over the global map's range and water level
+    // (elevationRampAlbedo): the same colour at the same height in every map.
+    void applyRamp();
 
   private:
     TerrainMap global_;
@@ -81,10 +84,10 @@ class NestedTerrain {
 
 // A caster over a nested terrain: the global map's frame, then each inset's own caster over the
 // columns where the inset can show, the nearer hit kept per pixel (depth, then colour). The
-// reference, naive and fast casters (any levels, kernel, supersampling); the span caster,
-// objects and sun lighting are refused with InputError. The image does not depend on the
-// thread count. Renders as one work unit (FrameStream runs it on every thread, no overlap
-// between frames).
+// reference, naive and fast casters (any levels, kernel, supersampling, sun lighting: each map
+// lit by its own normals); the span caster and objects are refused with InputError. The image does
+// not depend on the thread count. Renders as one work unit (FrameStream runs it on every thread, no
+// overlap between frames).
 std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
                                          const RenderOptions& options = {});
 

@@ -279,9 +279,9 @@ CubicWeights catmullRom(double t) {
                          0.5 * (-3 * t3 + 4 * t2 + t), 0.5 * (t3 - t2)}};
 }
 
-// Evaluates and shades rows [j0, j1) of the map; row j is written at row j - outRow0 of
-// `heights` and `colors` (size samples a row).
-void generateRows(const Generator& gen, int size, double spacing, std::uint64_t seed, int j0,
+// Evaluates and shades columns [i0, i1) of rows [j0, j1) of the map; sample (i, j) is written
+// at row j - outRow0, column i - i0 of `heights` and `colors` (i1 - i0 samples a row).
+void generateRows(const Generator& gen, int i0, int i1, double spacing, std::uint64_t seed, int j0,
                   int j1, int outRow0, std::uint16_t* heights, Rgb8* colors) {
     // Coarse lattice step in samples: at most 160 m, at most 8 samples.
     const int k = static_cast<int>(std::clamp(160.0 / spacing, 1.0, 8.0));
@@ -289,10 +289,11 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
     for (int r = 0; r < k; ++r)
         weights[r] = catmullRom(static_cast<double>(r) / k);
 
-    // The block holds rows j0-1 .. j1 and columns -1 .. size (a one-sample border for slopes).
-    const int bw = size + 2, bh = j1 - j0 + 2;
+    // The block holds rows j0-1 .. j1 and columns i0-1 .. i1 (a one-sample border for slopes).
+    const int width = i1 - i0;
+    const int bw = width + 2, bh = j1 - j0 + 2;
     // Lattice nodes covering the block with the spline's extra taps.
-    const int nx0 = floorDiv(-1, k) - 1, nx1 = floorDiv(size, k) + 2;
+    const int nx0 = floorDiv(i0 - 1, k) - 1, nx1 = floorDiv(i1, k) + 2;
     const int ny0 = floorDiv(j0 - 1, k) - 1, ny1 = floorDiv(j1, k) + 2;
     const int nw = nx1 - nx0 + 1, nh = ny1 - ny0 + 1;
     std::vector<double> nodes(static_cast<std::size_t>(nw) * nh * kBroadFields);
@@ -326,7 +327,7 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
             }
         }
         for (int bi = 0; bi < bw; ++bi) {
-            const int i = bi - 1;
+            const int i = i0 + bi - 1;
             const int mx = floorDiv(i, k);
             const CubicWeights& wx = weights[i - mx * k];
             const double* n = &rowNodes[static_cast<std::size_t>(mx - 1 - nx0) * kBroadFields];
@@ -350,8 +351,8 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
     const double inv2s = 0.5 / spacing;
     for (int j = j0; j < j1; ++j) {
         const std::size_t row = static_cast<std::size_t>(j - j0 + 1) * bw;
-        for (int i = 0; i < size; ++i) {
-            const std::size_t q = row + i + 1;
+        for (int i = i0; i < i1; ++i) {
+            const std::size_t q = row + (i - i0) + 1;
             const double h = hb[q];
             // Land stays at least one height quantum above the water, so a sample is water
             // exactly when its height is the sea level.
@@ -374,7 +375,7 @@ void generateRows(const Generator& gen, int size, double spacing, std::uint64_t 
             const double jitter =
                 static_cast<double>(hashLattice(i, j, seed ^ 0x5EEDULL) >> 11) * 0x1.0p-53;
             const double light = (0.3 + 0.7 * lambert / lz) * (0.95 + 0.1 * jitter);
-            const std::size_t out = static_cast<std::size_t>(j - outRow0) * size + i;
+            const std::size_t out = static_cast<std::size_t>(j - outRow0) * width + (i - i0);
             colors[out] = Rgb8{toByte(c.r * light), toByte(c.g * light), toByte(c.b * light)};
             const double raw =
                 std::round((surface - kSyntheticHeightOffset) / kSyntheticHeightScale);
@@ -405,7 +406,21 @@ void generateSyntheticRows(int size, std::uint64_t seed, double spacing, int j0,
     tbb::parallel_for(
         tbb::blocked_range<int>(j0, j1, 32),
         [&](const tbb::blocked_range<int>& rows) {
-            generateRows(gen, size, spacing, seed, rows.begin(), rows.end(), j0, heights, colors);
+            generateRows(gen, 0, size, spacing, seed, rows.begin(), rows.end(), j0, heights,
+                         colors);
+        },
+        tbb::simple_partitioner());
+}
+
+void generateSyntheticWindow(int size, std::uint64_t seed, double spacing, int i0, int i1, int j0,
+                             int j1, std::uint16_t* heights, Rgb8* colors) {
+    checkSynthetic(size, kMaxSyntheticStreamSize, spacing);
+    CHECK(0 <= i0 && i0 <= i1 && i1 <= size && 0 <= j0 && j0 <= j1 && j1 <= size);
+    const Generator gen(seed, spacing);
+    tbb::parallel_for(
+        tbb::blocked_range<int>(j0, j1, 32),
+        [&](const tbb::blocked_range<int>& rows) {
+            generateRows(gen, i0, i1, spacing, seed, rows.begin(), rows.end(), j0, heights, colors);
         },
         tbb::simple_partitioner());
 }
@@ -421,7 +436,7 @@ TerrainMap makeSyntheticTerrain(int size, std::uint64_t seed, double spacing) {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, size, 32),
         [&](const tbb::blocked_range<int>& rows) {
-            generateRows(gen, size, spacing, seed, rows.begin(), rows.end(), 0, heights, colors);
+            generateRows(gen, 0, size, spacing, seed, rows.begin(), rows.end(), 0, heights, colors);
         },
         tbb::simple_partitioner());
     map.updateRange();

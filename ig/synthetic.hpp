@@ -29,5 +29,9 @@ inline constexpr int kMaxSyntheticStreamSize = 1 << 20;
 // InputError for a bad size or spacing.
 void generateSyntheticRows(int size, std::uint64_t seed, double spacing, int j0, int j1,
                            std::uint16_t* heights, Rgb8* colors);
+// Columns [i0, i1) of those rows, (i1 - i0) samples a row: the same samples, for a window
+// (an inset) of a map too wide to generate whole rows of.
+void generateSyntheticWindow(int size, std::uint64_t seed, double spacing, int i0, int i1, int j0,
+                             int j1, std::uint16_t* heights, Rgb8* colors);
 
 }  // namespace ig

@@ -685,14 +685,13 @@ int main(int argc, char** argv) {
         // model, the trajectory's clearance and the start fly over a ground on or above it.
         std::optional<ig::NestedTerrain> nested;
         if (insets.any()) {
-            const char* why = !terrain.db.empty()  ? "--db"
+            const char* why = pagedGround          ? "a --db paged beyond --cache-mb"
                               : cigi               ? "--cigi (a host's height queries)"
                               : !scenePath.empty() ? "--scene"
                               : stereo             ? "--stereo"
                               : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                    : nullptr;
             if (why) throw ig::InputError(std::string("--inset: not with ") + why);
-            if (look.colors == "auto") look.colors = "image";
         }
         ig::TerrainMap loadedMap =
             pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
@@ -716,16 +715,15 @@ int main(int argc, char** argv) {
         // A paged map draws the database's colours: the lit ramp needs the whole map.
         if (pagedGround && look.colors == "auto") look.colors = "image";
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
-        if (nested && (appearance.ramp || appearance.shade)) {
-            throw ig::InputError(std::string("--inset: not with ") +
-                                 (appearance.ramp ? "--colors ramp" : "--shade") +
-                                 " (the sun lights the global map's colours only)");
-        }
         if (pagedGround && (appearance.ramp || appearance.shade)) {
             throw ig::InputError(std::string(appearance.ramp ? "--colors ramp" : "--shade") +
                                  ": not with a database paged beyond --cache-mb");
         }
-        ig::applyAppearance(appearance, map, renderOptions);
+        if (nested) {
+            ig::applyAppearance(appearance, *nested, renderOptions);
+        } else {
+            ig::applyAppearance(appearance, map, renderOptions);
+        }
         // The scene: the static layer once, the moving objects per frame (the renderer).
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;

@@ -696,13 +696,13 @@ int main(int argc, char** argv) {
         }
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
-            if (insets.any()) {
-                throw ig::InputError(
-                    "--inset: not with --db (insets are nested in maps loaded "
-                    "from files or the generator)");
-            }
             const ig::TerrainDb db = ig::TerrainDb::open(terrain.db);
             if (ig::databaseNeedsPaging(terrain, db)) {
+                if (insets.any()) {
+                    throw ig::InputError("--inset: not with " + terrain.db +
+                                         " paged beyond --cache-mb (insets nest in a map held "
+                                         "whole)");
+                }
                 if (stereo.enabled() || batchMode || !scenePath.empty() || !objectsOut.empty()) {
                     throw ig::InputError(
                         terrain.db +
@@ -733,16 +733,9 @@ int main(int argc, char** argv) {
             if (stereo.enabled() || batchMode || !scenePath.empty()) {
                 throw ig::InputError("--inset: one frame, without --stereo, --poses or --scene");
             }
-            // The insets carry their own colours: the map's are drawn, unlit.
-            if (look.colors == "auto") look.colors = "image";
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
         const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
-        if (insets.any() && (appearance.ramp || appearance.shade)) {
-            throw ig::InputError(std::string("--inset: not with ") +
-                                 (appearance.ramp ? "--colors ramp" : "--shade") +
-                                 " (the sun lights the global map's colours only)");
-        }
         // With insets the map is the global one nested with them, and heights in --pose are
         // above a ground on or over every inset (NestedTerrain::upperGround).
         std::optional<ig::NestedTerrain> nested;
@@ -764,7 +757,11 @@ int main(int argc, char** argv) {
         ig::RenderOptions options;
         options.threads = threads;
         options.levels = ig::parseLevels(levelsText);
-        ig::applyAppearance(appearance, map, options);
+        if (nested) {
+            ig::applyAppearance(appearance, *nested, options);
+        } else {
+            ig::applyAppearance(appearance, map, options);
+        }
         options.kernel = ig::parseCasterKernel(kernelText);
         if (kind != ig::CasterKind::Fast && options.kernel != ig::CasterKernel::Auto) {
             throw ig::InputError("--kernel " + kernelText +

@@ -3,8 +3,10 @@
 // border along a slow flight, control points, threads, and the refusals.
 #include "ig/inset.hpp"
 
+#include "ig/appearance.hpp"
 #include "ig/error.hpp"
 #include "ig/image_compare.hpp"
+#include "ig/lighting_pass.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
 
@@ -470,6 +472,90 @@ TEST(Insets, RealTerrainInsideTheInsetIsTheFullDataRendered) {
         ASSERT_GT(a.size(), 2000u);
         EXPECT_LE(mae, 0.05);
         EXPECT_GE(maeBefore, 10.0 * std::max(mae, 0.01));
+    }
+}
+
+}  // namespace
+}  // namespace ig
+
+namespace ig {
+namespace {
+
+// The elevation ramp and the sun over a terrain with an inset: each map coloured over the
+// global map's range and lit by its own normals; inside the inset the image is the whole fine
+// terrain's, coloured and lit the same way.
+TEST(Insets, LitByTheSunInsideTheInsetAsTheWholeFineTerrain) {
+    NestedTerrain t = nested();
+    t.applyRamp();
+    const Inset& in = t.insets()[0];
+    // The whole fine terrain: the inset's samples inside, the global surface outside.
+    const TerrainMap& g = t.global();
+    const int f = in.factor;
+    TerrainMap whole((g.width() - 1) * f + 1, (g.height() - 1) * f + 1, g.spacingX() / f,
+                     g.spacingY() / f, g.heightScale(), g.heightOffset());
+    for (int v = 0; v < whole.height(); ++v) {
+        for (int u = 0; u < whole.width(); ++u) {
+            if (u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f && v <= in.y1 * f) {
+                whole.setRaw(u, v, in.map.raw(u - in.mapX0 * f, v - in.mapY0 * f));
+            } else {
+                const double z = g.surfaceHeight(u * whole.spacingX(), v * whole.spacingY());
+                whole.setRaw(u, v,
+                             static_cast<std::uint16_t>(
+                                 std::lround((z - g.heightOffset()) / g.heightScale())));
+            }
+        }
+    }
+    whole.updateRange();
+    whole.colors() = elevationRampAlbedo(whole, g);
+    auto lighting = [](const TerrainMap& normalsOf) {
+        auto lit = std::make_shared<SunLighting>();
+        lit->normals = std::make_shared<const TerrainNormals>(normalsOf);
+        lit->clock.sun = Sun{degToRad(135.0), degToRad(30.0)};
+        return lit;
+    };
+    RenderOptions nestedOptions, wholeOptions, unlit;
+    nestedOptions.lighting = lighting(g);
+    wholeOptions.lighting = lighting(whole);
+    const auto nestedCaster = makeNestedCaster(CasterKind::Fast, t, nestedOptions);
+    const auto wholeCaster = makeCaster(CasterKind::Fast, whole, wholeOptions);
+    const auto unlitCaster = makeNestedCaster(CasterKind::Fast, t, unlit);
+    const Intrinsics intr = Intrinsics::fromFov(240, 160, degToRad(50), 8);
+    const glm::dvec2 c = 0.5 * (in.coverMin + in.coverMax);
+    for (const double yaw : {0.0, 150.0, 260.0}) {
+        Pose pose;
+        pose.yaw = degToRad(yaw);
+        pose.pitch = degToRad(-35.0);
+        pose.position = {c.x - 400.0 * std::sin(pose.yaw), c.y - 400.0 * std::cos(pose.yaw), 0.0};
+        pose.position.z = t.upperGround().surfaceHeight(pose.position.x, pose.position.y) + 300.0;
+        const RenderedFrame frame = renderNestedFrame(*nestedCaster, t, pose, intr);
+        const RenderedFrame truth = renderFrame(*wholeCaster, whole, pose, intr);
+        const RenderedFrame dark = renderNestedFrame(*unlitCaster, t, pose, intr);
+        // Past the blend and a sample more (the normals there are the whole map's).
+        const double edge = 17.0 * in.map.spacingX();
+        const Camera cam(pose, intr);
+        std::vector<Rgb8> a, b, d;
+        for (int y = 0; y < intr.height; ++y) {
+            for (int x = 0; x < intr.width; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * intr.width + x;
+                if (!std::isfinite(truth.depth[i])) continue;
+                const glm::dvec3 q =
+                    pose.position +
+                    double(truth.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
+                if (q.x < in.coverMin.x + edge || q.y < in.coverMin.y + edge ||
+                    q.x > in.coverMax.x - edge || q.y > in.coverMax.y - edge) {
+                    continue;
+                }
+                a.push_back(frame.color[i]);
+                b.push_back(truth.color[i]);
+                d.push_back(dark.color[i]);
+            }
+        }
+        const double mae = meanAbsErrorPct(a, b), unlitMae = meanAbsErrorPct(d, b);
+        std::printf("lit, yaw %g: %zu px inside; MAE %.4f %% (unlit %.3f %%)\n", yaw, a.size(), mae,
+                    unlitMae);
+        ASSERT_GT(a.size(), 3000u);
+        EXPECT_LE(mae, 0.05);
+        EXPECT_GE(unlitMae, 20.0 * std::max(mae, 0.01));
     }
 }
 

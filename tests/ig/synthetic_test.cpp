@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "ig/error.hpp"
 
@@ -49,6 +51,32 @@ TEST(SyntheticTerrain, SmallerMapIsTheSouthWestCornerOfALargerOne) {
         for (int ix = 0; ix < 2; ++ix) {
             EXPECT_EQ(tiny.raw(ix, iy), big.raw(ix, iy));
             EXPECT_EQ(tiny.colorAt(ix, iy), big.colorAt(ix, iy));
+        }
+    }
+}
+
+TEST(SyntheticTerrain, AWindowIsThoseSamplesOfTheWholeMap) {
+    // Windows of every alignment to the coarse lattice (every k samples), at two spacings,
+    // against the whole map: the same samples.
+    for (const double spacing : {10.0, 2.5}) {
+        const TerrainMap whole = makeSyntheticTerrain(256, 11, spacing);
+        for (const auto& [i0, i1, j0, j1] : {std::array<int, 4>{0, 256, 0, 256},
+                                             {1, 2, 255, 256},
+                                             {37, 101, 5, 70},
+                                             {128, 256, 0, 9},
+                                             {3, 200, 190, 256}}) {
+            std::vector<std::uint16_t> h(static_cast<std::size_t>(i1 - i0) * (j1 - j0));
+            std::vector<ig::Rgb8> c(h.size());
+            ig::generateSyntheticWindow(256, 11, spacing, i0, i1, j0, j1, h.data(), c.data());
+            int mismatches = 0;
+            for (int j = j0; j < j1; ++j) {
+                for (int i = i0; i < i1; ++i) {
+                    const std::size_t k = static_cast<std::size_t>(j - j0) * (i1 - i0) + (i - i0);
+                    mismatches += h[k] != whole.raw(i, j) || !(c[k] == whole.colorAt(i, j));
+                }
+            }
+            EXPECT_EQ(mismatches, 0) << "window " << i0 << ".." << i1 << " x " << j0 << ".." << j1
+                                     << " at " << spacing << " m";
         }
     }
 }
