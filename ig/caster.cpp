@@ -156,23 +156,29 @@ void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFram
     }
 }
 
-RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
-                          const Intrinsics& intrinsics, double time, std::uint64_t sequence,
-                          double nearM) {
+void checkNearPlane(double nearM) {
     if (!(nearM >= 0.0) || !std::isfinite(nearM)) {
         throw InputError("near plane " + std::to_string(nearM) +
                          " m: must be a finite distance of 0 (none) or more");
     }
-    RenderedFrame frame = newFrame(map, pose, intrinsics, time, sequence);
-    frame.nearM = nearM;
-    const Camera camera(pose, intrinsics);
+}
 
+void renderPixels(const Caster& caster, const Camera& camera, RenderedFrame& frame) {
     const auto start = std::chrono::steady_clock::now();
     caster.render(camera, frame);
     frame.stats.kernel = caster.kernelName();
     frame.stats.renderMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
 
+RenderedFrame renderFrame(const Caster& caster, const TerrainMap& map, const Pose& pose,
+                          const Intrinsics& intrinsics, double time, std::uint64_t sequence,
+                          double nearM) {
+    checkNearPlane(nearM);
+    RenderedFrame frame = newFrame(map, pose, intrinsics, time, sequence);
+    frame.nearM = nearM;
+    const Camera camera(pose, intrinsics);
+    renderPixels(caster, camera, frame);
     castControlPoints(map, camera, frame);
     return frame;
 }

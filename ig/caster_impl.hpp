@@ -28,6 +28,11 @@ std::unique_ptr<Caster> makeAutoSupersampleCaster(const TerrainMap& map,
 RenderedFrame newFrame(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
                        double time, std::uint64_t sequence);
 
+// Throws InputError for a near plane that is negative or not finite (0: none).
+void checkNearPlane(double nearM);
+// Renders the pixels of `frame` (made by newFrame) with `caster`, its time and kernel in stats.
+void renderPixels(const Caster& caster, const Camera& camera, RenderedFrame& frame);
+
 // The frame's nine control points, each cast exactly through its pixel centre.
 void castControlPoints(const TerrainMap& map, const Camera& camera, RenderedFrame& frame);
 

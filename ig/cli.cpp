@@ -469,22 +469,10 @@ Appearance parseAppearance(const AppearanceOptions& o, const TerrainOptions& ter
     return a;
 }
 
-void applyAppearance(const Appearance& a, NestedTerrain& terrain, RenderOptions& render) {
-    render.sky.hazeDistance = a.hazeDistance;
-    render.sky.hazeFalloff = a.hazeFalloff;
-    render.supersample = a.supersample;
-    render.supersampleMax = a.supersampleMax;
-    render.lighting = nullptr;
-    if (!a.ramp && !a.shade) return;
-    if (a.ramp) terrain.applyRamp();
-    auto lighting = std::make_shared<SunLighting>();
-    lighting->normals = std::make_shared<const TerrainNormals>(terrain.global());
-    lighting->clock = a.sunClock;
-    lighting->photo = !a.ramp;
-    render.lighting = std::move(lighting);
-}
-
-void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render) {
+namespace {
+// The sky, supersampling and (ramp or --shade) the sun lighting of `a` over a map whose
+// normals are `normalsOf`'s.
+void applyLook(const Appearance& a, const TerrainMap& normalsOf, RenderOptions& render) {
     render.sky.hazeDistance = a.hazeDistance;
     render.sky.hazeFalloff = a.hazeFalloff;
     render.supersample = a.supersample;
@@ -492,12 +480,22 @@ void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render
     render.lighting = nullptr;
     if (!a.ramp && !a.shade) return;
     // The map keeps the albedo (the ramp, or the photo); each frame is lit as it is made.
-    if (a.ramp) map.colors() = elevationRampAlbedo(map);
     auto lighting = std::make_shared<SunLighting>();
-    lighting->normals = std::make_shared<const TerrainNormals>(map);
+    lighting->normals = std::make_shared<const TerrainNormals>(normalsOf);
     lighting->clock = a.sunClock;
     lighting->photo = !a.ramp;
     render.lighting = std::move(lighting);
+}
+}  // namespace
+
+void applyAppearance(const Appearance& a, NestedTerrain& terrain, RenderOptions& render) {
+    if (a.ramp) terrain.applyRamp();
+    applyLook(a, terrain.global(), render);
+}
+
+void applyAppearance(const Appearance& a, TerrainMap& map, RenderOptions& render) {
+    if (a.ramp) map.colors() = elevationRampAlbedo(map);
+    applyLook(a, map, render);
 }
 
 Pose defaultViewPose(const TerrainMap& map) {

@@ -256,6 +256,48 @@ double NestedTerrain::entryBeyond(const glm::dvec3& origin, const glm::dvec3& di
     return best;
 }
 
+TerrainMap NestedTerrain::fineEquivalent() const {
+    int f = 1;
+    for (const Inset& in : insets_)
+        f = std::max(f, in.factor);
+    const TerrainMap& g = global_;
+    TerrainMap m((g.width() - 1) * f + 1, (g.height() - 1) * f + 1, g.spacingX() / f,
+                 g.spacingY() / f, g.heightScale(), g.heightOffset());
+    for (int v = 0; v < m.height(); ++v) {
+        for (int u = 0; u < m.width(); ++u) {
+            const Inset* own = nullptr;
+            for (const Inset& in : insets_) {
+                if (in.factor == f && u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f &&
+                    v <= in.y1 * f) {
+                    own = &in;
+                }
+            }
+            if (own) {
+                const int lu = u - own->mapX0 * f, lv = v - own->mapY0 * f;
+                m.setRaw(u, v, own->map.raw(lu, lv));
+                m.setColor(u, v, own->map.colorAt(lu, lv));
+                continue;
+            }
+            const double x = u * m.spacingX(), y = v * m.spacingY();
+            const TerrainMap* src = &g;
+            glm::dvec2 at{x, y};
+            for (const Inset& in : insets_) {
+                if (in.covers(x, y)) {
+                    src = &in.map;
+                    at -= in.origin;
+                }
+            }
+            m.setRaw(u, v,
+                     toRaw((src->surfaceHeight(at.x, at.y) - g.heightOffset()) / g.heightScale()));
+            float rgb[3];
+            src->surfaceColor(at.x, at.y, rgb);
+            m.setColor(u, v, Rgb8{toByte(rgb[0]), toByte(rgb[1]), toByte(rgb[2])});
+        }
+    }
+    m.updateRange();
+    return m;
+}
+
 void NestedTerrain::applyRamp() {
     for (Inset& in : insets_)
         in.map.colors() = elevationRampAlbedo(in.map, global_);
@@ -431,11 +473,7 @@ std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& t
 RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terrain,
                                 const Pose& pose, const Intrinsics& intrinsics, double time,
                                 std::uint64_t sequence, double nearM) {
-    if (!(nearM >= 0.0) || !std::isfinite(nearM)) {
-        throw InputError("near plane " + std::to_string(nearM) +
-                         " m: must be a finite distance of 0 (none) or more");
-    }
-    validateView(terrain.global(), pose, intrinsics);
+    checkNearPlane(nearM);
     for (const Inset& in : terrain.insets()) {
         const glm::dvec3& p = pose.position;
         if (in.covers(p.x, p.y) && p.z <= terrain.surfaceHeight(p.x, p.y)) {
@@ -444,21 +482,10 @@ RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terra
                              std::to_string(terrain.surfaceHeight(p.x, p.y)) + " m)");
         }
     }
-    RenderedFrame frame;
-    frame.sequence = sequence;
-    frame.time = time;
-    frame.pose = pose;
-    frame.intrinsics = intrinsics;
+    RenderedFrame frame = newFrame(terrain.global(), pose, intrinsics, time, sequence);
     frame.nearM = nearM;
-    const std::size_t n = static_cast<std::size_t>(intrinsics.width) * intrinsics.height;
-    frame.color.resize(n);
-    frame.depth.resize(n);
     const Camera camera(pose, intrinsics);
-    const auto start = std::chrono::steady_clock::now();
-    caster.render(camera, frame);
-    frame.stats.kernel = caster.kernelName();
-    frame.stats.renderMs =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    renderPixels(caster, camera, frame);
 
     const auto pixels = controlPointPixels(intrinsics);
     for (int i = 0; i < kControlPointCount; ++i) {

@@ -73,6 +73,11 @@ class NestedTerrain {
     // samples around each: a surface on or above the nested one everywhere (a flight model's
     // floor that keeps the eye above every inset), the global one away from the insets.
     TerrainMap upperGround() const;
+    // The nested surface as one map over the global extent at the finest inset's spacing:
+    // that inset's samples where it lies, elsewhere the surface (global or a coarser inset's)
+    // sampled and rounded, with its colours. What the nested caster is checked against (the
+    // whole fine terrain in memory); factor^2 times the global map's memory.
+    TerrainMap fineEquivalent() const;
     // Colours every map by the elevation ramp over the global map's range and water level
     // (elevationRampAlbedo): the same colour at the same height in every map.
     void applyRamp();

@@ -971,34 +971,10 @@ void insetsSection(const Config& c) {
     std::vector<ig::InsetSource> sources;
     sources.push_back(ig::syntheticInset(1, spacing, x0, x0, cells, cells, f));
     const ig::NestedTerrain nested(ig::makeSyntheticTerrain(size, 1, spacing), std::move(sources));
-    const ig::TerrainMap& global = nested.global();
     const ig::TerrainMap plain = ig::makeSyntheticTerrain(size, 1, spacing);
     const ig::Inset& in = nested.insets()[0];
     // The nested surface as one map at the inset's spacing.
-    ig::TerrainMap whole((size - 1) * f + 1, (size - 1) * f + 1, spacing / f, spacing / f,
-                         global.heightScale(), global.heightOffset());
-    for (int v = 0; v < whole.height(); ++v) {
-        for (int u = 0; u < whole.width(); ++u) {
-            if (u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f && v <= in.y1 * f) {
-                const int lu = u - in.mapX0 * f, lv = v - in.mapY0 * f;
-                whole.setRaw(u, v, in.map.raw(lu, lv));
-                whole.setColor(u, v, in.map.colorAt(lu, lv));
-                continue;
-            }
-            const double x = u * whole.spacingX(), y = v * whole.spacingY();
-            whole.setRaw(
-                u, v,
-                static_cast<std::uint16_t>(std::lround(
-                    (global.surfaceHeight(x, y) - global.heightOffset()) / global.heightScale())));
-            float rgb[3];
-            global.surfaceColor(x, y, rgb);
-            whole.setColor(u, v,
-                           ig::Rgb8{static_cast<std::uint8_t>(std::lround(rgb[0])),
-                                    static_cast<std::uint8_t>(std::lround(rgb[1])),
-                                    static_cast<std::uint8_t>(std::lround(rgb[2]))});
-        }
-    }
-    whole.updateRange();
+    const ig::TerrainMap whole = nested.fineEquivalent();
     ig::RenderOptions o;
     o.levels = ig::kLevelsAuto;
     o.threads = 1;

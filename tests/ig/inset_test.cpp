@@ -41,35 +41,7 @@ const NestedTerrain& shared() {
 // The nested surface as one map at the inset's spacing over the whole global extent: the
 // inset's samples inside it, the global bilinear surface and colours (rounded) elsewhere.
 const TerrainMap& wholeFine() {
-    static const TerrainMap w = [] {
-        const NestedTerrain& t = shared();
-        const TerrainMap& g = t.global();
-        const Inset& in = t.insets()[0];
-        const int f = in.factor;
-        TerrainMap m((g.width() - 1) * f + 1, (g.height() - 1) * f + 1, g.spacingX() / f,
-                     g.spacingY() / f, g.heightScale(), g.heightOffset());
-        for (int v = 0; v < m.height(); ++v) {
-            for (int u = 0; u < m.width(); ++u) {
-                const int lu = u - in.mapX0 * f, lv = v - in.mapY0 * f;
-                if (u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f && v <= in.y1 * f) {
-                    m.setRaw(u, v, in.map.raw(lu, lv));
-                    m.setColor(u, v, in.map.colorAt(lu, lv));
-                    continue;
-                }
-                const double x = u * m.spacingX(), y = v * m.spacingY();
-                const double z = (g.surfaceHeight(x, y) - g.heightOffset()) / g.heightScale();
-                m.setRaw(u, v, static_cast<std::uint16_t>(std::lround(z)));
-                float rgb[3];
-                g.surfaceColor(x, y, rgb);
-                m.setColor(u, v,
-                           Rgb8{static_cast<std::uint8_t>(std::lround(rgb[0])),
-                                static_cast<std::uint8_t>(std::lround(rgb[1])),
-                                static_cast<std::uint8_t>(std::lround(rgb[2]))});
-            }
-        }
-        m.updateRange();
-        return m;
-    }();
+    static const TerrainMap w = shared().fineEquivalent();
     return w;
 }
 
@@ -84,6 +56,36 @@ Pose lookingAtTheInset(double yawDeg, double pitchDeg, double range, double up) 
     p.yaw = yaw;
     p.pitch = degToRad(pitchDeg);
     return p;
+}
+
+// The pixels of `truth` whose hit lies over the inset's square, at least `edge` metres
+// inside its border.
+std::vector<std::size_t> pixelsInside(const RenderedFrame& truth, const Inset& in, double edge) {
+    const Camera cam(truth.pose, truth.intrinsics);
+    std::vector<std::size_t> out;
+    for (int y = 0; y < truth.height(); ++y) {
+        for (int x = 0; x < truth.width(); ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * truth.width() + x;
+            if (!std::isfinite(truth.depth[i])) continue;
+            const glm::dvec3 p =
+                truth.pose.position +
+                double(truth.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
+            if (p.x >= in.coverMin.x + edge && p.y >= in.coverMin.y + edge &&
+                p.x <= in.coverMax.x - edge && p.y <= in.coverMax.y - edge) {
+                out.push_back(i);
+            }
+        }
+    }
+    return out;
+}
+
+// The colours of `frame` at `pixels`.
+std::vector<Rgb8> colorsAt(const RenderedFrame& frame, const std::vector<std::size_t>& pixels) {
+    std::vector<Rgb8> out;
+    out.reserve(pixels.size());
+    for (const std::size_t i : pixels)
+        out.push_back(frame.color[i]);
+    return out;
 }
 
 TEST(Insets, TheGlobalSurfaceStaysUnderTheInsetAndMeetsItOnItsEdge) {
@@ -172,32 +174,17 @@ struct Comparison {
 // Compares `frame` with `truth` (the whole fine terrain's render), over the pixels whose true
 // hit lies inside the inset at least `edge` metres from its border.
 Comparison compare(const RenderedFrame& frame, const RenderedFrame& truth, double edge) {
-    const Inset& in = shared().insets()[0];
-    const Camera cam(truth.pose, truth.intrinsics);
+    const std::vector<std::size_t> inside = pixelsInside(truth, shared().insets()[0], edge);
     Comparison c;
-    std::vector<Rgb8> a, b;
-    for (int y = 0; y < truth.height(); ++y) {
-        for (int x = 0; x < truth.width(); ++x) {
-            const std::size_t i = static_cast<std::size_t>(y) * truth.width() + x;
-            if (!std::isfinite(truth.depth[i])) continue;
-            const glm::dvec3 p =
-                truth.pose.position +
-                double(truth.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
-            if (p.x < in.coverMin.x + edge || p.y < in.coverMin.y + edge ||
-                p.x > in.coverMax.x - edge || p.y > in.coverMax.y - edge) {
-                continue;
-            }
-            a.push_back(frame.color[i]);
-            b.push_back(truth.color[i]);
-            const Rgb8 u = frame.color[i], v = truth.color[i];
-            const int d = std::max({std::abs(u.r - v.r), std::abs(u.g - v.g), std::abs(u.b - v.b)});
-            c.worstInside = std::max(c.worstInside, double(d));
-            if (d > 2) c.badInside += 1.0;
-        }
+    for (const std::size_t i : inside) {
+        const Rgb8 u = frame.color[i], v = truth.color[i];
+        const int d = std::max({std::abs(u.r - v.r), std::abs(u.g - v.g), std::abs(u.b - v.b)});
+        c.worstInside = std::max(c.worstInside, double(d));
+        if (d > 2) c.badInside += 1.0;
     }
-    c.inside = static_cast<int>(a.size());
+    c.inside = static_cast<int>(inside.size());
     if (c.inside > 0) {
-        c.maeInside = meanAbsErrorPct(a, b);
+        c.maeInside = meanAbsErrorPct(colorsAt(frame, inside), colorsAt(truth, inside));
         c.badInside /= c.inside;
     }
     c.maeAll = meanAbsErrorPct(frame.color, truth.color);
@@ -446,24 +433,9 @@ TEST(Insets, RealTerrainInsideTheInsetIsTheFullDataRendered) {
         const RenderedFrame truth = renderFrame(*fullCaster, full, pose, intr);
         const RenderedFrame before = renderFrame(*coarseCaster, coarse, pose, intr);
         // Pixels whose full-data hit lies inside the inset, past its blend.
-        const Camera cam(pose, intr);
-        std::vector<Rgb8> a, b, p;
-        for (int y = 0; y < intr.height; ++y) {
-            for (int x = 0; x < intr.width; ++x) {
-                const std::size_t i = static_cast<std::size_t>(y) * intr.width + x;
-                if (!std::isfinite(truth.depth[i])) continue;
-                const glm::dvec3 q =
-                    pose.position +
-                    double(truth.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
-                if (q.x < in.coverMin.x + edge || q.y < in.coverMin.y + edge ||
-                    q.x > in.coverMax.x - edge || q.y > in.coverMax.y - edge) {
-                    continue;
-                }
-                a.push_back(frame.color[i]);
-                b.push_back(truth.color[i]);
-                p.push_back(before.color[i]);
-            }
-        }
+        const std::vector<std::size_t> inside = pixelsInside(truth, in, edge);
+        const std::vector<Rgb8> a = colorsAt(frame, inside), b = colorsAt(truth, inside),
+                                p = colorsAt(before, inside);
         const double mae = meanAbsErrorPct(a, b), maeBefore = meanAbsErrorPct(p, b);
         std::printf(
             "Goleta yaw %g: %zu px inside; MAE against the full data %.4f %%, the coarse "
@@ -488,24 +460,9 @@ TEST(Insets, LitByTheSunInsideTheInsetAsTheWholeFineTerrain) {
     NestedTerrain t = nested();
     t.applyRamp();
     const Inset& in = t.insets()[0];
-    // The whole fine terrain: the inset's samples inside, the global surface outside.
+    // The whole fine terrain, coloured by the ramp over the global range.
     const TerrainMap& g = t.global();
-    const int f = in.factor;
-    TerrainMap whole((g.width() - 1) * f + 1, (g.height() - 1) * f + 1, g.spacingX() / f,
-                     g.spacingY() / f, g.heightScale(), g.heightOffset());
-    for (int v = 0; v < whole.height(); ++v) {
-        for (int u = 0; u < whole.width(); ++u) {
-            if (u >= in.x0 * f && v >= in.y0 * f && u <= in.x1 * f && v <= in.y1 * f) {
-                whole.setRaw(u, v, in.map.raw(u - in.mapX0 * f, v - in.mapY0 * f));
-            } else {
-                const double z = g.surfaceHeight(u * whole.spacingX(), v * whole.spacingY());
-                whole.setRaw(u, v,
-                             static_cast<std::uint16_t>(
-                                 std::lround((z - g.heightOffset()) / g.heightScale())));
-            }
-        }
-    }
-    whole.updateRange();
+    TerrainMap whole = t.fineEquivalent();
     whole.colors() = elevationRampAlbedo(whole, g);
     auto lighting = [](const TerrainMap& normalsOf) {
         auto lit = std::make_shared<SunLighting>();
@@ -532,24 +489,9 @@ TEST(Insets, LitByTheSunInsideTheInsetAsTheWholeFineTerrain) {
         const RenderedFrame dark = renderNestedFrame(*unlitCaster, t, pose, intr);
         // Past the blend and a sample more (the normals there are the whole map's).
         const double edge = 17.0 * in.map.spacingX();
-        const Camera cam(pose, intr);
-        std::vector<Rgb8> a, b, d;
-        for (int y = 0; y < intr.height; ++y) {
-            for (int x = 0; x < intr.width; ++x) {
-                const std::size_t i = static_cast<std::size_t>(y) * intr.width + x;
-                if (!std::isfinite(truth.depth[i])) continue;
-                const glm::dvec3 q =
-                    pose.position +
-                    double(truth.depth[i]) * glm::normalize(cam.rayDirection(x + 0.5, y + 0.5));
-                if (q.x < in.coverMin.x + edge || q.y < in.coverMin.y + edge ||
-                    q.x > in.coverMax.x - edge || q.y > in.coverMax.y - edge) {
-                    continue;
-                }
-                a.push_back(frame.color[i]);
-                b.push_back(truth.color[i]);
-                d.push_back(dark.color[i]);
-            }
-        }
+        const std::vector<std::size_t> inside = pixelsInside(truth, in, edge);
+        const std::vector<Rgb8> a = colorsAt(frame, inside), b = colorsAt(truth, inside),
+                                d = colorsAt(dark, inside);
         const double mae = meanAbsErrorPct(a, b), unlitMae = meanAbsErrorPct(d, b);
         std::printf("lit, yaw %g: %zu px inside; MAE %.4f %% (unlit %.3f %%)\n", yaw, a.size(), mae,
                     unlitMae);
