@@ -16,6 +16,8 @@
 #include <gdal/ogr_srs_api.h>
 #endif
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -24,9 +26,10 @@
 namespace ig {
 namespace {
 
+// A file of this process alone (the tests of this file run in parallel, each in a process).
 std::string tmpPath(const std::string& name) {
     std::filesystem::create_directories(VIG_TEST_TMP);
-    return std::string(VIG_TEST_TMP) + "/inset_raster_" + name;
+    return std::string(VIG_TEST_TMP) + "/inset_raster_" + std::to_string(::getpid()) + "_" + name;
 }
 
 // Heights in metres at UTM (x, y): broad hills, and detail only the finer raster resolves.
