@@ -165,11 +165,9 @@ void FastCaster::renderUnit(const Camera& camera, RenderedFrame& frame, int unit
 void FastCaster::chooseKernel() {
     CasterKernel k = options_.kernel;
     const bool portable = k == CasterKernel::Rows4Portable || k == CasterKernel::Rows8Portable;
-    // The vector gathers index colour bytes with 32-bit offsets (the portable twins too).
-    const bool fits = 3.0 * map_.width() * map_.height() < 2147483647.0;
     if (k == CasterKernel::Auto) {
         const base::CpuFeatures& cpu = base::cpuFeatures();
-        k = !VIG_CASTER_PACKETS || !fits    ? CasterKernel::Scalar
+        k = !VIG_CASTER_PACKETS             ? CasterKernel::Scalar
             : VIG_CASTER_WIDE && cpu.avx512 ? CasterKernel::Avx512
             : cpu.avx2                      ? CasterKernel::Avx2
                                             : CasterKernel::Scalar;
@@ -180,11 +178,6 @@ void FastCaster::chooseKernel() {
         if (!missing.empty()) {
             throw InputError("kernel " + std::string(casterKernelName(k)) +
                              ": the processor lacks " + missing);
-        }
-        if (!fits) {
-            throw InputError("kernel " + std::string(casterKernelName(k)) + ": the map (" +
-                             std::to_string(map_.width()) + " x " + std::to_string(map_.height()) +
-                             ") is too large for the vector kernels' 32-bit offsets");
         }
     }
     const bool super = options_.supersample > 1;

@@ -88,17 +88,15 @@ using M4 = decltype(V4{} < V4{});
     return _mm256_movemask_pd(reinterpret_cast<__m256d>(m));
 }
 // The 32 bits at byte offset scale * idx from base, four lanes (idx integer-valued, below
-// 2^31; inactive lanes must carry a valid index).
+// 2^53: 64-bit offsets, a paged map may hold more than 2^31 samples; inactive lanes must carry
+// a valid index).
 // (Four scalar loads: hardware gathers are slow where microcode guards them.)
 template <int kScale>
 [[gnu::always_inline]] VIG_CASTER_AVX2 inline __m128i gather32(const void* base, V4 idx) {
-    alignas(16) int i[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(i),
-                    _mm256_cvttpd_epi32(reinterpret_cast<__m256d>(idx)));
     const auto* b = static_cast<const unsigned char*>(base);
     int v[4];
     for (int l = 0; l < 4; ++l)
-        std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(i[l]) * kScale, 4);
+        std::memcpy(&v[l], b + static_cast<std::ptrdiff_t>(idx[l]) * kScale, 4);
     return _mm_setr_epi32(v[0], v[1], v[2], v[3]);
 }
 [[gnu::always_inline]] VIG_CASTER_AVX2 inline V4 toV4(__m128i v) {
@@ -131,28 +129,29 @@ template <bool kMajorX>
     const std::uint16_t* h = mv.heights;
     __m128i a, b;
     if (kMajorX) {
-        // Minor along y: the two samples are a row apart. Offsets in 32 bits (the packet
-        // paths run on maps of fewer than 2^31 samples).
-        const int w = mv.width;
-        const __m128i off = _mm_add_epi32(_mm_mullo_epi32(ii, _mm_set1_epi32(w)),
-                                          _mm_set1_epi32(static_cast<int>(line)));
-        const int o0 = _mm_cvtsi128_si32(off), o3 = _mm_extract_epi32(off, 3);
+        // Minor along y: the two samples are a row apart (64-bit offsets: a paged map may
+        // hold more than 2^31 samples).
+        const std::ptrdiff_t w = mv.width;
+        const std::uint16_t* col = h + line;
+        const std::uint16_t* p0 = col + _mm_cvtsi128_si32(ii) * w;
         if (sameInAllLanes(ii)) {
             // All four tracks cross the line in one cell (common where cells span many
             // pixels): two loads.
-            const V4 h0 = V4{} + static_cast<double>(h[o0]);
-            const V4 h1 = V4{} + static_cast<double>(h[o0 + w]);
+            const V4 h0 = V4{} + static_cast<double>(p0[0]);
+            const V4 h1 = V4{} + static_cast<double>(p0[w]);
             return {h0 + f * (h1 - h0), h0, h1, i};
         }
-        const int o1 = _mm_extract_epi32(off, 1), o2 = _mm_extract_epi32(off, 2);
-        __m128i v = _mm_cvtsi32_si128(h[o0]);
-        v = _mm_insert_epi16(v, h[o1], 1);
-        v = _mm_insert_epi16(v, h[o2], 2);
-        v = _mm_insert_epi16(v, h[o3], 3);
-        v = _mm_insert_epi16(v, h[o0 + w], 4);
-        v = _mm_insert_epi16(v, h[o1 + w], 5);
-        v = _mm_insert_epi16(v, h[o2 + w], 6);
-        v = _mm_insert_epi16(v, h[o3 + w], 7);
+        const std::uint16_t* p1 = col + _mm_extract_epi32(ii, 1) * w;
+        const std::uint16_t* p2 = col + _mm_extract_epi32(ii, 2) * w;
+        const std::uint16_t* p3 = col + _mm_extract_epi32(ii, 3) * w;
+        __m128i v = _mm_cvtsi32_si128(p0[0]);
+        v = _mm_insert_epi16(v, p1[0], 1);
+        v = _mm_insert_epi16(v, p2[0], 2);
+        v = _mm_insert_epi16(v, p3[0], 3);
+        v = _mm_insert_epi16(v, p0[w], 4);
+        v = _mm_insert_epi16(v, p1[w], 5);
+        v = _mm_insert_epi16(v, p2[w], 6);
+        v = _mm_insert_epi16(v, p3[w], 7);
         a = _mm_cvtepu16_epi32(v);
         b = _mm_cvtepu16_epi32(_mm_srli_si128(v, 8));
     } else {

@@ -39,31 +39,22 @@ using M8 = decltype(V8{} < V8{});
     const __m256i first = _mm256_broadcastd_epi32(_mm256_castsi256_si128(v));
     return _mm256_movemask_epi8(_mm256_cmpeq_epi32(v, first)) == -1;
 }
-// The 32 bits at byte offset scale * idx from base, eight lanes (as gather32).
+// The 32 bits at byte offset scale * idx from base, eight lanes (as gather32: 64-bit offsets).
 template <int kScale>
 [[gnu::always_inline]] inline __m256i gather32(const void* base, V8 idx) {
-    const __m256i i = _mm512_maskz_cvttpd_epi32(0xFF, reinterpret_cast<__m512d>(idx));
+    alignas(64) std::int64_t i[8];
+    _mm512_store_si512(i, _mm512_cvttpd_epi64(reinterpret_cast<__m512d>(idx)));
     const auto* b = static_cast<const unsigned char*>(base);
-    auto at = [&](int l) {
-        int v;
-        std::memcpy(&v, b + static_cast<std::ptrdiff_t>(l) * kScale, 4);
-        return v;
-    };
-    const __m128i lo = _mm256_castsi256_si128(i), hi = _mm256_extracti128_si256(i, 1);
-    __m128i a = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(lo)));
-    a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 1)), 1);
-    a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 2)), 2);
-    a = _mm_insert_epi32(a, at(_mm_extract_epi32(lo, 3)), 3);
-    __m128i c = _mm_cvtsi32_si128(at(_mm_cvtsi128_si32(hi)));
-    c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 1)), 1);
-    c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 2)), 2);
-    c = _mm_insert_epi32(c, at(_mm_extract_epi32(hi, 3)), 3);
-    return _mm256_inserti128_si256(_mm256_castsi128_si256(a), c, 1);
+    int v[8];
+    for (int l = 0; l < 8; ++l)
+        std::memcpy(&v[l], b + i[l] * kScale, 4);
+    return _mm256_setr_epi32(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]);
 }
 
 // The eight 16-bit heights h[o[l] + add] in one register.
 template <int... kLane>
-[[gnu::always_inline]] inline __m128i heights16(const std::uint16_t* h, const int* o, int add,
+[[gnu::always_inline]] inline __m128i heights16(const std::uint16_t* h, const std::ptrdiff_t* o,
+                                                std::ptrdiff_t add,
                                                 std::integer_sequence<int, kLane...>) {
     __m128i v = _mm_setzero_si128();
     ((v = _mm_insert_epi16(v, h[o[kLane] + add], kLane)), ...);
@@ -97,24 +88,23 @@ template <bool kMajorX>
     const int w = mv.width;
     __m256i a, b;
     if (kMajorX) {
-        // Minor along y: the two samples are a row apart (32-bit offsets, as sampleLine).
-        const __m256i off = _mm256_add_epi32(_mm256_mullo_epi32(ii, _mm256_set1_epi32(w)),
-                                             _mm256_set1_epi32(static_cast<int>(line)));
+        // Minor along y: the two samples are a row apart (64-bit offsets, as sampleLine).
+        const std::ptrdiff_t wr = w;
+        const std::uint16_t* col = h + line;
         if (sameInAllLanes(ii)) {
-            const int o0 = _mm256_cvtsi256_si32(off);
-            const V8 h0 = V8{} + static_cast<double>(h[o0]);
-            const V8 h1 = V8{} + static_cast<double>(h[o0 + w]);
+            const std::uint16_t* p0 = col + _mm256_cvtsi256_si32(ii) * wr;
+            const V8 h0 = V8{} + static_cast<double>(p0[0]);
+            const V8 h1 = V8{} + static_cast<double>(p0[wr]);
             return {h0 + f * (h1 - h0), h0, h1, i};
         }
-        const __m128i offLo = _mm256_castsi256_si128(off);
-        const __m128i offHi = _mm256_extracti128_si256(off, 1);
-        const int o[8] = {_mm_cvtsi128_si32(offLo),    _mm_extract_epi32(offLo, 1),
-                          _mm_extract_epi32(offLo, 2), _mm_extract_epi32(offLo, 3),
-                          _mm_cvtsi128_si32(offHi),    _mm_extract_epi32(offHi, 1),
-                          _mm_extract_epi32(offHi, 2), _mm_extract_epi32(offHi, 3)};
+        alignas(32) int r[8];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(r), ii);
+        std::ptrdiff_t o[8];
+        for (int l = 0; l < 8; ++l)
+            o[l] = line + r[l] * wr;
         const auto lanes = std::make_integer_sequence<int, 8>{};
         a = _mm256_cvtepu16_epi32(heights16(h, o, 0, lanes));
-        b = _mm256_cvtepu16_epi32(heights16(h, o, w, lanes));
+        b = _mm256_cvtepu16_epi32(heights16(h, o, wr, lanes));
     } else {
         // Minor along x: the two samples are adjacent, one 32-bit load.
         const auto* row = reinterpret_cast<const unsigned char*>(h + line * w);

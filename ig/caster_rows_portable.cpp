@@ -59,14 +59,13 @@ template <class M>
         bits |= (m[l] != 0 ? 1 : 0) << l;
     return bits;
 }
-// The 32 bits at byte offset scale * idx from base (cvttpd: truncated to a 32-bit index).
+// The 32 bits at byte offset scale * idx from base (64-bit offsets).
 template <int kScale, class V>
 [[gnu::always_inline]] inline Texels<kLanesOf<V>> gather32(const void* base, V idx) {
     const auto* b = static_cast<const unsigned char*>(base);
     Texels<kLanesOf<V>> t;
     for (int l = 0; l < kLanesOf<V>; ++l) {
-        const int i = static_cast<int>(idx[l]);
-        std::memcpy(&t.v[l], b + static_cast<std::ptrdiff_t>(i) * kScale, 4);
+        std::memcpy(&t.v[l], b + static_cast<std::ptrdiff_t>(idx[l]) * kScale, 4);
     }
     return t;
 }
@@ -93,22 +92,20 @@ template <int N>
 namespace ig::fast {
 namespace {
 
-// sampleLine on N lanes: the cell's two samples on the line, read lane by lane (the vector
-// objects' 32-bit offsets: the map has fewer than 2^31 samples).
+// sampleLine on N lanes: the cell's two samples on the line, read lane by lane (64-bit
+// offsets: a paged map may hold more than 2^31 samples).
 template <bool kMajorX, class V>
 [[gnu::always_inline]] inline LineN<V> sampleLine(const MapView& mv, long line, V n, double lastN) {
     const V i = vmin(vfloor(n), V{} + (lastN - 1.0));
     const V f = n - i;
     const std::uint16_t* h = mv.heights;
-    const int w = mv.width;
+    const std::ptrdiff_t w = mv.width;
     V h0, h1;
     for (int l = 0; l < kLanesOf<V>; ++l) {
         const int ii = static_cast<int>(i[l]);
         if (kMajorX) {
             // Minor along y: the two samples are a row apart.
-            const auto o = static_cast<std::int32_t>(static_cast<std::uint32_t>(ii) *
-                                                         static_cast<std::uint32_t>(w) +
-                                                     static_cast<std::uint32_t>(line));
+            const std::ptrdiff_t o = line + ii * w;
             h0[l] = static_cast<double>(h[o]);
             h1[l] = static_cast<double>(h[o + w]);
         } else {

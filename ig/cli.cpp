@@ -266,7 +266,9 @@ double databaseMemoryMb(const TerrainDb& db) {
 }
 
 bool databaseNeedsPaging(const TerrainOptions& o, const TerrainDb& db) {
-    return databaseMemoryMb(db) > o.cacheMb;
+    const std::size_t samples =
+        static_cast<std::size_t>(db.info().width) * static_cast<std::size_t>(db.info().height);
+    return databaseMemoryMb(db) > o.cacheMb || samples > kMaxImageSamples;
 }
 
 void checkDatabaseOptions(const TerrainOptions& o) {

@@ -30,7 +30,7 @@ namespace {
 constexpr std::size_t kPage = 4096;
 
 TerrainMap makeSparseMap(const TerrainDb& db) {
-    db.checkIndexable();
+    db.checkPageable();
     const TerrainDbInfo& info = db.info();
     const double a = info.minRaw * info.heightScale + info.heightOffset;
     const double b = info.maxRaw * info.heightScale + info.heightOffset;

@@ -82,11 +82,21 @@ struct Georeference {
     bool present() const { return !crs.empty() && originX == originX && originY == originY; }
 };
 
+// A surface to stand on, for whoever reads the terrain outside a caster (the flight model's
+// floor): a map, or the ground a paged map keeps for the other threads (ig/paged_ground.hpp).
+class Ground {
+  public:
+    virtual ~Ground() = default;
+    // Height of the ground at world (x, y), metres (on or above the terrain's surface); NaN
+    // where there is none (an empty map).
+    virtual double groundHeight(double x, double y) const = 0;
+};
+
 // Grid convention (files): column i -> x = i * spacingX (east); row j with row 0 the north edge
 // -> y = (rows - 1 - j) * spacingY (north); z = value * heightScale + heightOffset (up).
 // In memory the rows are stored south first: sample (ix, iy) sits at x = ix * spacingX,
 // y = iy * spacingY, index iy * width + ix. Loaders flip file rows accordingly.
-class TerrainMap {
+class TerrainMap final : public Ground {
   public:
     TerrainMap() = default;
     // Allocates a width x height map filled with raw height 0 and black.
@@ -119,6 +129,10 @@ class TerrainMap {
 
     // Bilinear surface height at world (x, y); clamps to the map's edge.
     double surfaceHeight(double x, double y) const;
+    // surfaceHeight(); NaN for an empty map.
+    double groundHeight(double x, double y) const override {
+        return empty() ? std::numeric_limits<double>::quiet_NaN() : surfaceHeight(x, y);
+    }
     // Bilinear colour at world (x, y), components 0..255; clamps to the map's edge.
     void surfaceColor(double x, double y, float rgb[3]) const;
 

@@ -666,17 +666,27 @@ TerrainTile TerrainDb::readTile(const TileKey& key) const {
     return tile;
 }
 
-void TerrainDb::checkIndexable() const {
+void TerrainDb::checkLoadable() const {
     if (static_cast<std::size_t>(info_.width) * static_cast<std::size_t>(info_.height) >
         kMaxImageSamples) {
         throw InputError(path_ + ": the map (" + std::to_string(info_.width) + " x " +
                          std::to_string(info_.height) +
-                         ") has more than 2^30 samples, the most the casters index");
+                         ") has more than 2^30 samples, the most a map loaded whole holds; "
+                         "page it (--cache-mb below its size)");
+    }
+}
+
+void TerrainDb::checkPageable() const {
+    if (static_cast<std::size_t>(info_.width) * static_cast<std::size_t>(info_.height) >
+        kMaxPagedSamples) {
+        throw InputError(path_ + ": the map (" + std::to_string(info_.width) + " x " +
+                         std::to_string(info_.height) +
+                         ") has more than 2^36 samples, the most a paged map addresses");
     }
 }
 
 TerrainMap TerrainDb::loadMap() const {
-    checkIndexable();
+    checkLoadable();
     TerrainMap map(info_.width, info_.height, info_.spacingX, info_.spacingY, info_.heightScale,
                    info_.heightOffset);
     const int nx = layout_.tilesX(TileKind::Display, 0), ny = layout_.tilesY(TileKind::Display, 0);

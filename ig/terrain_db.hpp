@@ -151,9 +151,13 @@ class TerrainDb {
     // Stored bytes of a tile (header, payload, as on disk).
     std::uint32_t storedBytes(const TileKey& key) const;
     TerrainTile readTile(const TileKey& key) const;
-    // InputError when the map has more samples than the casters index (kMaxImageSamples,
-    // 2^30: their gathers take 32-bit lanes), loaded whole or paged.
-    void checkIndexable() const;
+    // InputError when the map has more samples than a map loaded whole holds
+    // (kMaxImageSamples, 2^30).
+    void checkLoadable() const;
+    // InputError when the map has more samples than a paged map's sparse arrays address
+    // (kMaxPagedSamples, 2^36: about 640 GB of address space reserved, pages taken only where
+    // tiles are placed; the casters index with 64-bit offsets).
+    void checkPageable() const;
     // Level 0 assembled into a map (heights, colours; ranges recomputed).
     TerrainMap loadMap() const;
     // The slope section: SlopeBlocks::blocksAlong(width) x blocksAlong(height) per-block slope

@@ -15,6 +15,8 @@ namespace ig {
 
 // Largest image accepted, samples (width x height): the renderer's map limit.
 inline constexpr std::size_t kMaxImageSamples = std::size_t{1} << 30;
+// Largest map a terrain database pages (its arrays are address space reserved, not memory).
+inline constexpr std::size_t kMaxPagedSamples = std::size_t{1} << 36;
 
 // What the user named on the command line. docs/formats.md describes the formats and conventions.
 struct TerrainSource {

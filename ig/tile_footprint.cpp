@@ -185,20 +185,31 @@ Footprint frameFootprint(const Camera& camera, const TerrainDbLayout& layout,
         const double th = std::ldexp(static_cast<double>(t), k) * info.spacingY;
         const int nx = layout.tilesX(TileKind::Display, k),
                   ny = layout.tilesY(TileKind::Display, k);
-        const int tx0 = std::clamp(static_cast<int>(std::floor((hx0 - margin) / tw)), 0, nx - 1);
-        const int tx1 = std::clamp(static_cast<int>(std::floor((hx1 + margin) / tw)), 0, nx - 1);
-        const int ty0 = std::clamp(static_cast<int>(std::floor((hy0 - margin) / th)), 0, ny - 1);
-        const int ty1 = std::clamp(static_cast<int>(std::floor((hy1 + margin) / th)), 0, ny - 1);
+        // The hull's box, within the band's far distance of the eye: a tile farther along x or
+        // y is farther than `far` (on a large map the hull reaches its edge, and level 0 alone
+        // would otherwise visit every one of its tiles).
+        double bx0 = hx0, bx1 = hx1, by0 = hy0, by1 = hy1;
+        if (std::isfinite(far)) {
+            bx0 = std::max(bx0, eye.x - far);
+            bx1 = std::min(bx1, eye.x + far);
+            by0 = std::max(by0, eye.y - far);
+            by1 = std::min(by1, eye.y + far);
+            if (!(bx0 <= bx1 && by0 <= by1)) continue;
+        }
+        const int tx0 = std::clamp(static_cast<int>(std::floor((bx0 - margin) / tw)), 0, nx - 1);
+        const int tx1 = std::clamp(static_cast<int>(std::floor((bx1 + margin) / tw)), 0, nx - 1);
+        const int ty0 = std::clamp(static_cast<int>(std::floor((by0 - margin) / th)), 0, ny - 1);
+        const int ty1 = std::clamp(static_cast<int>(std::floor((by1 + margin) / th)), 0, ny - 1);
         for (int ty = ty0; ty <= ty1; ++ty) {
             for (int tx = tx0; tx <= tx1; ++tx) {
                 const double x0 = tx * tw - margin, x1 = std::min((tx + 1) * tw, ex) + margin;
                 const double y0 = ty * th - margin, y1 = std::min((ty + 1) * th, ey) + margin;
                 const double dx = std::max({x0 - eye.x, 0.0, eye.x - x1});
                 const double dy = std::max({y0 - eye.y, 0.0, eye.y - y1});
-                const double dmin = std::hypot(dx, dy);
-                const double dmax =
-                    std::hypot(std::max(std::abs(eye.x - x0), std::abs(eye.x - x1)),
-                               std::max(std::abs(eye.y - y0), std::abs(eye.y - y1)));
+                const double dmin = std::sqrt(dx * dx + dy * dy);
+                const double mx = std::max(std::abs(eye.x - x0), std::abs(eye.x - x1));
+                const double my = std::max(std::abs(eye.y - y0), std::abs(eye.y - y1));
+                const double dmax = std::sqrt(mx * mx + my * my);
                 if (dmax < near || dmin >= far) continue;
                 if (!rectMeetsHull(x0, y0, x1, y1, hull)) continue;
                 const TileKey key{TileKind::Display, k, tx, ty};

@@ -50,6 +50,9 @@ struct WarpInfo {
     std::array<double, 9> h{};
     // Auto: the quadratic's largest error on the check points, rendered pixels (-1: not measured).
     double checkErrorPx = -1.0;
+    // Auto: the field wanted the depth model, whose recent fields took longer than
+    // PrpOptions::autoDepthBudget: the quadratic warped it.
+    bool depthOverBudget = false;
 };
 
 // One field: only the lines of its parity. `pixels` is reused from field to field.

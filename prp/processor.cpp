@@ -72,6 +72,10 @@ PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options) : opti
         throw ig::InputError("auto threshold " + base::number(options.autoThresholdPx) +
                              " px: must be positive");
     }
+    if (!(options.autoDepthBudget >= 0.0 && options.autoDepthBudget <= 3600.0)) {
+        throw ig::InputError("auto depth budget " + base::number(options.autoDepthBudget) +
+                             " s: must be 0 (no limit) or positive");
+    }
     if (!(options.holdAfter >= 0.0 && options.holdAfter <= 3600.0)) {
         throw ig::InputError("hold after " + base::number(options.holdAfter) +
                              " s: must be from 0 (never) to 3600 s");
@@ -165,6 +169,14 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         out.warp.checkErrorPx = warpCheckError(out.warp, {check.data(), n});
         useDepth = out.warp.fallback != Fallback::None ||
                    !(out.warp.checkErrorPx <= options_.autoThresholdPx);
+        // Never a field late for the depth model: over its budget, the quadratic (a field in
+        // kDepthRetryFields measures the depth model again).
+        if (useDepth && options_.autoDepthBudget > 0.0 && depthFields_ > 0 &&
+            depthSeconds_ > options_.autoDepthBudget &&
+            fieldIndex - lastDepthField_ < kDepthRetryFields) {
+            useDepth = false;
+            out.warp.depthOverBudget = true;
+        }
     }
     const FieldView view{out.pixels.data(),          out.stride, out.width,
                          fieldFirstLine(out.parity), out.lines,  out.format};
@@ -180,6 +192,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     const IdFieldView idView{out.objectId.data(), static_cast<std::size_t>(out.width), out.width,
                              view.firstLine, out.lines};
     if (useDepth) {
+        const auto depthStart = std::chrono::steady_clock::now();
         if (options_.depthReference) {
             const WarpInfo fitted = out.warp;
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
@@ -209,6 +222,11 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             }
         }
         out.warp.model = WarpModel::Depth;
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - depthStart).count();
+        depthSeconds_ = depthFields_ == 0 ? s : 0.75 * depthSeconds_ + 0.25 * s;
+        ++depthFields_;
+        lastDepthField_ = fieldIndex;
     } else {
         if (depthModel) out.warp.model = model == WarpModel::Auto ? WarpModel::Poly : model;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};

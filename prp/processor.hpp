@@ -32,8 +32,13 @@ struct PrpOptions {
     // stopped delivering; 0: never.
     double holdAfter = 0.0;
     // Auto: a field whose quadratic misses any check point by more than this (rendered pixels),
-    // or whose fit fell back, is warped by the depth model.
+    // or whose fit fell back, is warped by the depth model...
     double autoThresholdPx = 0.25;
+    // ... unless the depth model's recent fields took longer than this (seconds; 0: no limit,
+    // as offline): then the quadratic, and the depth model again once in kDepthRetryFields
+    // fields to measure it anew. The real-time pipeline sets it (flythrough: 10 ms, 60 % of an
+    // NTSC field, the rest for the output and the loop).
+    double autoDepthBudget = 0.0;
     // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).
     DepthKernel depthKernel = DepthKernel::Auto;
@@ -46,6 +51,9 @@ struct PrpOptions {
     EdgeFill edgeFill = EdgeFill::Sky;
     ig::SkyModel sky;
 };
+
+// Auto over budget: one field in this many takes the depth model to measure its cost again.
+inline constexpr std::uint64_t kDepthRetryFields = 300;
 
 class PostRenderingProcessor {
   public:
@@ -93,6 +101,10 @@ class PostRenderingProcessor {
     std::vector<float> splatSource_;
     std::vector<float> splatDepth_;
     std::vector<std::uint8_t> rowRgb_;
+    // The depth model's cost per field (seconds, a running mean of its recent fields), and the
+    // last field it warped.
+    double depthSeconds_ = 0.0;
+    std::uint64_t depthFields_ = 0, lastDepthField_ = 0;
     DepthWarp depthWarp_;
     RestampScratch restamp_;
 };

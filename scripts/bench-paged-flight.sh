@@ -4,11 +4,14 @@
 # one full field of view (60 degrees) a second for a third of the run and then flies at 300 m/s
 # low over the terrain, flown by flythrough on the wall clock at 720x486 with the renderer paging
 # the database through --cache-mb (peak RSS, missed fields, tiles drawn from a coarser level,
-# tiles read a second); and the cost of paging itself: the same flight over a 4096^2 database
-# paged and loaded whole, three times each in turn, render time per frame side by side.
+# tiles read a second), once per image size; and the cost of paging itself: the same flight over
+# a 4096^2 database paged and loaded whole, three times each in turn, render time per frame side
+# by side. Writes docs/results/data/paged_flight_SIZE.json.
 # Usage: scripts/bench-paged-flight.sh [BUILD_DIR] [SCRATCH_DIR] [SIZE] [CACHE_MB] [SECONDS]
-#   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60
-#   (65536 needs ~45 GB free and hours to build on a 2-core machine)
+#                                      [IMAGES]
+#   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60, "720x486"
+#   (65536 needs ~45 GB free and half an hour to build on a 2-core machine; IMAGES is a list of
+#   WxH, e.g. "720x486 1920x1080")
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$root/build/release}
@@ -16,6 +19,7 @@ scratch=${2:-/tmp/vig-paged-flight}
 size=${3:-16384}
 cacheMb=${4:-512}
 seconds=${5:-60}
+images=${6:-720x486}
 data=$root/docs/results/data
 bin=$build/bin
 mkdir -p "$scratch" "$data"
@@ -82,12 +86,12 @@ open(out, "w").write("\n".join(rows) + "\n")
 PY
 }
 
-fly() {  # fly NAME DB CACHE_MB SECONDS TRAJECTORY: one wall-clock flight, its JSON kept
+fly() {  # fly NAME DB CACHE_MB SECONDS TRAJECTORY [WxH]: one wall-clock flight, its JSON kept
     local dropped=0
     sync
     if echo 3 >/proc/sys/vm/drop_caches 2>/dev/null; then dropped=1; fi
     "$bin/flythrough" --db "$2" --cache-mb "$3" --trajectory "$5" --duration "$4" \
-        --renderer thread --colors image --out null --contact none --quiet \
+        --size "${6:-720x486}" --renderer thread --colors image --out null --contact none --quiet \
         --json "$scratch/$1.json" >&2
     python3 - "$scratch/$1.json" "$dropped" <<'PY'
 import json, sys
@@ -99,7 +103,9 @@ PY
 
 big=$(db "$size")
 trajectory "$big" "$scratch/flight_$size.csv" "$seconds"
-fly "paged_$size" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv"
+for image in $images; do
+    fly "paged_${size}_$image" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv" "$image"
+done
 
 small=$(db 4096)
 short=$((seconds < 15 ? seconds : 15))
@@ -109,22 +115,22 @@ for rep in 1 2 3; do  # in turn, so the machine's drift falls on both alike
     fly "whole_4096_$rep" "$small" 4096 "$short" "$scratch/flight_4096.csv"
 done
 
-python3 - "$data/paged_flight.json" "$scratch" "$size" "$cacheMb" "$seconds" <<'PY'
+python3 - "$data/paged_flight_$size.json" "$scratch" "$size" "$cacheMb" "$seconds" "$images" <<'PY'
 import json, os, sys
-out, scratch, size, cache_mb, seconds = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5]
+out, scratch, size, cache_mb, seconds, images = sys.argv[1:7]
 def load(name):
     return json.load(open(os.path.join(scratch, name + ".json")))
 build = os.path.join(scratch, f"build_{size}.json")
 doc = {
     "command": f"scripts/bench-paged-flight.sh build/release /tmp/vig-paged-flight {size} "
-               f"{cache_mb} {seconds}",
+               f"{cache_mb} {seconds}" + (f" '{images}'" if images != "720x486" else ""),
     "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
     "size": int(size), "cache_mb": float(cache_mb), "seconds": float(seconds),
     "db_bytes": os.path.getsize(os.path.join(scratch, f"synthetic_{size}.db")),
     "build": json.load(open(build)) if os.path.exists(build) else None,
-    "big": load(f"paged_{size}"),
+    "flights": [load(f"paged_{size}_{image}") for image in images.split()],
     "paged_4096": [load(f"paged_4096_{r}") for r in (1, 2, 3)],
     "whole_4096": [load(f"whole_4096_{r}") for r in (1, 2, 3)]}
 json.dump(doc, open(out, "w"), indent=2)
 PY
-echo "wrote $data/paged_flight.json"
+echo "wrote $data/paged_flight_$size.json"

@@ -24,7 +24,7 @@ Controls clamped(const Controls& c) {
 }  // namespace
 
 FlightModel::FlightModel(const FlightState& start, const FlightLimits& limits,
-                         const ig::TerrainMap* floor)
+                         const ig::Ground* floor)
     : limits_(limits), floor_(floor), startTime_(start.time), state_(start) {
     state_.roll = wrapAngle(state_.roll);
     state_.heading = wrapAngle(state_.heading);
@@ -33,10 +33,12 @@ FlightModel::FlightModel(const FlightState& start, const FlightLimits& limits,
         state_.position.z, floorAltitude(floor_, limits_, state_.position.x, state_.position.y));
 }
 
-double FlightModel::floorAltitude(const ig::TerrainMap* floor, const FlightLimits& limits, double x,
+double FlightModel::floorAltitude(const ig::Ground* floor, const FlightLimits& limits, double x,
                                   double y) {
-    if (floor == nullptr || floor->empty()) return -std::numeric_limits<double>::infinity();
-    return floor->surfaceHeight(x, y) + limits.minClearance;
+    const double ground =
+        floor == nullptr ? std::numeric_limits<double>::quiet_NaN() : floor->groundHeight(x, y);
+    if (!std::isfinite(ground)) return -std::numeric_limits<double>::infinity();
+    return ground + limits.minClearance;
 }
 
 double FlightModel::gridTimeAtOrBefore(double t) const {
@@ -70,7 +72,7 @@ ig::Pose FlightModel::pose(const FlightState& s) const {
 }
 
 FlightState FlightModel::integrate(const FlightState& s, const Controls& raw, double dt,
-                                   const FlightLimits& limits, const ig::TerrainMap* floor) {
+                                   const FlightLimits& limits, const ig::Ground* floor) {
     const Controls c = clamped(raw);
     FlightState n = s;
     n.time = s.time + dt;

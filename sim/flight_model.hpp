@@ -43,13 +43,14 @@ struct FlightState {
 
 // Integrates the state on a fixed time grid (kStep), so the flight does not depend on when or
 // how often it is asked for a pose; a pose between grid points is a partial step from the
-// last grid state. With a terrain map, the aircraft never goes below surface + minClearance.
+// last grid state. With a ground (a terrain map, or the ground of a paged one), the aircraft
+// never goes below ground + minClearance.
 class FlightModel {
   public:
     static constexpr double kStep = 1.0 / 600.0;  // seconds: 10 steps per NTSC field
 
     explicit FlightModel(const FlightState& start, const FlightLimits& limits = {},
-                         const ig::TerrainMap* floor = nullptr);
+                         const ig::Ground* floor = nullptr);
 
     // Time of the grid step at or before t (never before the start).
     double gridTimeAtOrBefore(double t) const;
@@ -64,18 +65,18 @@ class FlightModel {
     ig::Pose pose(const FlightState& state) const;
 
     const FlightLimits& limits() const { return limits_; }
-    const ig::TerrainMap* floor() const { return floor_; }
+    const ig::Ground* floor() const { return floor_; }
 
     // One integration step of dt seconds (pure function; dt may be shorter than kStep).
     static FlightState integrate(const FlightState& state, const Controls& controls, double dt,
-                                 const FlightLimits& limits, const ig::TerrainMap* floor);
+                                 const FlightLimits& limits, const ig::Ground* floor);
     // Lowest altitude the aircraft may have at (x, y): surface + minClearance.
-    static double floorAltitude(const ig::TerrainMap* floor, const FlightLimits& limits, double x,
+    static double floorAltitude(const ig::Ground* floor, const FlightLimits& limits, double x,
                                 double y);
 
   private:
     FlightLimits limits_;
-    const ig::TerrainMap* floor_;
+    const ig::Ground* floor_;
     double startTime_;
     std::uint64_t steps_ = 0;
     FlightState state_;

@@ -9,7 +9,7 @@ Controls controlsFromStick(const io::StickState& stick) {
 }
 
 StickFlight::StickFlight(std::unique_ptr<io::StickInput> stick, const FlightState& start,
-                         const FlightLimits& limits, const ig::TerrainMap* floor)
+                         const FlightLimits& limits, const ig::Ground* floor)
     : stick_(std::move(stick)), model_(start, limits, floor), startTime_(start.time) {
     controls_ = controlsFromStick(stick_->sample(0.0));
     latest_.back() = {model_.state(), controls_};

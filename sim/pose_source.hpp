@@ -41,7 +41,7 @@ Controls controlsFromStick(const io::StickState& stick);
 class StickFlight final : public PoseSource {
   public:
     StickFlight(std::unique_ptr<io::StickInput> stick, const FlightState& start,
-                const FlightLimits& limits = {}, const ig::TerrainMap* floor = nullptr);
+                const FlightLimits& limits = {}, const ig::Ground* floor = nullptr);
 
     ig::Pose advanceTo(double t) override;
     ig::Pose predict(double t) override;

@@ -65,6 +65,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
         }
         ++s.fallbacksByKind[static_cast<std::size_t>(r.fallback)];
         ++s.fieldsByModel[static_cast<std::size_t>(r.model)];
+        s.depthOverBudget += r.depthOverBudget;
         if (r.rightWarpMs >= 0.0) {
             s.stereo = true;
             rightWarps.push_back(r.rightWarpMs);
@@ -132,6 +133,7 @@ nlohmann::json toJson(const StatsSummary& s) {
     nlohmann::json j = {
         {"fields", s.fields},
         {"fields_by_warp", modelsJson(s.fieldsByModel)},
+        {"fields_depth_over_budget", s.depthOverBudget},
         {"missed_deadlines", s.missedDeadlines},
         {"field_interval_ms", toJson(s.fieldIntervalMs)},
         {"field_jitter_ms", toJson(s.jitterMs)},
@@ -188,7 +190,14 @@ std::string formatSummary(const StatsSummary& s) {
                   std::string(prp::warpModelName(static_cast<prp::WarpModel>(m))) + " " +
                   std::to_string(s.fieldsByModel[m]);
     }
-    if (!models.empty()) text += "warp models     " + models + " fields\n";
+    if (!models.empty()) {
+        text += "warp models     " + models + " fields";
+        if (s.depthOverBudget > 0) {
+            text += " (auto: " + std::to_string(s.depthOverBudget) +
+                    " by the quadratic, the depth model over its time budget)";
+        }
+        text += "\n";
+    }
     if (s.stereo) {
         std::snprintf(buf, sizeof buf,
                       "right eye warp  p50 %.2f  p99 %.2f  max %.2f ms, fallbacks %llu\n"

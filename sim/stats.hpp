@@ -31,6 +31,7 @@ struct FieldRecord {
     prp::Fallback fallback = prp::Fallback::None;
     std::uint64_t frameSequence = 0;
     prp::WarpModel model = prp::WarpModel::Poly;  // the warp the field used (auto: its choice)
+    bool depthOverBudget = false;  // auto: the quadratic, the depth model being over budget
     // Stereo (the fields above are the left eye's): the right eye's warp time (-1: mono),
     // fallback and model, and the vertical disparity of the two quadratic fits in output rows
     // (-1: not measured).
@@ -66,6 +67,7 @@ struct StatsSummary {
     std::uint64_t fallbacks = 0;                     // fields whose warp fell back
     std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
     std::array<std::uint64_t, 6> fieldsByModel{};    // indexed by prp::WarpModel
+    std::uint64_t depthOverBudget = 0;  // auto: fields the quadratic took for the depth model
     // Stereo: the right eye's, and the vertical disparity of the two fits (output rows).
     bool stereo = false;
     Percentiles rightWarpMs;

@@ -3,6 +3,7 @@
 #include "ig/caster.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
+#include "ig/paged_ground.hpp"
 #include "ig/paged_terrain.hpp"
 #include "ig/scene.hpp"
 #include "ig/stereo.hpp"
@@ -38,6 +39,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -143,8 +145,9 @@ hand with every output written (exit 130/143); a second signal ends it at once, 
 its last whole frame.)";
 
 // "x,y,z,heading": z may be "+H" (above the terrain).
+// `paged`: the map is paged, and the tiles under the start are placed before its ground is read.
 sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
-                            const sim::FlightLimits& limits) {
+                            const sim::FlightLimits& limits, ig::PagedTerrain* paged = nullptr) {
     std::stringstream ss(text);
     std::string part[4];
     for (int i = 0; i < 4; ++i) {
@@ -155,6 +158,15 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
     std::string rest;
     if (std::getline(ss, rest, ',')) {
         throw ig::InputError("--start '" + text + "': expected X,Y,Z,HEADING");
+    }
+    if (paged) {
+        char* end0 = nullptr;
+        char* end1 = nullptr;
+        const double x = std::strtod(part[0].c_str(), &end0);
+        const double y = std::strtod(part[1].c_str(), &end1);
+        if (std::isfinite(x) && std::isfinite(y) && ig::nearMap(map, x, y)) {
+            paged->placeAround(x, y);
+        }
     }
     // Reuse the pose parser (it knows "+H").
     const ig::Pose p = ig::parsePose(
@@ -319,6 +331,7 @@ int main(int argc, char** argv) {
     std::string formatText = "uyvy";
     std::string warpText = "auto";
     double autoThreshold = 0.25;
+    double autoDepthBudgetMs = 10.0;
     std::string clockText = "wall";
     std::string jsonPath, fieldLogPath;
     double fovDeg = 60.0;
@@ -400,6 +413,10 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--auto-threshold", autoThreshold,
                    "Auto warp: largest check-point error of the quadratic, rendered pixels")
+        ->capture_default_str();
+    app.add_option("--auto-depth-budget-ms", autoDepthBudgetMs,
+                   "Auto warp, wall clock: the depth model's time per field beyond which the "
+                   "quadratic warps the fields that wanted it (0: no limit)")
         ->capture_default_str();
     app.add_option("--clock", clockText, "wall | simulated")->capture_default_str();
     app.add_option("--json", jsonPath, "Write the run's statistics as JSON ('-': stdout)");
@@ -656,22 +673,23 @@ int main(int argc, char** argv) {
         // ground under the start and the trajectory, read before the run.
         std::optional<ig::TerrainDb> pagedDb;
         std::unique_ptr<ig::PagedTerrain> pagedGround;
+        // The flight model's ground over a paged map (a stick or the default scenario).
+        std::unique_ptr<ig::PagedGround> fieldGround;
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = cigi                     ? "--cigi (a host's height queries)"
-                                  : !scenePath.empty()     ? "--scene"
-                                  : stereo                 ? "--stereo"
-                                  : trajectoryPath.empty() ? "a stick or the default scenario (the "
-                                                             "flight model's ground)"
+                const char* why = cigi                 ? "--cigi (a host's height queries)"
+                                  : !scenePath.empty() ? "--scene"
+                                  : stereo             ? "--stereo"
                                   : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                        : nullptr;
                 if (why) {
                     throw ig::InputError(
                         terrain.db + " is over --cache-mb and is paged: a flight " +
-                        "over it takes a --trajectory, with --caster fast, naive " +
-                        "or reference, not " + why + " (or give a larger --cache-mb)");
+                        "over it takes a --trajectory, a stick or the default scenario, " +
+                        "with --caster fast, naive or reference, not " + why +
+                        " (or give a larger --cache-mb)");
                 }
                 ig::PagedTerrain::Options ground;
                 ground.cache.budgetBytes =
@@ -819,12 +837,26 @@ int main(int argc, char** argv) {
                 loggedStick = recording.get();
                 stick = std::move(recording);
             }
+            // Over a paged map the start's ground is placed first, and the flight model stands
+            // on a ground of its own that follows the aircraft (ig/paged_ground.hpp).
+            if (pagedGround) pagedGround->placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
             sim::FlightState start =
                 shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
-            if (!startText.empty()) start = parseStart(startText, map, scenario.limits);
+            if (!startText.empty()) {
+                start = parseStart(startText, map, scenario.limits, pagedGround.get());
+            }
             flightSeconds = scenario.duration;
+            const ig::Ground* floor = &map;
+            if (pagedGround) {
+                ig::PagedGround::Options go;
+                go.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                fieldGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
+                fieldGround->waitAround(start.position.x, start.position.y);
+                floor = fieldGround.get();
+            }
             poses =
-                std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, &map);
+                std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, floor);
         }
         const RecordingPoses* loggedPoses = nullptr;
         if (!fieldLogPath.empty()) {
@@ -853,6 +885,13 @@ int main(int argc, char** argv) {
         options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;
         options.prp.autoThresholdPx = autoThreshold;
+        // On the wall clock only: the simulated clock has no deadline, and its choice of
+        // warp stays a function of the frame and the pose (the same run to run).
+        if (!(autoDepthBudgetMs >= 0.0 && autoDepthBudgetMs <= 1e6)) {
+            throw ig::InputError("--auto-depth-budget-ms " + base::number(autoDepthBudgetMs) +
+                                 ": must be 0 (no limit) or a positive number of ms");
+        }
+        options.prp.autoDepthBudget = simulated ? 0.0 : autoDepthBudgetMs * 1e-3;
         options.stereo = stereo;
         options.prp.agc = agc;
         options.prp.antiTwitter = antiTwitter;
@@ -1100,6 +1139,20 @@ int main(int argc, char** argv) {
             }
             for (const std::string& m : pagingLog->failures)
                 std::fprintf(stderr, "paging: %s (drawn from a coarser level)\n", m.c_str());
+            if (fieldGround) {
+                // The flight model's ground: its answers from a resident tile, and the bounds
+                // it gave where the tile was not (yet) resident.
+                const ig::PagedGround::Stats g = fieldGround->stats();
+                pagingJson["ground"] = {{"exact", g.exact},
+                                        {"bounded", g.bounded},
+                                        {"outside", g.outside},
+                                        {"tiles_read", fieldGround->cache().stats().tilesRead}};
+                std::fprintf(stderr,
+                             "paging: the flight model's ground: %llu answers from its tiles, "
+                             "%llu bounds where a tile was not resident\n",
+                             static_cast<unsigned long long>(g.exact),
+                             static_cast<unsigned long long>(g.bounded + g.outside));
+            }
         }
         if (cigiSource) {
             const sim::CigiStats& c = cigiSource->session().stats();

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # flythrough over a terrain database larger than --cache-mb: the renderer pages each frame's
 # tiles (ig/paged_terrain.hpp) on the field clock, in a thread and in its own process, and says
-# what paging did; what it cannot fly over a paged map is refused, naming why.
+# what paging did; the default scenario flies over it on the flight model's own ground; what it
+# cannot fly over a paged map is refused, naming why.
 set -u
 bin=$1
 tmp=$2/fly_paged
@@ -39,11 +40,56 @@ else:
 PY
 done
 
-# What a paged map cannot carry: a flight model's ground, the span caster.
-msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --out null --contact none 2>&1)
-[ $? -eq 2 ] || fail "no trajectory: not refused"
-grep -q "s.db is over --cache-mb and is paged: a flight over it takes a --trajectory" <<<"$msg" ||
-    fail "no trajectory: $msg"
+# The default scenario over the paged map, started 20 m over the ground: the flight model stands
+# on a ground of its own (ig/paged_ground.hpp), exact where its tiles are resident; the field log's
+# poses stay over the terrain (the database's samples, read here from its level-0 tiles).
+rm -f "$tmp/stick.json" "$tmp/fields.jsonl"
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --start 2000,2000,+20,45 --duration 2 \
+    --clock simulated --out null --contact none --json "$tmp/stick.json" \
+    --field-log "$tmp/fields.jsonl" 2>&1) || fail "default scenario over a paged map: $msg"
+grep -q "the flight model's ground" <<<"$msg" || fail "default scenario: no ground line: $msg"
+python3 - "$tmp/stick.json" "$tmp/fields.jsonl" "$tmp/s.db" <<'PY' || fail "default scenario: $msg"
+import json, struct, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+g = j["paging"]["ground"]
+assert g["exact"] > 0 and g["tiles_read"] > 0, g
+assert g["exact"] >= 10 * (g["bounded"] + g["outside"]), g
+f = open(sys.argv[3], "rb")
+h = f.read(256)
+tile, w, hh = struct.unpack_from("<III", h, 12)
+sx, sy, scale, offset = struct.unpack_from("<dddd", h, 32)
+index_off, = struct.unpack_from("<Q", h, 88)
+tiles_x = (w - 1 + tile - 1) // tile
+cache = {}
+def sample(i, jj):
+    i, jj = min(max(i, 0), w - 1), min(max(jj, 0), hh - 1)
+    tx, ty = min(i // tile, tiles_x - 1), min(jj // tile, tiles_x - 1)
+    if (tx, ty) not in cache:
+        f.seek(index_off + (ty * tiles_x + tx) * 24)
+        off, stored = struct.unpack("<QI", f.read(12))
+        f.seek(off)
+        t = f.read(stored)
+        tw, th = struct.unpack_from("<II", t, 16)
+        cache[(tx, ty)] = (tw, struct.unpack_from(f"<{tw * th}H", t, 24))
+    tw, hs = cache[(tx, ty)]
+    return hs[(jj - ty * tile) * tw + (i - tx * tile)] * scale + offset
+def surface(x, y):  # the map's bilinear surface
+    gx, gy = x / sx, y / sy
+    i, jj = int(gx), int(gy)
+    fx, fy = gx - i, gy - jj
+    return ((sample(i, jj) * (1 - fx) + sample(i + 1, jj) * fx) * (1 - fy) +
+            (sample(i, jj + 1) * (1 - fx) + sample(i + 1, jj + 1) * fx) * fy)
+n, lowest = 0, 1e300
+for line in open(sys.argv[2]):
+    p = json.loads(line)["pose"]
+    clearance = p["z"] - surface(p["x"], p["y"])
+    assert clearance > 0.0, (p, clearance)
+    lowest = min(lowest, clearance)
+    n += 1
+assert lowest < 100.0, lowest  # the flight came down near its floor
+assert n == 120, n
+PY
 msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
     --caster span --out null --contact none 2>&1)
 [ $? -eq 2 ] || fail "span: not refused"

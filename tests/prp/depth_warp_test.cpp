@@ -1,5 +1,6 @@
 #include "prp/depth_warp.hpp"
 
+#include "ig/error.hpp"
 #include "prp/processor.hpp"
 #include "prp/synthetic_frame.hpp"
 
@@ -262,6 +263,50 @@ TEST(DepthWarp, EdgeFillBeyondTheFrameAsTheQuadratic) {
             EXPECT_GT(both, 9 * filled / 10);
         }
     }
+}
+
+// Auto on a deadline: once the depth model's fields take longer than the budget, the fields that
+// want it get the quadratic (marked), with the same image as the quadratic's; one field in
+// kDepthRetryFields measures the depth model again. Without a budget (offline), auto always takes
+// it.
+TEST(DepthWarp, AutoOverItsTimeBudgetTakesTheQuadratic) {
+    const ig::Pose pose = test::lookingDown(-10.0, 300.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    ig::Pose at = pose;
+    at.yaw += 0.05;
+    at.position += glm::dvec3{5.0, 10.0, -3.0};
+    PrpOptions o = options(WarpModel::Auto);
+    o.autoThresholdPx = 1e-9;  // every field wants the depth model
+    o.autoDepthBudget = 1e-9;  // which no machine warps a field in
+    PostRenderingProcessor budgeted(o);
+    o.autoDepthBudget = 0.0;
+    PostRenderingProcessor unlimited(o);
+    PostRenderingProcessor poly(options(WarpModel::Poly));
+    Field f, g, q;
+    std::uint64_t depth = 0, over = 0;
+    for (std::uint64_t n = 1; n <= 2 * kDepthRetryFields + 1; ++n) {
+        budgeted.process(frame, at, 0.0, n, f);
+        unlimited.process(frame, at, 0.0, n, g);
+        EXPECT_EQ(g.warp.model, WarpModel::Depth);
+        EXPECT_FALSE(g.warp.depthOverBudget);
+        if (f.warp.model == WarpModel::Depth) {
+            ++depth;
+            EXPECT_FALSE(f.warp.depthOverBudget);
+        } else {
+            ++over;
+            ASSERT_EQ(f.warp.model, WarpModel::Poly);
+            EXPECT_TRUE(f.warp.depthOverBudget);
+            if (over == 1) {
+                poly.process(frame, at, 0.0, n, q);
+                EXPECT_EQ(f.pixels, q.pixels) << "the quadratic's own field";
+            }
+        }
+    }
+    // The first field measures it; the retries at kDepthRetryFields and twice that.
+    EXPECT_EQ(depth, 3u);
+    EXPECT_EQ(over, 2 * kDepthRetryFields - 2);
+    o.autoDepthBudget = -1.0;
+    EXPECT_THROW(PostRenderingProcessor{o}, ig::InputError);
 }
 
 }  // namespace
