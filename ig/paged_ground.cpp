@@ -5,7 +5,6 @@
 #include "ig/paged_ground.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -111,23 +110,6 @@ void PagedGround::waitAround(double x, double y) {
     update(x, y, 0.0, 0.0, true);
 }
 
-double PagedGround::tileBound(int tx, int ty) const {
-    const TerrainDbLayout& layout = db_.layout();
-    const TerrainDbInfo& info = db_.info();
-    const int t = layout.tileSize();
-    const int j0 = std::countr_zero(static_cast<unsigned>(t));  // a node per level-0 tile
-    for (int j = std::max(j0, 1); j < layout.nodeLevels(); ++j) {
-        // The node over the tile's first cell covers the whole tile from level j0 up.
-        const int nx = (tx * t) >> j, ny = (ty * t) >> j;
-        const auto tile = cache_.find(TileKey{TileKind::Nodes, j, nx / t, ny / t});
-        if (!tile) continue;
-        const std::size_t i =
-            static_cast<std::size_t>(ny - tile->y0) * tile->width + (nx - tile->x0);
-        return tile->maxima[i] * info.heightScale + info.heightOffset;
-    }
-    return highest_;
-}
-
 void PagedGround::update(double x, double y, double vx, double vy, bool wait) {
     std::lock_guard<std::mutex> lock(update_);
     const TerrainDbLayout& layout = db_.layout();
@@ -179,7 +161,7 @@ void PagedGround::update(double x, double y, double vx, double vy, bool wait) {
             if (tx < 0 || ty < 0 || tx >= tilesX || ty >= tilesY) continue;
             const std::size_t k = static_cast<std::size_t>(j) * snap->n + i;
             snap->tiles[k] = cache_.find(TileKey{TileKind::Display, 0, tx, ty});
-            if (!snap->tiles[k]) snap->bound[k] = tileBound(tx, ty);
+            if (!snap->tiles[k]) snap->bound[k] = residentTileBound(cache_, db_, tx, ty, highest_);
         }
     }
     // The replaced snapshot is dropped at the next update (see the top of the file).

@@ -80,7 +80,6 @@ class PagedGround final : public Ground {
     // Requests the tiles around (x, y) (and ahead along (vx, vy) m/s), waits for them when
     // `wait`, and publishes what is resident. Holds update_.
     void update(double x, double y, double vx, double vy, bool wait);
-    double tileBound(int tx, int ty) const;
 
     const TerrainDb& db_;
     Options options_;

@@ -17,7 +17,6 @@
 #include <sys/mman.h>
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -301,20 +300,7 @@ TileKey PagedTerrain::tileUnder(double x, double y) const {
 }
 
 double PagedTerrain::tileBound(int tx, int ty) const {
-    const TerrainDbLayout& layout = db_.layout();
-    const TerrainDbInfo& info = db_.info();
-    const int t = layout.tileSize();
-    const int j0 = std::countr_zero(static_cast<unsigned>(t));  // a node per level-0 tile
-    for (int j = std::max(j0, 1); j < layout.nodeLevels(); ++j) {
-        // The node over the tile's first cell covers the whole tile from level j0 up.
-        const int nx = (tx * t) >> j, ny = (ty * t) >> j;
-        const auto tile = cache_.find(TileKey{TileKind::Nodes, j, nx / t, ny / t});
-        if (!tile) continue;
-        const std::size_t i =
-            static_cast<std::size_t>(ny - tile->y0) * tile->width + (nx - tile->x0);
-        return tile->maxima[i] * info.heightScale + info.heightOffset;
-    }
-    return map_.maxHeight();
+    return residentTileBound(cache_, db_, tx, ty, map_.maxHeight());
 }
 
 void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir,

@@ -11,6 +11,7 @@
 #include "ig/error.hpp"
 
 #include <algorithm>
+#include <bit>
 
 namespace ig {
 
@@ -261,6 +262,24 @@ std::string TileCache::failure(const TileKey& key) const {
     const std::lock_guard lock(mutex_);
     const auto it = failed_.find(key);
     return it == failed_.end() ? std::string() : it->second;
+}
+
+double residentTileBound(const TileCache& cache, const TerrainDb& db, int tx, int ty,
+                         double otherwise) {
+    const TerrainDbLayout& layout = db.layout();
+    const TerrainDbInfo& info = db.info();
+    const int t = layout.tileSize();
+    const int j0 = std::countr_zero(static_cast<unsigned>(t));  // a node per level-0 tile
+    for (int j = std::max(j0, 1); j < layout.nodeLevels(); ++j) {
+        // The node over the tile's first cell covers the whole tile from level j0 up.
+        const int nx = (tx * t) >> j, ny = (ty * t) >> j;
+        const auto tile = cache.find(TileKey{TileKind::Nodes, j, nx / t, ny / t});
+        if (!tile) continue;
+        const std::size_t i =
+            static_cast<std::size_t>(ny - tile->y0) * tile->width + (nx - tile->x0);
+        return tile->maxima[i] * info.heightScale + info.heightOffset;
+    }
+    return otherwise;
 }
 
 }  // namespace ig

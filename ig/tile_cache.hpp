@@ -32,6 +32,13 @@ struct TileCacheStats {
     std::uint64_t overBudget = 0;  // loaded tiles dropped: no room without evicting this frame's
 };
 
+class TileCache;
+
+// A bound (metres) on the surface over level-0 display tile (tx, ty) of `db`: the finest node
+// resident in `cache` covering it, else `otherwise`. Never blocks.
+double residentTileBound(const TileCache& cache, const TerrainDb& db, int tx, int ty,
+                         double otherwise);
+
 class TileCache {
   public:
     struct Options {
