@@ -122,7 +122,7 @@ void TileCache::beginFrame(std::uint64_t frame, const std::set<TileKey>& require
             const auto it = resident_.find(key);
             if (it != resident_.end()) {
                 ++stats_.hits;
-                it->second.lastNeeded = frame;
+                touchLocked(*it, frame);
                 continue;
             }
             ++stats_.misses;
@@ -133,7 +133,7 @@ void TileCache::beginFrame(std::uint64_t frame, const std::set<TileKey>& require
         for (const TileKey& key : prefetch) {
             const auto it = resident_.find(key);
             if (it != resident_.end()) {
-                it->second.lastNeeded = std::max(it->second.lastNeeded, frame > 0 ? frame - 1 : 0);
+                touchLocked(*it, std::max(it->second.lastNeeded, frame > 0 ? frame - 1 : 0));
                 continue;
             }
             if (failed_.count(key) || loading_.count(key) || queued_.count(key)) continue;
@@ -187,17 +187,15 @@ void TileCache::insertLocked(const TileKey& key, std::shared_ptr<const TerrainTi
     if (resident_.count(key)) return;
     const std::uint64_t needed = required_.count(key) ? frame_ : (frame_ > 0 ? frame_ - 1 : 0);
     while (bytes_ + bytes > options_.budgetBytes) {
-        auto victim = resident_.end();
-        for (auto it = resident_.begin(); it != resident_.end(); ++it) {
-            if (it->second.pinned) continue;
-            if (victim == resident_.end() || it->second.lastNeeded < victim->second.lastNeeded)
-                victim = it;
-        }
-        if (victim == resident_.end() || victim->second.lastNeeded >= needed) {
+        // The least recently needed unpinned tile (the first key of those, as a scan in key
+        // order would find it).
+        if (lru_.empty() || lru_.begin()->first >= needed) {
             ++stats_.overBudget;
             return;
         }
+        const auto victim = resident_.find(lru_.begin()->second);
         bytes_ -= victim->second.bytes;
+        lru_.erase(lru_.begin());
         resident_.erase(victim);
         ++stats_.evictions;
     }
@@ -207,6 +205,17 @@ void TileCache::insertLocked(const TileKey& key, std::shared_ptr<const TerrainTi
     e.lastNeeded = needed;
     bytes_ += bytes;
     resident_.emplace(key, std::move(e));
+    lru_.emplace(needed, key);
+}
+
+void TileCache::touchLocked(std::pair<const TileKey, Entry>& entry, std::uint64_t lastNeeded) {
+    Entry& e = entry.second;
+    if (e.lastNeeded == lastNeeded) return;
+    if (!e.pinned) {
+        lru_.erase({e.lastNeeded, entry.first});
+        lru_.emplace(lastNeeded, entry.first);
+    }
+    e.lastNeeded = lastNeeded;
 }
 
 std::shared_ptr<const TerrainTile> TileCache::find(const TileKey& key) const {

@@ -16,6 +16,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace ig {
@@ -95,6 +96,8 @@ class TileCache {
     bool isPinned(const TileKey& key) const;
     void insertLocked(const TileKey& key, std::shared_ptr<const TerrainTile> tile,
                       std::size_t bytes);
+    // Sets a resident entry's last frame needed (and its place in lru_).
+    void touchLocked(std::pair<const TileKey, Entry>& entry, std::uint64_t lastNeeded);
 
     const TerrainDb& db_;
     Options options_;
@@ -102,6 +105,8 @@ class TileCache {
     mutable std::mutex mutex_;
     mutable std::condition_variable work_, idle_;
     std::map<TileKey, Entry> resident_;
+    // The unpinned resident tiles by (last frame needed, key): the eviction order.
+    std::set<std::pair<std::uint64_t, TileKey>> lru_;
     std::deque<TileKey> urgent_, background_;
     std::set<TileKey> queued_, loading_;
     std::set<TileKey> required_;  // the current frame's
