@@ -45,13 +45,8 @@ PagedGround::~PagedGround() {
 PagedGround::Cell PagedGround::cellOf(double x, double y) const {
     const TerrainDbInfo& info = db_.info();
     Cell c;
-    auto along = [](double v, double spacing, int n, int& i, double& f) {
-        const double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
-        i = std::min(static_cast<int>(g), std::max(n - 2, 0));
-        f = g - i;
-    };
-    along(x, info.spacingX, info.width, c.ix, c.fx);
-    along(y, info.spacingY, info.height, c.iy, c.fy);
+    gridCellOf(x, info.spacingX, info.width, c.ix, c.fx);
+    gridCellOf(y, info.spacingY, info.height, c.iy, c.fy);
     return c;
 }
 
@@ -61,12 +56,10 @@ double PagedGround::groundHeight(double x, double y) const {
     lastY_.store(y, std::memory_order_relaxed);
     asks_.fetch_add(1, std::memory_order_release);
     const Cell c = cellOf(x, y);
-    const int t = db_.layout().tileSize();
     const std::shared_ptr<const Snapshot> s = snapshot_.load(std::memory_order_acquire);
     if (s) {
-        const int i = c.ix / t - s->tx0, j = c.iy / t - s->ty0;
-        if (i >= 0 && j >= 0 && i < s->n && j < s->n) {
-            const std::size_t k = static_cast<std::size_t>(j) * s->n + i;
+        if (const std::ptrdiff_t slot = slotOf(*s, c); slot >= 0) {
+            const auto k = static_cast<std::size_t>(slot);
             const TerrainTile* tile = s->tiles[k].get();
             if (!tile) {
                 bounded_.fetch_add(1, std::memory_order_relaxed);
@@ -81,24 +74,26 @@ double PagedGround::groundHeight(double x, double y) const {
                                        static_cast<std::size_t>(sx - tile->x0);
                 return tile->heights[at] * info.heightScale + info.heightOffset;
             };
-            const double h00 = h(c.ix, c.iy), h10 = h(ix1, c.iy);
-            const double h01 = h(c.ix, iy1), h11 = h(ix1, iy1);
-            const double fx = c.fx, fy = c.fy;
-            return (h00 * (1 - fx) + h10 * fx) * (1 - fy) + (h01 * (1 - fx) + h11 * fx) * fy;
+            return bilinearHeight(h(c.ix, c.iy), h(ix1, c.iy), h(c.ix, iy1), h(ix1, iy1), c.fx,
+                                  c.fy);
         }
     }
     outside_.fetch_add(1, std::memory_order_relaxed);
     return highest_;
 }
 
-bool PagedGround::exactAt(double x, double y) const {
-    const Cell c = cellOf(x, y);
+std::ptrdiff_t PagedGround::slotOf(const Snapshot& s, const Cell& c) const {
     const int t = db_.layout().tileSize();
+    const int i = c.ix / t - s.tx0, j = c.iy / t - s.ty0;
+    if (i < 0 || j < 0 || i >= s.n || j >= s.n) return -1;
+    return static_cast<std::ptrdiff_t>(j) * s.n + i;
+}
+
+bool PagedGround::exactAt(double x, double y) const {
     const std::shared_ptr<const Snapshot> s = snapshot_.load(std::memory_order_acquire);
     if (!s) return false;
-    const int i = c.ix / t - s->tx0, j = c.iy / t - s->ty0;
-    return i >= 0 && j >= 0 && i < s->n && j < s->n &&
-           s->tiles[static_cast<std::size_t>(j) * s->n + i] != nullptr;
+    const std::ptrdiff_t slot = slotOf(*s, cellOf(x, y));
+    return slot >= 0 && s->tiles[static_cast<std::size_t>(slot)] != nullptr;
 }
 
 PagedGround::Stats PagedGround::stats() const {

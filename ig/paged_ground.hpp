@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -76,6 +77,8 @@ class PagedGround final : public Ground {
         double fx, fy;
     };
     Cell cellOf(double x, double y) const;
+    // The snapshot's slot of the tile holding cell `c`; -1 when it holds none there.
+    std::ptrdiff_t slotOf(const Snapshot& s, const Cell& c) const;
     void loop();
     // Requests the tiles around (x, y) (and ahead along (vx, vy) m/s), waits for them when
     // `wait`, and publishes what is resident. Holds update_.

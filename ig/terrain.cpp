@@ -144,31 +144,21 @@ void TerrainMap::updateRange() {
     adviseHugePages(cellMax_.data(), cellMax_.size() * sizeof(std::uint16_t));
 }
 
-namespace {
-// Cell and fraction of a world coordinate along an axis of n samples, clamped to the grid.
-inline void cellOf(double v, double spacing, int n, int& i, double& f) {
-    double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
-    i = std::min(static_cast<int>(g), std::max(n - 2, 0));
-    f = g - i;
-}
-}  // namespace
-
 double TerrainMap::surfaceHeight(double x, double y) const {
     int ix, iy;
     double fx, fy;
-    cellOf(x, spacingX_, width_, ix, fx);
-    cellOf(y, spacingY_, height_, iy, fy);
+    gridCellOf(x, spacingX_, width_, ix, fx);
+    gridCellOf(y, spacingY_, height_, iy, fy);
     const int ix1 = std::min(ix + 1, width_ - 1), iy1 = std::min(iy + 1, height_ - 1);
-    const double h00 = heightAt(ix, iy), h10 = heightAt(ix1, iy);
-    const double h01 = heightAt(ix, iy1), h11 = heightAt(ix1, iy1);
-    return (h00 * (1 - fx) + h10 * fx) * (1 - fy) + (h01 * (1 - fx) + h11 * fx) * fy;
+    return bilinearHeight(heightAt(ix, iy), heightAt(ix1, iy), heightAt(ix, iy1),
+                          heightAt(ix1, iy1), fx, fy);
 }
 
 void TerrainMap::surfaceColor(double x, double y, float rgb[3]) const {
     int ix, iy;
     double fx, fy;
-    cellOf(x, spacingX_, width_, ix, fx);
-    cellOf(y, spacingY_, height_, iy, fy);
+    gridCellOf(x, spacingX_, width_, ix, fx);
+    gridCellOf(y, spacingY_, height_, iy, fy);
     const int ix1 = std::min(ix + 1, width_ - 1), iy1 = std::min(iy + 1, height_ - 1);
     const Rgb8 c00 = colorAt(ix, iy), c10 = colorAt(ix1, iy);
     const Rgb8 c01 = colorAt(ix, iy1), c11 = colorAt(ix1, iy1);

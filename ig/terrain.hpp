@@ -92,6 +92,18 @@ class Ground {
     virtual double groundHeight(double x, double y) const = 0;
 };
 
+// Cell and fraction of a world coordinate along an axis of n samples at `spacing`, clamped to
+// the grid (the cell TerrainMap::surfaceHeight interpolates in).
+inline void gridCellOf(double v, double spacing, int n, int& i, double& f) {
+    const double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
+    i = std::min(static_cast<int>(g), std::max(n - 2, 0));
+    f = g - i;
+}
+// The bilinear blend of a cell's four heights at fractions (fx, fy), as surfaceHeight takes it.
+inline double bilinearHeight(double h00, double h10, double h01, double h11, double fx, double fy) {
+    return (h00 * (1 - fx) + h10 * fx) * (1 - fy) + (h01 * (1 - fx) + h11 * fx) * fy;
+}
+
 // Grid convention (files): column i -> x = i * spacingX (east); row j with row 0 the north edge
 // -> y = (rows - 1 - j) * spacingY (north); z = value * heightScale + heightOffset (up).
 // In memory the rows are stored south first: sample (ix, iy) sits at x = ix * spacingX,

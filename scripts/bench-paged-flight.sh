@@ -36,31 +36,14 @@ db() {  # db SIZE: the synthetic map SIZE:1 in tiles of 64, built once
 # 250 m above the highest ground near the circle; the rest at 300 m/s, 60 m above the highest
 # ground within 200 m of the track, looking 6 degrees down.
 trajectory() {
-    python3 - "$1" "$2" "$3" <<'PY'
-import math, struct, sys
+    python3 - "$1" "$2" "$3" "$root/scripts" <<'PY'
+import math, sys
+sys.path.insert(0, sys.argv[4])
+from terrain_db_samples import LevelZero
 path, out, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
-f = open(path, "rb")
-h = f.read(256)
-tile, w, hh = struct.unpack_from("<III", h, 12)
-sx, sy, scale, offset = struct.unpack_from("<dddd", h, 32)
-index_off, = struct.unpack_from("<Q", h, 88)
-tiles_x = (w - 1 + tile - 1) // tile
-cache = {}
-def tile_heights(tx, ty):
-    if (tx, ty) not in cache:
-        f.seek(index_off + (ty * tiles_x + tx) * 24)
-        off, stored = struct.unpack("<QI", f.read(12))
-        f.seek(off)
-        t = f.read(stored)
-        tw, th = struct.unpack_from("<II", t, 16)
-        cache[(tx, ty)] = (tw, struct.unpack_from(f"<{tw * th}H", t, 24))
-    return cache[(tx, ty)]
-def height(x, y):
-    i = min(max(int(round(x / sx)), 0), w - 1)
-    j = min(max(int(round(y / sy)), 0), hh - 1)
-    tx, ty = min(i // tile, tiles_x - 1), min(j // tile, tiles_x - 1)
-    tw, hs = tile_heights(tx, ty)
-    return hs[(j - ty * tile) * tw + (i - tx * tile)] * scale + offset
+db = LevelZero(path)
+w, hh, sx, sy = db.width, db.height, db.sx, db.sy
+height = db.nearest
 def highest(x, y, r):
     return max(height(x + a * r / 2, y + b * r / 2) for a in range(-2, 3) for b in range(-2, 3))
 ext_x, ext_y = (w - 1) * sx, (hh - 1) * sy

@@ -160,10 +160,8 @@ sim::FlightState parseStart(const std::string& text, const ig::TerrainMap& map,
         throw ig::InputError("--start '" + text + "': expected X,Y,Z,HEADING");
     }
     if (paged) {
-        char* end0 = nullptr;
-        char* end1 = nullptr;
-        const double x = std::strtod(part[0].c_str(), &end0);
-        const double y = std::strtod(part[1].c_str(), &end1);
+        const double x = std::strtod(part[0].c_str(), nullptr);
+        const double y = std::strtod(part[1].c_str(), nullptr);
         if (std::isfinite(x) && std::isfinite(y) && ig::nearMap(map, x, y)) {
             paged->placeAround(x, y);
         }

@@ -6,6 +6,7 @@
 set -u
 bin=$1
 tmp=$2/fly_paged
+root=$(cd "$(dirname "$0")/../.." && pwd)
 mkdir -p "$tmp"
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
@@ -48,38 +49,16 @@ msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --start 2000,2000,+20,45 -
     --clock simulated --out null --contact none --json "$tmp/stick.json" \
     --field-log "$tmp/fields.jsonl" 2>&1) || fail "default scenario over a paged map: $msg"
 grep -q "the flight model's ground" <<<"$msg" || fail "default scenario: no ground line: $msg"
-python3 - "$tmp/stick.json" "$tmp/fields.jsonl" "$tmp/s.db" <<'PY' || fail "default scenario: $msg"
-import json, struct, sys
+python3 - "$tmp/stick.json" "$tmp/fields.jsonl" "$tmp/s.db" "$root/scripts" <<'PY' ||
+import json, sys
+sys.path.insert(0, sys.argv[4])
+from terrain_db_samples import LevelZero
 j = json.load(open(sys.argv[1]))
 assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
 g = j["paging"]["ground"]
 assert g["exact"] > 0 and g["tiles_read"] > 0, g
 assert g["exact"] >= 10 * (g["bounded"] + g["outside"]), g
-f = open(sys.argv[3], "rb")
-h = f.read(256)
-tile, w, hh = struct.unpack_from("<III", h, 12)
-sx, sy, scale, offset = struct.unpack_from("<dddd", h, 32)
-index_off, = struct.unpack_from("<Q", h, 88)
-tiles_x = (w - 1 + tile - 1) // tile
-cache = {}
-def sample(i, jj):
-    i, jj = min(max(i, 0), w - 1), min(max(jj, 0), hh - 1)
-    tx, ty = min(i // tile, tiles_x - 1), min(jj // tile, tiles_x - 1)
-    if (tx, ty) not in cache:
-        f.seek(index_off + (ty * tiles_x + tx) * 24)
-        off, stored = struct.unpack("<QI", f.read(12))
-        f.seek(off)
-        t = f.read(stored)
-        tw, th = struct.unpack_from("<II", t, 16)
-        cache[(tx, ty)] = (tw, struct.unpack_from(f"<{tw * th}H", t, 24))
-    tw, hs = cache[(tx, ty)]
-    return hs[(jj - ty * tile) * tw + (i - tx * tile)] * scale + offset
-def surface(x, y):  # the map's bilinear surface
-    gx, gy = x / sx, y / sy
-    i, jj = int(gx), int(gy)
-    fx, fy = gx - i, gy - jj
-    return ((sample(i, jj) * (1 - fx) + sample(i + 1, jj) * fx) * (1 - fy) +
-            (sample(i, jj + 1) * (1 - fx) + sample(i + 1, jj + 1) * fx) * fy)
+surface = LevelZero(sys.argv[3]).surface  # the map's bilinear surface
 n, lowest = 0, 1e300
 for line in open(sys.argv[2]):
     p = json.loads(line)["pose"]
@@ -90,6 +69,7 @@ for line in open(sys.argv[2]):
 assert lowest < 100.0, lowest  # the flight came down near its floor
 assert n == 120, n
 PY
+    fail "default scenario: $msg"
 msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
     --caster span --out null --contact none 2>&1)
 [ $? -eq 2 ] || fail "span: not refused"
