@@ -52,9 +52,11 @@ PagedGround::Cell PagedGround::cellOf(double x, double y) const {
 
 double PagedGround::groundHeight(double x, double y) const {
     if (!std::isfinite(x) || !std::isfinite(y)) return std::numeric_limits<double>::quiet_NaN();
-    lastX_.store(x, std::memory_order_relaxed);
-    lastY_.store(y, std::memory_order_relaxed);
-    asks_.fetch_add(1, std::memory_order_release);
+    if (!followed_.load(std::memory_order_relaxed)) {
+        lastX_.store(x, std::memory_order_relaxed);
+        lastY_.store(y, std::memory_order_relaxed);
+        asks_.fetch_add(1, std::memory_order_release);
+    }
     const Cell c = cellOf(x, y);
     const std::shared_ptr<const Snapshot> s = snapshot_.load(std::memory_order_acquire);
     if (s) {
@@ -80,6 +82,22 @@ double PagedGround::groundHeight(double x, double y) const {
     }
     outside_.fetch_add(1, std::memory_order_relaxed);
     return highest_;
+}
+
+double PagedGround::extentX() const {
+    return (db_.info().width - 1) * db_.info().spacingX;
+}
+
+double PagedGround::extentY() const {
+    return (db_.info().height - 1) * db_.info().spacingY;
+}
+
+void PagedGround::follow(double x, double y) const {
+    if (!std::isfinite(x) || !std::isfinite(y)) return;
+    followed_.store(true, std::memory_order_relaxed);
+    lastX_.store(x, std::memory_order_relaxed);
+    lastY_.store(y, std::memory_order_relaxed);
+    asks_.fetch_add(1, std::memory_order_release);
 }
 
 std::ptrdiff_t PagedGround::slotOf(const Snapshot& s, const Cell& c) const {

@@ -51,6 +51,12 @@ class PagedGround final : public Ground {
     PagedGround& operator=(const PagedGround&) = delete;
 
     double groundHeight(double x, double y) const override;
+    double extentX() const override;
+    double extentY() const override;
+    // The point the thread keeps the tiles around, from now on (any thread): without it, the
+    // last point asked for. A caller asking about several places (a host's entities) names
+    // the one to follow (its ownship).
+    void follow(double x, double y) const override;
     // Loads, waiting, the tiles around (x, y) and keeps them (before a run, off the field
     // thread): the next groundHeight() there is exact where the tiles could be read.
     void waitAround(double x, double y);
@@ -93,6 +99,8 @@ class PagedGround final : public Ground {
     // The last point asked for, and how many asks so far (the thread follows them).
     mutable std::atomic<double> lastX_{0.0}, lastY_{0.0};
     mutable std::atomic<std::uint64_t> asks_{0};
+    mutable std::atomic<bool> followed_{
+        false};  // follow() was called: asks no longer move the point
     mutable std::atomic<std::uint64_t> exact_{0}, bounded_{0}, outside_{0};
     std::mutex update_;  // one update at a time (the cache has one caller of beginFrame)
     std::uint64_t frame_ = 0;

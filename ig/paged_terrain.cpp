@@ -303,15 +303,15 @@ double PagedTerrain::tileBound(int tx, int ty) const {
     return residentTileBound(cache_, db_, tx, ty, map_.maxHeight());
 }
 
-void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir,
-                               std::set<TileKey>& out) const {
+void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir, std::set<TileKey>& out,
+                               double maxRange) const {
     const int t = db_.layout().tileSize();
     const double tileX = t * map_.spacingX(), tileY = t * map_.spacingY();
     const int tilesX = db_.layout().tilesX(TileKind::Display, 0);
     const int tilesY = db_.layout().tilesY(TileKind::Display, 0);
     const double lo = map_.minHeight(), hi = map_.maxHeight();
     // The part of the ray over the map: [s0, s1] in its parameter.
-    double s0 = 0.0, s1 = std::numeric_limits<double>::infinity();
+    double s0 = 0.0, s1 = maxRange;
     const double ext[2] = {map_.extentX(), map_.extentY()};
     for (int a = 0; a < 2; ++a) {
         if (dir[a] == 0.0) {
@@ -381,6 +381,11 @@ void PagedTerrain::warmUp(const Camera& camera, int headings) {
     // a placed tile needs.
     cache_.beginFrame(++frame_, {}, all);
     cache_.waitIdle();
+}
+
+bool PagedTerrain::placedExact(const TileKey& key) const {
+    const auto it = placed_.find(key);
+    return it != placed_.end() && it->second.sourceLevel == key.level && !it->second.failed;
 }
 
 PagedFrameStats PagedTerrain::placeAround(double x, double y) {

@@ -20,6 +20,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -100,6 +101,21 @@ class PagedTerrain {
     // a height above it). The next prepare() keeps it only if its frame needs it.
     PagedFrameStats placeAround(double x, double y);
 
+    // For a thread that asks the map questions rather than rendering it (a host's height and
+    // line-of-sight queries, sim/terrain_queries.hpp). The level-0 tile whose cell holds world
+    // (x, y) (clamped to the map): the bilinear surface there reads it alone (tiles share their
+    // edge samples).
+    TileKey tileUnder(double x, double y) const;
+    // Adds the level-0 tiles an exact cast from `origin` along `dir` can read within
+    // [0, maxRange] before its hit: those its ground track crosses where it is within the
+    // terrain's height range and not above the finest resident bound on the tile.
+    void addRayTiles(const glm::dvec3& origin, const glm::dvec3& dir, std::set<TileKey>& out,
+                     double maxRange = std::numeric_limits<double>::infinity()) const;
+    // Places exactly `tiles`, waiting for them (the others placed leave, as between frames).
+    PagedFrameStats placeTiles(const std::set<TileKey>& tiles) { return page(tiles, {}, true); }
+    // Whether `key` is placed from its own data (not a stand-in from a coarser level).
+    bool placedExact(const TileKey& key) const;
+
     // Display tiles placed in the map (and pyramid) now, and how many of them are stand-ins.
     std::size_t placedTiles() const;
     std::size_t substitutedTiles() const;
@@ -125,14 +141,9 @@ class PagedTerrain {
     };
 
     Grid grid(TileKind kind, int level) const;
-    // The level-0 tiles an exact cast along (eye, dir) can read before its hit (renderFrame's
-    // control points): those its ground track crosses where it is within the terrain's height
-    // range and not above the finest resident bound on the tile (a node covering it).
-    void addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir, std::set<TileKey>& out) const;
     // A bound (metres) on the surface over level-0 tile (tx, ty): the finest resident node
     // covering it, else the map's highest point.
     double tileBound(int tx, int ty) const;
-    TileKey tileUnder(double x, double y) const;
     PagedFrameStats page(const std::set<TileKey>& required, const std::set<TileKey>& prefetch,
                          bool wait);
     void copyTile(const TerrainTile& tile);

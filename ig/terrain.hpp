@@ -90,6 +90,15 @@ class Ground {
     // Height of the ground at world (x, y), metres (on or above the terrain's surface); NaN
     // where there is none (an empty map).
     virtual double groundHeight(double x, double y) const = 0;
+    // World extent of the ground: x in [0, extentX], y in [0, extentY].
+    virtual double extentX() const = 0;
+    virtual double extentY() const = 0;
+    // Names the point the ground should keep its data around (a paged ground: its thread
+    // follows it rather than the last point asked for); nothing for a map held whole.
+    virtual void follow(double /*x*/, double /*y*/) const {}
+    bool covers(double x, double y) const {
+        return x >= 0.0 && y >= 0.0 && x <= extentX() && y <= extentY();
+    }
 };
 
 // Cell and fraction of a world coordinate along an axis of n samples at `spacing`, clamped to
@@ -129,8 +138,8 @@ class TerrainMap final : public Ground {
     double heightScale() const { return heightScale_; }
     double heightOffset() const { return heightOffset_; }
     // World extent of the sample grid: x in [0, extentX], y in [0, extentY].
-    double extentX() const { return (width_ - 1) * spacingX_; }
-    double extentY() const { return (height_ - 1) * spacingY_; }
+    double extentX() const override { return (width_ - 1) * spacingX_; }
+    double extentY() const override { return (height_ - 1) * spacingY_; }
     bool empty() const { return width_ == 0 || height_ == 0; }
 
     std::uint16_t raw(int ix, int iy) const { return heights_[index(ix, iy)]; }

@@ -57,28 +57,9 @@ double wrapLongitude(double lon) {
     return lon - 180.0;
 }
 
-// Gradient of the bilinear surface at (x, y), as TerrainMap::surfaceHeight interpolates it.
-glm::dvec2 surfaceGradient(const ig::TerrainMap& map, double x, double y) {
-    const auto cell = [](double v, double spacing, int n, int& i, double& f) {
-        const double g = std::clamp(v / spacing, 0.0, static_cast<double>(n - 1));
-        i = std::min(static_cast<int>(g), std::max(n - 2, 0));
-        f = g - i;
-    };
-    int ix, iy;
-    double fx, fy;
-    cell(x, map.spacingX(), map.width(), ix, fx);
-    cell(y, map.spacingY(), map.height(), iy, fy);
-    const int ix1 = std::min(ix + 1, map.width() - 1), iy1 = std::min(iy + 1, map.height() - 1);
-    const double h00 = map.heightAt(ix, iy), h10 = map.heightAt(ix1, iy);
-    const double h01 = map.heightAt(ix, iy1), h11 = map.heightAt(ix1, iy1);
-    return {((h10 - h00) * (1 - fy) + (h11 - h01) * fy) / map.spacingX(),
-            ((h01 - h00) * (1 - fx) + (h11 - h10) * fx) / map.spacingY()};
-}
-
-// Azimuth (clockwise from north) and elevation of the surface normal, degrees.
-void normalAngles(const ig::TerrainMap& map, double x, double y, float& azimuthDeg,
-                  float& elevationDeg) {
-    const glm::dvec2 g = surfaceGradient(map, x, y);
+// Azimuth (clockwise from north) and elevation of the normal of a surface of gradient g,
+// degrees.
+void normalAngles(const glm::dvec2& g, float& azimuthDeg, float& elevationDeg) {
     const double slope = std::hypot(g.x, g.y);
     azimuthDeg = slope > 0.0 ? static_cast<float>(std::atan2(-g.x, -g.y) / kDeg) : 0.0f;
     elevationDeg = static_cast<float>(std::atan2(1.0, slope) / kDeg);
@@ -96,10 +77,6 @@ glm::dvec3 worldFromBody(const ig::Pose& pose, const glm::dvec3& v) {
     const glm::dvec3 right = right0 * cr - up0 * sr;
     const glm::dvec3 up = up0 * cr + right0 * sr;
     return forward * v.x + right * v.y - up * v.z;
-}
-
-bool onMap(const ig::TerrainMap& map, double x, double y) {
-    return x >= 0.0 && y >= 0.0 && x <= map.extentX() && y <= map.extentY();
 }
 
 }  // namespace
@@ -197,8 +174,13 @@ ig::Pose DeadReckoning::at(double t) const {
 }
 
 CigiSession::CigiSession(const ig::TerrainMap& map, const CigiOptions& options)
-    : map_(map), options_(options), geo_(options.origin) {
+    : map_(map),
+      options_(options),
+      geo_(options.origin),
+      ground_(options.ground ? *options.ground : static_cast<const ig::Ground&>(map)) {
     in_.resize(65536);
+    inFlight_.reserve(options_.maxPendingRequests + 256);
+    ready_.reserve(options_.maxPendingRequests + 256);
     out_.reserve(65536);
     pending_.reserve(options_.maxPendingRequests);
     repeating_.reserve(kMaxRepeating);
@@ -502,8 +484,8 @@ void CigiSession::applyComponent(const cigi::ComponentControl& c) {
     s->target = static_cast<std::uint16_t>(target);
 }
 
-SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
-                    int width, int height, double hfov) {
+SensorSight sightInWindow(const ig::Pose& eye, const glm::dvec3& point, int width, int height,
+                          double hfov) {
     SensorSight s;
     const ig::CameraBasis b = ig::CameraBasis::fromPose(eye);
     const glm::dvec3 d = point - eye.position;
@@ -518,6 +500,13 @@ SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::d
         s.inWindow =
             std::abs(x / z) * focal <= 0.5 * width && std::abs(y / z) * focal <= 0.5 * height;
     }
+    return s;
+}
+
+SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
+                    int width, int height, double hfov) {
+    SensorSight s = sightInWindow(eye, point, width, height, hfov);
+    const glm::dvec3 d = point - eye.position;
     // The terrain between: the first hit of the exact surface along the segment, short of the
     // point by more than half a metre (a ground-clamped entity's base is on the surface).
     if (s.rangeM > 0.0 && std::isfinite(s.rangeM)) {
@@ -552,7 +541,7 @@ bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int 
     return true;
 }
 
-cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
+cigi::Packet CigiSession::sensorResponse(SensorState& sensor, double t) {
     cigi::SensorExtendedResponse r;
     r.viewId = static_cast<std::uint16_t>(options_.viewId);
     r.sensorId = sensor.id;
@@ -572,8 +561,8 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
             const int w = options_.windowWidth, h = options_.windowHeight;
             // Where the renderer stands it: a ground-clamped base on the terrain under it.
             glm::dvec3 base = it->pose.position;
-            if (it->onGround && onMap(map_, base.x, base.y))
-                base.z = map_.surfaceHeight(base.x, base.y);
+            if (it->onGround && ground_.covers(base.x, base.y))
+                base.z = ground_.groundHeight(base.x, base.y);
             // The track point: the middle of the model's box when its size is known (what a
             // tracker centres its gate on), else the base point.
             const HostEntity* entity = findEntity(sensor.target);
@@ -596,7 +585,27 @@ cigi::Packet CigiSession::sensorResponse(const SensorState& sensor, double t) {
                 }
                 point.z += 0.5 * k * type->sizeZ;
             }
-            const SensorSight s = sightOf(map_, eye, point, w, h, hfov);
+            SensorSight s;
+            if (!options_.terrainQueries) {
+                s = sightOf(map_, eye, point, w, h, hfov);
+            } else {
+                // Over a paged map the terrain's thread checks the line; the latest answer
+                // stands until the next (none yet: not seen).
+                s = sightInWindow(eye, point, w, h, hfov);
+                s.unoccluded = sensor.clearKnown && sensor.clear;
+                if (!sensor.clearAsked && s.rangeM > 0.5 && std::isfinite(s.rangeM)) {
+                    Query q;
+                    q.known = true;
+                    q.sensor = sensor.id;
+                    q.question.line = true;
+                    q.question.origin = eye.position;
+                    q.question.dir = (point - eye.position) / s.rangeM;
+                    q.question.maxRange = s.rangeM - 0.5;
+                    sensor.clearAsked = defer(std::move(q));
+                } else if (!(s.rangeM > 0.5)) {
+                    s.unoccluded = true;  // nothing between
+                }
+            }
             if (s.seen()) r.status = cigi::SensorStatus::Tracking;
             if (s.inFront) {
                 r.gateXDeg = static_cast<float>(s.gateXDeg);
@@ -647,6 +656,7 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
             rates_ = {};
             pending_.clear();
             repeating_.clear();
+            inFlight_.clear();  // their answers, when they come, are dropped
             stats_.entitiesDestroyed += entities_.size();
             entities_.clear();
             sensors_.clear();
@@ -836,7 +846,11 @@ void CigiSession::apply(const cigi::Packet& packet, double t, std::uint8_t& lsn)
     }
 }
 
-cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
+CigiSession::Query CigiSession::resolve(const cigi::Packet& request, std::uint8_t lsn,
+                                        double t) const {
+    Query q;
+    q.request = request;
+    q.lsn = lsn;
     // A point of a request: geodetic, or an offset from an entity (the ownship or one of the
     // host's active entities, at t) in its own axes.
     const ig::Pose ownship = ownship_.at(t);
@@ -846,50 +860,28 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         ig::Pose from = ownship;
         bool drawn = true;
         if (entityId != 0 &&
-            (!entityPoseAt(entities_, ownship_, entityId, t, map_, from, &drawn) || !drawn)) {
+            (!entityPoseAt(entities_, ownship_, entityId, t, ground_, from, &drawn) || !drawn)) {
             ok = false;  // no such entity, or not active
             return glm::dvec3{0.0};
         }
         return from.position + worldFromBody(from, {a, b, c});
     };
-    if (const auto* q = std::get_if<cigi::HatHotRequest>(&request)) {
+    if (const auto* h = std::get_if<cigi::HatHotRequest>(&request)) {
         bool known = true;
-        const glm::dvec3 p =
-            point(q->entityCoordinates, q->entityId, q->latOrX, q->lonOrY, q->altOrZ, known);
-        const bool valid = known && onMap(map_, p.x, p.y);
-        const double hot = valid ? map_.surfaceHeight(p.x, p.y) + options_.origin.altM : 0.0;
-        const double hat = valid ? (p.z + options_.origin.altM) - hot : 0.0;
-        if (q->type == cigi::HatHotType::Extended) {
-            cigi::HatHotExtendedResponse a;
-            a.requestId = q->requestId;
-            a.valid = valid;
-            a.hostFrameLsn = lsn;
-            if (valid) {
-                a.hatM = hat;
-                a.hotM = hot;
-                normalAngles(map_, p.x, p.y, a.normalAzimuthDeg, a.normalElevationDeg);
-            }
-            return a;
-        }
-        cigi::HatHotResponse a;
-        a.requestId = q->requestId;
-        a.valid = valid;
-        a.isHot = q->type == cigi::HatHotType::Hot;
-        a.hostFrameLsn = lsn;
-        a.heightM = a.isHot ? hot : hat;
-        return a;
+        q.point = point(h->entityCoordinates, h->entityId, h->latOrX, h->lonOrY, h->altOrZ, known);
+        q.known = known && ground_.covers(q.point.x, q.point.y);
+        q.question.origin = q.point;
+        return q;
     }
     // Line of sight: a ray from the source, its first hit within the range on the bilinear
     // surface (the reference model of ig::intersectTerrain) or on an object (objectOnLine).
-    std::uint16_t requestId = 0;
     std::uint16_t fromEntity = 0;  // a line from a host entity does not meet that entity
-    bool extended = false, valid = false, segment = false;
     glm::dvec3 source{0.0}, dir{0.0};
     double minRange = 0.0, maxRange = 0.0;
     if (const auto* s = std::get_if<cigi::LosSegmentRequest>(&request)) {
-        requestId = s->requestId;
-        extended = s->extended;
-        segment = true;
+        q.requestId = s->requestId;
+        q.extended = s->extended;
+        q.segment = true;
         bool known = true;
         if (s->sourceEntityCoordinates) fromEntity = s->entityId;
         source = point(s->sourceEntityCoordinates, s->entityId, s->sourceLatOrX, s->sourceLonOrY,
@@ -900,10 +892,10 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
                     s->destinationLatOrX, s->destinationLonOrY, s->destinationAltOrZ, known) -
               source;
         maxRange = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
-        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
+        q.known = known && maxRange > 0.0 && std::isfinite(maxRange);
     } else if (const auto* v = std::get_if<cigi::LosVectorRequest>(&request)) {
-        requestId = v->requestId;
-        extended = v->extended;
+        q.requestId = v->requestId;
+        q.extended = v->extended;
         bool known = true;
         if (v->sourceEntityCoordinates) fromEntity = v->entityId;
         source = point(v->sourceEntityCoordinates, v->entityId, v->sourceLatOrX, v->sourceLonOrY,
@@ -912,30 +904,73 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         dir = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
         minRange = v->minRangeM;
         maxRange = v->maxRangeM;
-        valid = known && maxRange > 0.0 && std::isfinite(maxRange);
+        q.known = known && maxRange > 0.0 && std::isfinite(maxRange);
     } else {
         CHECK(false) << "not a request: " << cigi::packetName(request);
     }
+    q.question.line = true;
+    q.question.origin = source;
+    q.question.dir = dir;
+    q.question.minRange = minRange;
+    q.question.maxRange = maxRange;
+    if (q.known) {
+        // The nearest object within the whole range: compose() keeps it if the terrain's hit
+        // is not nearer (the same as looking for one short of the terrain's hit).
+        const ig::TerrainRay ray(map_, source, dir);
+        double nearest = maxRange;
+        if (objectOnLine(ray.origin, ray.dir, minRange, t, fromEntity, nearest, q.objectId,
+                         q.objectColor, q.objectNormal)) {
+            q.objectRange = nearest;
+        }
+    }
+    return q;
+}
+
+cigi::Packet CigiSession::compose(const Query& q, const TerrainAnswer& terrain) const {
+    if (const auto* h = std::get_if<cigi::HatHotRequest>(&q.request)) {
+        const glm::dvec3& p = q.point;
+        const bool valid = q.known && terrain.known;
+        const double hot = valid ? terrain.height + options_.origin.altM : 0.0;
+        const double hat = valid ? (p.z + options_.origin.altM) - hot : 0.0;
+        if (h->type == cigi::HatHotType::Extended) {
+            cigi::HatHotExtendedResponse a;
+            a.requestId = h->requestId;
+            a.valid = valid;
+            a.hostFrameLsn = q.lsn;
+            if (valid) {
+                a.hatM = hat;
+                a.hotM = hot;
+                normalAngles(terrain.slope, a.normalAzimuthDeg, a.normalElevationDeg);
+            }
+            return a;
+        }
+        cigi::HatHotResponse a;
+        a.requestId = h->requestId;
+        a.valid = valid;
+        a.isHot = h->type == cigi::HatHotType::Hot;
+        a.hostFrameLsn = q.lsn;
+        a.heightM = a.isHot ? hot : hat;
+        return a;
+    }
+    // Line of sight: the terrain's hit, or the object's where that is nearer.
+    bool valid = q.known && terrain.known;
     double range = -1.0;
     std::uint16_t objectId = 0;  // the object met first; 0: the terrain
-    ig::Rgba8 objectColor{};
-    glm::dvec3 objectNormal{0.0, 0.0, 1.0};
     if (valid) {
-        const ig::TerrainRay ray(map_, source, dir);
-        range = ig::exactHitInRange(map_, ray, minRange, maxRange);
-        double nearest = range >= 0.0 ? range : maxRange;
-        if (objectOnLine(ray.origin, ray.dir, minRange, t, fromEntity, nearest, objectId,
-                         objectColor, objectNormal)) {
-            range = nearest;
+        range = terrain.range;
+        if (q.objectId != 0 && (range < 0.0 || q.objectRange < range)) {
+            range = q.objectRange;
+            objectId = q.objectId;
         }
         valid = range >= 0.0 && std::isfinite(range);
     }
-    if (!extended) {
+    if (!q.extended) {
         cigi::LosResponse a;
-        a.requestId = requestId;
+        a.requestId = q.requestId;
         a.valid = valid;
-        a.visible = segment && !valid;  // the destination is seen when nothing is in the way
-        a.hostFrameLsn = lsn;
+        // The destination is seen when nothing is in the way (and the terrain is known).
+        a.visible = q.segment && !valid && terrain.known;
+        a.hostFrameLsn = q.lsn;
         a.responseCount = 1;
         a.rangeM = valid ? range : 0.0;
         a.entityIdValid = objectId != 0;
@@ -943,16 +978,16 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         return a;
     }
     cigi::LosExtendedResponse a;
-    a.requestId = requestId;
+    a.requestId = q.requestId;
     a.valid = valid;
     a.rangeValid = valid;
-    a.visible = segment && !valid;
-    a.hostFrameLsn = lsn;
+    a.visible = q.segment && !valid && terrain.known;
+    a.hostFrameLsn = q.lsn;
     a.responseCount = 1;
     a.entityIdValid = objectId != 0;
     a.entityId = objectId;
     if (valid) {
-        const ig::TerrainRay ray(map_, source, dir);
+        const ig::TerrainRay ray(map_, q.question.origin, q.question.dir);
         const glm::dvec3 hit = ray.at(range);
         const glm::dvec3 geo = geo_.geodeticFromWorld(hit);
         a.rangeM = range;
@@ -961,25 +996,70 @@ cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, 
         a.altOrZ = geo.z;
         if (objectId != 0) {
             // The voxel's own colour and opacity, and its face's normal.
-            a.red = objectColor.r;
-            a.green = objectColor.g;
-            a.blue = objectColor.b;
-            a.alpha = objectColor.a;
-            a.normalAzimuthDeg = static_cast<float>(
-                std::fmod(std::atan2(objectNormal.x, objectNormal.y) / kDeg + 360.0, 360.0));
-            a.normalElevationDeg =
-                static_cast<float>(std::asin(std::clamp(objectNormal.z, -1.0, 1.0)) / kDeg);
+            a.red = q.objectColor.r;
+            a.green = q.objectColor.g;
+            a.blue = q.objectColor.b;
+            a.alpha = q.objectColor.a;
+            const glm::dvec3& n = q.objectNormal;
+            a.normalAzimuthDeg =
+                static_cast<float>(std::fmod(std::atan2(n.x, n.y) / kDeg + 360.0, 360.0));
+            a.normalElevationDeg = static_cast<float>(std::asin(std::clamp(n.z, -1.0, 1.0)) / kDeg);
         } else {
-            float rgb[3];
-            map_.surfaceColor(hit.x, hit.y, rgb);
+            const float* rgb = terrain.color;
             a.red = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[0], 0.0f, 255.0f)));
             a.green = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[1], 0.0f, 255.0f)));
             a.blue = static_cast<std::uint8_t>(std::lround(std::clamp(rgb[2], 0.0f, 255.0f)));
             a.alpha = 255;
-            normalAngles(map_, hit.x, hit.y, a.normalAzimuthDeg, a.normalElevationDeg);
+            normalAngles(terrain.slope, a.normalAzimuthDeg, a.normalElevationDeg);
         }
     }
     return a;
+}
+
+cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
+    const Query q = resolve(request, lsn, t);
+    return compose(q, q.known ? askTerrain(map_, q.question) : TerrainAnswer{});
+}
+
+bool CigiSession::defer(Query&& q) {
+    if (inFlight_.size() >= inFlight_.capacity()) return false;
+    q.question.ticket = nextTicket_;
+    q.askedFrame = igFrame_;
+    if (!options_.terrainQueries->ask(q.question)) return false;
+    ++nextTicket_;
+    inFlight_.push_back(std::move(q));
+    return true;
+}
+
+void CigiSession::sendReady() {
+    ready_.clear();
+    options_.terrainQueries->collect(
+        ready_, static_cast<std::size_t>(std::max(options_.maxAnswersPerField, 1)));
+    std::size_t next = 0;  // in inFlight_, in the order asked (answers come in that order)
+    for (const TerrainAnswer& a : ready_) {
+        while (next < inFlight_.size() && inFlight_[next].question.ticket < a.ticket)
+            ++next;  // dropped meanwhile (a reset cleared it): never here
+        if (next == inFlight_.size() || inFlight_[next].question.ticket != a.ticket) continue;
+        Query& q = inFlight_[next++];
+        stats_.maxAnswerFields =
+            std::max<std::uint64_t>(stats_.maxAnswerFields, igFrame_ - q.askedFrame);
+        if (!a.known) ++stats_.unknownTerrain;
+        if (q.sensor >= 0) {
+            // A sensor's check: clear when nothing is hit short of the target.
+            if (SensorState* sensor = findSensor(static_cast<std::uint8_t>(q.sensor))) {
+                sensor->clearAsked = false;
+                sensor->clearKnown = a.known;
+                sensor->clear = a.known && a.range < 0.0;
+            }
+            q.question.ticket = 0;
+            continue;
+        }
+        cigi::encodePacket(compose(q, a), cigi::ByteOrder::Big, out_);
+        ++stats_.answers;
+        ++stats_.deferredAnswers;
+        q.question.ticket = 0;  // done
+    }
+    std::erase_if(inFlight_, [](const Query& q) { return q.question.ticket == 0; });
 }
 
 bool CigiSession::objectOnLine(const glm::dvec3& origin, const glm::dvec3& dir, double tMin,
@@ -1102,22 +1182,48 @@ void CigiSession::poll(double t) {
         static_cast<std::uint64_t>(std::llround(std::min(ticks, 1e18))) & 0xffffffffu);
     sof.lastHostFrameNumber = stats_.lastHostFrame;
     cigi::encodePacket(sof, cigi::ByteOrder::Big, out_);
-    const std::size_t answered =
-        std::min(pending_.size(), static_cast<std::size_t>(options_.maxAnswersPerField));
-    for (std::size_t i = 0; i < answered; ++i) {
-        cigi::encodePacket(answer(pending_[i].request, pending_[i].hostFrameLsn, t),
-                           cigi::ByteOrder::Big, out_);
-    }
-    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(answered));
-    stats_.answers += answered;
+    const std::size_t perField = static_cast<std::size_t>(std::max(options_.maxAnswersPerField, 0));
     const std::uint8_t lastLsn = static_cast<std::uint8_t>(stats_.lastHostFrame & 15u);
-    for (const Repeating& r : repeating_) {
-        if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
-        cigi::encodePacket(answer(r.request, lastLsn, t), cigi::ByteOrder::Big, out_);
-        ++stats_.answers;
+    if (!options_.terrainQueries) {
+        const std::size_t answered = std::min(pending_.size(), perField);
+        for (std::size_t i = 0; i < answered; ++i) {
+            cigi::encodePacket(answer(pending_[i].request, pending_[i].hostFrameLsn, t),
+                               cigi::ByteOrder::Big, out_);
+        }
+        pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(answered));
+        stats_.answers += answered;
+        for (const Repeating& r : repeating_) {
+            if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
+            cigi::encodePacket(answer(r.request, lastLsn, t), cigi::ByteOrder::Big, out_);
+            ++stats_.answers;
+        }
+    } else {
+        // Over a paged map: the answers the terrain's thread has ready go out now; the new
+        // requests are worked out at this field's time and handed to it (those that need no
+        // terrain, being invalid, are answered at once).
+        sendReady();
+        const auto hand = [&](const cigi::Packet& request, std::uint8_t requestLsn) {
+            Query q = resolve(request, requestLsn, t);
+            if (!q.known) {
+                cigi::encodePacket(compose(q, TerrainAnswer{}), cigi::ByteOrder::Big, out_);
+                ++stats_.answers;
+                return true;
+            }
+            return defer(std::move(q));
+        };
+        std::size_t handed = 0;
+        while (handed < std::min(pending_.size(), perField) &&
+               hand(pending_[handed].request, pending_[handed].hostFrameLsn)) {
+            ++handed;
+        }
+        pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(handed));
+        for (const Repeating& r : repeating_) {
+            if ((igFrame_ - r.firstFrame) % r.period != 0) continue;
+            if (!hand(r.request, lastLsn)) ++stats_.droppedRequests;
+        }
     }
     // Each sensor that is on answers every field.
-    for (const SensorState& sensor : sensors_) {
+    for (SensorState& sensor : sensors_) {
         if (!sensor.on || igMode_ == cigi::IgMode::Reset) continue;
         cigi::encodePacket(sensorResponse(sensor, t), cigi::ByteOrder::Big, out_);
         ++stats_.sensorResponses;
@@ -1213,20 +1319,20 @@ bool worldPose(const std::vector<HostEntity>& entities, const DeadReckoning& own
 
 ig::Pose CigiSession::viewCarrier(double t) const {
     ig::Pose pose;
-    if (viewEntity_ != 0 && entityPoseAt(entities_, ownship_, viewEntity_, t, map_, pose))
+    if (viewEntity_ != 0 && entityPoseAt(entities_, ownship_, viewEntity_, t, ground_, pose))
         return pose;
     return ownship_.at(t);
 }
 
 bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
-                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out,
+                  std::uint16_t id, double t, const ig::Ground& ground, ig::Pose& out,
                   bool* drawn) {
     const HostEntity* e = entityById(entities, id);
     bool active = false;
     if (!e || !worldPose(entities, ownship, *e, t, out, active)) return false;
     if (drawn) *drawn = active;
-    if (e->onGround && onMap(map, out.position.x, out.position.y))
-        out.position.z = map.surfaceHeight(out.position.x, out.position.y);
+    if (e->onGround && ground.covers(out.position.x, out.position.y))
+        out.position.z = ground.groundHeight(out.position.x, out.position.y);
     return true;
 }
 
@@ -1274,6 +1380,9 @@ nlohmann::json toJson(const CigiStats& c) {
             {"entities_destroyed", c.entitiesDestroyed},
             {"rate_updates", c.rateUpdates},
             {"answers", c.answers},
+            {"deferred_answers", c.deferredAnswers},
+            {"max_answer_fields", c.maxAnswerFields},
+            {"unknown_terrain_answers", c.unknownTerrain},
             {"dropped_requests", c.droppedRequests},
             {"start_of_frame_sent", c.framesSent},
             {"send_errors", c.sendErrors},
@@ -1301,7 +1410,8 @@ CigiPoseSource::CigiPoseSource(const ig::TerrainMap& map, const CigiOptions& opt
 ig::Pose CigiPoseSource::clamped(ig::Pose pose, bool count) {
     // The renderer refuses a camera on or under the surface; a host that flies into the ground
     // (or sends a position off the database) gets the ownship held just above it.
-    const double floor = map_.surfaceHeight(pose.position.x, pose.position.y) + clearance_;
+    const double floor =
+        session_.ground().groundHeight(pose.position.x, pose.position.y) + clearance_;
     if (!(pose.position.z >= floor)) {
         pose.position.z = floor;
         if (count) ++session_.stats().clampedPoses;
@@ -1317,7 +1427,9 @@ ig::Pose CigiPoseSource::advanceTo(double t) {
     snapshot.ownship = session_.ownship();
     snapshot.entities = session_.entities();  // allocates only when the host adds entities
     entities_.publish();
-    return clamped(eyePose(session_.viewCarrier(t), session_.view()), true);
+    const ig::Pose eye = clamped(eyePose(session_.viewCarrier(t), session_.view()), true);
+    session_.ground().follow(eye.position.x, eye.position.y);
+    return eye;
 }
 
 bool CigiPoseSource::waitForHost(double seconds) {
@@ -1344,7 +1456,8 @@ ig::Pose CigiPoseSource::predict(double t) {
         entities_.fetch();
         const EntitySnapshot& e = entities_.front();
         ig::Pose pose;
-        if (entityPoseAt(e.entities, e.ownship, s.entity, t, map_, pose)) carrier = pose;
+        if (entityPoseAt(e.entities, e.ownship, s.entity, t, session_.ground(), pose))
+            carrier = pose;
     }
     return clamped(eyePose(carrier, s.view), false);
 }

@@ -11,6 +11,7 @@
 #include "sim/mailbox.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/scene_motion.hpp"
+#include "sim/terrain_queries.hpp"
 #include "sim/truth.hpp"
 
 #include <glm/vec3.hpp>
@@ -143,10 +144,10 @@ struct EntityPose {
 void entityPosesAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship, double t,
                    std::vector<EntityPose>& out);
 // The world pose at t of entity `id` (its parents composed, active or not; a ground-clamped
-// base on `map`'s terrain under it, as the renderer stands it); false when there is no such
+// base on the ground under it, as the renderer stands it); false when there is no such
 // entity or its chain is broken. `drawn`, when given: whether it and all its parents are active.
 bool entityPoseAt(const std::vector<HostEntity>& entities, const DeadReckoning& ownship,
-                  std::uint16_t id, double t, const ig::TerrainMap& map, ig::Pose& out,
+                  std::uint16_t id, double t, const ig::Ground& ground, ig::Pose& out,
                   bool* drawn = nullptr);
 
 // --- Sensors
@@ -160,6 +161,10 @@ struct SensorState {
     bool extended = false;
     bool hasTarget = false;
     std::uint16_t target = 0;
+    // Over a paged map (CigiOptions::terrainQueries): whether the terrain was clear between the
+    // eye and the target at the latest answer, whether there is one, and whether a question is
+    // out.
+    bool clear = false, clearKnown = false, clearAsked = false;
 };
 
 // Where an entity is in a view: the direction of its reference point from the view's axis
@@ -178,6 +183,9 @@ bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int 
              double hfov, double box[4]);
 SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
                     int width, int height, double hfov);
+// The same without the terrain (unoccluded left false).
+SensorSight sightInWindow(const ig::Pose& eye, const glm::dvec3& point, int width, int height,
+                          double hfov);
 
 // --- Session
 
@@ -212,6 +220,13 @@ struct CigiOptions {
     // The scene's objects (not owned; null: none): a line of sight meets them, and the host's
     // entities drawn as its models, as well as the terrain.
     const TruthScene* objects = nullptr;
+    // Over a database paged beyond memory (not owned; null: the map, whole): the ground the
+    // ownship and the host's ground-clamped entities stand on, and the thread that answers
+    // HAT/HOT requests, lines of sight and the sensors' terrain checks from the database's
+    // own samples. With the thread, each answer goes out with the Start of Frame of the field
+    // in which it is ready (a field or more after its request), in the order asked.
+    const ig::Ground* ground = nullptr;
+    PagedTerrainQueries* terrainQueries = nullptr;
 };
 
 // One silence of a host that had been heard: from its last good datagram to the next one (or
@@ -239,6 +254,9 @@ struct CigiStats {
     std::uint64_t ignoredPackets = 0;    // known but not acted on (other entities or views, Reset)
     std::uint64_t igControls = 0, entityUpdates = 0, rateUpdates = 0;
     std::uint64_t hatHotRequests = 0, losRequests = 0;
+    // Over a paged map: answers sent that waited for the terrain's thread, the most fields one
+    // waited, and those the thread could not answer (sent invalid).
+    std::uint64_t deferredAnswers = 0, maxAnswerFields = 0, unknownTerrain = 0;
     std::uint64_t answers = 0, droppedRequests = 0;
     std::uint64_t framesSent = 0, sendErrors = 0, receiveErrors = 0;
     std::uint64_t clampedPoses = 0;  // fields whose pose was lifted above the terrain
@@ -329,12 +347,15 @@ class CigiSession {
     // direction from the view's eye; Breaklock when the view does not see it (behind the eye,
     // outside the window, hidden by the terrain, inactive or destroyed), Searching when no
     // target is named. Public for tests.
-    io::cigi::Packet sensorResponse(const SensorState& sensor, double t);
+    io::cigi::Packet sensorResponse(SensorState& sensor, double t);
     io::cigi::IgMode igMode() const { return igMode_; }
     std::uint32_t igFrame() const { return igFrame_; }
     const CigiStats& stats() const { return stats_; }
     CigiStats& stats() { return stats_; }
     const GeoFrame& geo() const { return geo_; }
+    // What the ownship and the ground-clamped entities stand on (CigiOptions::ground, else the
+    // map).
+    const ig::Ground& ground() const { return ground_; }
 
     // The answer to one request at simulation time t, as sent (public for tests and tools).
     // Entity coordinates are offsets from the ownship (entity 0) in its own axes: x forward,
@@ -344,6 +365,32 @@ class CigiSession {
                             double t) const;
 
   private:
+    // One request worked out at its time on the field thread (its points, the objects on a
+    // line), and the question it asks of the terrain; compose() makes the answer of the two.
+    struct Query {
+        io::cigi::Packet request;
+        std::uint8_t lsn = 0;
+        bool known = false;  // its points could be worked out (entities active, on the map)
+        TerrainQuestion question;
+        glm::dvec3 point{0.0};  // HAT/HOT
+        // A line of sight: the object met first within its range, if any.
+        std::uint16_t requestId = 0;
+        bool extended = false, segment = false;
+        double objectRange = 0.0;
+        std::uint16_t objectId = 0;
+        ig::Rgba8 objectColor{};
+        glm::dvec3 objectNormal{0.0, 0.0, 1.0};
+        // Waiting for the terrain's thread: the field asked in; a sensor's check: its id.
+        std::uint32_t askedFrame = 0;
+        int sensor = -1;
+    };
+    Query resolve(const io::cigi::Packet& request, std::uint8_t lsn, double t) const;
+    io::cigi::Packet compose(const Query& q, const TerrainAnswer& a) const;
+    // Over a paged map: hands a query to the terrain's thread (false when it takes no more).
+    bool defer(Query&& q);
+    // Sends the answers the terrain's thread has ready.
+    void sendReady();
+
     struct Pending {
         io::cigi::Packet request;
         std::uint8_t hostFrameLsn = 0;
@@ -377,6 +424,10 @@ class CigiSession {
     std::vector<std::uint8_t> in_, out_;
     std::vector<Pending> pending_;
     std::vector<Repeating> repeating_;
+    const ig::Ground& ground_;          // options_.ground, else the map
+    std::vector<Query> inFlight_;       // with the terrain's thread, in the order asked
+    std::vector<TerrainAnswer> ready_;  // collected from it (scratch)
+    std::uint64_t nextTicket_ = 1;
     std::vector<HostEntity> entities_;
     std::vector<SensorState> sensors_;       // at most 256 (ids are 8 bits), reserved
     std::vector<EntityPose> sensorScratch_;  // entity poses for the sensors

@@ -27,6 +27,7 @@
 #include "sim/scenario.hpp"
 #include "sim/scene_motion.hpp"
 #include "sim/stereo_output.hpp"
+#include "sim/terrain_queries.hpp"
 #include "sim/trajectory.hpp"
 #include "sim/trajectory_poses.hpp"
 #include "sim/truth.hpp"
@@ -673,19 +674,21 @@ int main(int argc, char** argv) {
         std::unique_ptr<ig::PagedTerrain> pagedGround;
         // The flight model's ground over a paged map (a stick or the default scenario).
         std::unique_ptr<ig::PagedGround> fieldGround;
+        // A CIGI host's height and line-of-sight queries over a paged map (a thread of their
+        // own, sim/terrain_queries.hpp).
+        std::unique_ptr<sim::PagedTerrainQueries> terrainQueries;
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = cigi                 ? "--cigi (a host's height queries)"
-                                  : !scenePath.empty() ? "--scene"
-                                  : stereo             ? "--stereo"
+                const char* why = !scenePath.empty()                   ? "--scene"
+                                  : stereo                             ? "--stereo"
                                   : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                        : nullptr;
                 if (why) {
                     throw ig::InputError(
                         terrain.db + " is over --cache-mb and is paged: a flight " +
-                        "over it takes a --trajectory, a stick or the default scenario, " +
+                        "over it takes a --trajectory, a stick, --cigi or the default scenario, " +
                         "with --caster fast, naive or reference, not " + why +
                         " (or give a larger --cache-mb)");
                 }
@@ -759,9 +762,28 @@ int main(int argc, char** argv) {
         const RecordingStick* loggedStick = nullptr;
         if (cigi) {
             const sim::Scenario scenario = sim::defaultScenario();
+            if (pagedGround) pagedGround->placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
             sim::FlightState start =
                 shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
-            if (!startText.empty()) start = parseStart(startText, map, scenario.limits);
+            if (!startText.empty()) {
+                start = parseStart(startText, map, scenario.limits, pagedGround.get());
+            }
+            if (pagedGround) {
+                // The ownship and the host's entities stand on a ground that follows the view;
+                // HAT/HOT and lines of sight are answered on a thread of their own.
+                ig::PagedGround::Options go;
+                go.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                fieldGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
+                fieldGround->waitAround(start.position.x, start.position.y);
+                sim::PagedTerrainQueries::Options qo;
+                qo.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 64.0) * 1048576.0);
+                qo.maxOutstanding = cigiOptions.maxPendingRequests + 256;
+                terrainQueries = std::make_unique<sim::PagedTerrainQueries>(*pagedDb, qo);
+                cigiOptions.ground = fieldGround.get();
+                cigiOptions.terrainQueries = terrainQueries.get();
+            }
             cigiOptions.startPose.position = start.position;
             cigiOptions.startPose.yaw = start.heading;
             cigiOptions.startTime = 0.0;
@@ -1151,6 +1173,13 @@ int main(int argc, char** argv) {
                              static_cast<unsigned long long>(g.exact),
                              static_cast<unsigned long long>(g.bounded + g.outside));
             }
+            if (terrainQueries) {
+                const sim::PagedTerrainQueries::Stats q = terrainQueries->stats();
+                pagingJson["host_queries"] = {
+                    {"asked", q.asked},          {"answered", q.answered},
+                    {"unknown", q.unknown},      {"refused", q.refused},
+                    {"tiles_read", q.tilesRead}, {"max_answer_ms", q.maxAnswerMs}};
+            }
         }
         if (cigiSource) {
             const sim::CigiStats& c = cigiSource->session().stats();
@@ -1172,6 +1201,21 @@ int main(int argc, char** argv) {
                              "took their maximum, longest poll %.2f ms\n",
                              static_cast<unsigned long long>(c.droppedByKernel),
                              static_cast<unsigned long long>(c.cappedPolls), c.maxPollMs);
+            }
+            if (terrainQueries) {
+                const sim::PagedTerrainQueries::Stats q = terrainQueries->stats();
+                std::fprintf(stderr,
+                             "cigi: over the paged map, %llu answers waited for their tiles "
+                             "(at most %llu fields, %.1f ms), %llu with a tile unreadable; "
+                             "%llu tiles read; the ownship's ground: %llu answers from its "
+                             "tiles, %llu bounds\n",
+                             static_cast<unsigned long long>(c.deferredAnswers),
+                             static_cast<unsigned long long>(c.maxAnswerFields), q.maxAnswerMs,
+                             static_cast<unsigned long long>(c.unknownTerrain),
+                             static_cast<unsigned long long>(q.tilesRead),
+                             static_cast<unsigned long long>(fieldGround->stats().exact),
+                             static_cast<unsigned long long>(fieldGround->stats().bounded +
+                                                             fieldGround->stats().outside));
             }
             for (const sim::HostOutage& o : c.outages) {
                 std::fprintf(stderr,

@@ -11,6 +11,10 @@
 //                      field that applied it): to the kernel's arrival stamp of that Start of
 //                      Frame (SO_TIMESTAMPNS, CLOCK_REALTIME, so the host's own wake-ups do not
 //                      count), and to when this program read it (CLOCK_MONOTONIC)
+//   --queries N        each host frame N HAT/HOT (extended) requests at geodetic points within
+//                      2 km of the start and one extended line of sight from the ownship, 45
+//                      degrees down ahead; the answers are counted, and their heights and how
+//                      many host frames each took written to --json
 //   --json FILE        what was sent and the measured delays
 // Exit status 2 on bad arguments or when no image generator announces itself within 30 s.
 #include "io/cigi.hpp"
@@ -19,6 +23,7 @@
 #include "sim/cigi_session.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -26,6 +31,7 @@
 #include <cstring>
 #include <ctime>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -71,7 +77,7 @@ int main(int argc, char** argv) {
     int igs = 1;
     double seconds = 3.0, rate = 60.0, flood = 0.0, viewsFov = 0.0;
     double silentFrom = -1.0, silentFor = 0.0;
-    int steps = 0;
+    int steps = 0, queries = 0;
     sim::GeoOrigin origin{47.0, -122.0, 0.0};
     double x0 = 500.0, y0 = 500.0, z0 = 1500.0, heading = 45.0, pitch = -10.0, speed = 60.0;
     for (int i = 1; i < argc; ++i) {
@@ -100,6 +106,8 @@ int main(int argc, char** argv) {
             silentFor = number("--silent-for", value());
         } else if (a == "--steps") {
             steps = static_cast<int>(number("--steps", value()));
+        } else if (a == "--queries") {
+            queries = static_cast<int>(number("--queries", value()));
         } else if (a == "--origin") {
             origin = sim::parseGeoOrigin(value(), "--origin");
         } else if (a == "--start") {
@@ -120,6 +128,7 @@ int main(int argc, char** argv) {
     if (!(flood >= 0.0 && flood <= 1e6)) usage("--flood: 0 .. 1e6 a second");
     if (!(heading >= 0.0 && heading < 360.0)) usage("--heading: 0 <= DEG < 360");
     if (steps < 0 || steps > 1000000) usage("--steps: a count of host frames");
+    if (queries < 0 || queries > 32) usage("--queries: 0..32 a host frame");
 
     io::UdpSocket socket;
     if (socket.open({0x7f000001, 0}, 1 << 20) != 0) usage("cannot bind a loopback UDP port");
@@ -156,6 +165,47 @@ int main(int argc, char** argv) {
     std::uint32_t hostFrame = 0;
     std::uint64_t sent = 0, floodSent = 0, sendErrors = 0, sofs = 0;
     std::vector<std::uint8_t> out;
+    // Queries: request id -> (host frame sent, world point of a HAT/HOT; NaN for a line).
+    struct Asked {
+        std::uint32_t frame;
+        double x, y;
+    };
+    std::map<std::uint16_t, Asked> asked;
+    std::uint16_t nextId = 0;
+    std::uint64_t queriesSent = 0, hatAnswers = 0, losAnswers = 0, validAnswers = 0;
+    std::uint32_t maxQueryFrames = 0;
+    std::vector<std::array<double, 3>> hotSamples;  // x, y, HOT (metres above the origin)
+    const auto addQueries = [&](std::vector<cigi::Packet>& packets, std::uint32_t frame) {
+        for (int q = 0; q < queries; ++q) {
+            // A fixed walk over the square within 2 km of the start.
+            const double u = std::fmod(0.6180339887 * (queriesSent + 1), 1.0);
+            const double v = std::fmod(0.7548776662 * (queriesSent + 1), 1.0);
+            const double x = x0 - 2000.0 + 4000.0 * u, y = y0 - 2000.0 + 4000.0 * v;
+            const glm::dvec3 g = geo.geodeticFromWorld({x, y, z0});
+            cigi::HatHotRequest r;
+            r.requestId = nextId++;
+            r.type = cigi::HatHotType::Extended;
+            r.latOrX = g.x;
+            r.lonOrY = g.y;
+            r.altOrZ = g.z;
+            packets.push_back(r);
+            asked[r.requestId] = {frame, x, y};
+            ++queriesSent;
+        }
+        if (queries > 0) {
+            cigi::LosVectorRequest l;
+            l.requestId = nextId++;
+            l.extended = true;
+            l.sourceEntityCoordinates = true;
+            l.entityId = 0;
+            l.azimuthDeg = static_cast<float>(heading);
+            l.elevationDeg = -45.0f;
+            l.maxRangeM = 20000.0f;
+            packets.push_back(l);
+            asked[l.requestId] = {frame, std::nan(""), std::nan("")};
+            ++queriesSent;
+        }
+    };
     const auto encode = [&](double t, std::uint32_t frame, bool stepped) {
         cigi::IgControl ig;
         ig.hostFrameNumber = frame;
@@ -174,6 +224,7 @@ int main(int argc, char** argv) {
         r.yRate = static_cast<float>(vx);
         r.zRate = static_cast<float>(-vz);
         std::vector<cigi::Packet> packets{ig, e, r};
+        addQueries(packets, frame);
         if (viewsFov > 0.0) {
             for (int v = 0; v < static_cast<int>(targets.size()); ++v) {
                 cigi::ViewControl vc;
@@ -257,6 +308,31 @@ int main(int argc, char** argv) {
                 continue;
             }
             ++sofs;
+            for (const cigi::Packet& p : message.packets) {
+                std::uint16_t id = 0;
+                bool valid = false, answer = false;
+                double hot = std::nan("");
+                if (const auto* h = std::get_if<cigi::HatHotExtendedResponse>(&p)) {
+                    id = h->requestId;
+                    valid = h->valid;
+                    hot = h->hotM;
+                    answer = true;
+                    ++hatAnswers;
+                } else if (const auto* l = std::get_if<cigi::LosExtendedResponse>(&p)) {
+                    id = l->requestId;
+                    valid = l->valid;
+                    answer = true;
+                    ++losAnswers;
+                }
+                if (!answer) continue;
+                validAnswers += valid;
+                const auto it = asked.find(id);
+                if (it == asked.end()) continue;
+                maxQueryFrames = std::max(maxQueryFrames, hostFrame - it->second.frame);
+                if (valid && !std::isnan(it->second.x) && hotSamples.size() < 400)
+                    hotSamples.push_back({it->second.x, it->second.y, hot});
+                asked.erase(it);
+            }
             const auto& sof = std::get<cigi::StartOfFrame>(message.packets[0]);
             for (Step& s : stepsSent) {
                 if (s.readMs < 0.0 && sof.lastHostFrameNumber >= s.frame) {
@@ -298,6 +374,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "\n");
     if (!jsonPath.empty()) {
         std::ofstream j(jsonPath);
+        j.precision(12);
         j << "{\"image_generators\": " << igs << ", \"host_frames\": " << hostFrame
           << ", \"rate_hz\": " << rate << ", \"messages\": " << sent
           << ", \"flood_messages\": " << floodSent << ", \"flood_per_second\": " << flood
@@ -312,7 +389,15 @@ int main(int argc, char** argv) {
           << ", \"max\": " << percentile(reads, 1.0) << "}, \"samples_ms\": [";
         for (std::size_t i = 0; i < delays.size(); ++i)
             j << (i ? ", " : "") << delays[i];
-        j << "]}\n";
+        j << "], \"queries\": {\"sent\": " << queriesSent << ", \"hat_hot_answers\": " << hatAnswers
+          << ", \"los_answers\": " << losAnswers << ", \"valid\": " << validAnswers
+          << ", \"unanswered\": " << asked.size() << ", \"max_host_frames\": " << maxQueryFrames
+          << ", \"hot_samples\": [";
+        for (std::size_t i = 0; i < hotSamples.size(); ++i) {
+            j << (i ? ", " : "") << "[" << hotSamples[i][0] << ", " << hotSamples[i][1] << ", "
+              << hotSamples[i][2] << "]";
+        }
+        j << "]}}\n";
         if (!j) usage("cannot write " + jsonPath);
     }
     return 0;

@@ -70,6 +70,45 @@ assert lowest < 100.0, lowest  # the flight came down near its floor
 assert n == 120, n
 PY
     fail "default scenario: $msg"
+# A CIGI host over the paged map: its HAT/HOT requests and lines of sight are answered on a
+# thread of their own from the database's samples (sim/terrain_queries.hpp), a field or more
+# later, while the fields go on; the heights equal the database's surface (read here from its
+# level-0 tiles).
+rm -f "$tmp/port" "$tmp/host.json" "$tmp/cigi.json"
+"$bin/cigi-host" --port-file "$tmp/port" --seconds 4 --queries 4 --origin 47,-122,0 \
+    --start 2000,2000,1900 --speed 100 --pitch 0 --json "$tmp/host.json" 2>"$tmp/host.err" &
+hpid=$!
+for i in $(seq 1 300); do [ -s "$tmp/port" ] && break; sleep 0.1; done
+[ -s "$tmp/port" ] || fail "cigi-host wrote no port"
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --cigi 127.0.0.1:0 \
+    --cigi-host "127.0.0.1:$(cat "$tmp/port")" --cigi-origin 47,-122 --cigi-wait 10 \
+    --duration 3 --size 160x120 --margin 8 --render-threads 1 --out null --contact none \
+    --json "$tmp/cigi.json" 2>&1) || fail "cigi over a paged map: $msg"
+wait "$hpid" || fail "cigi-host: $(cat "$tmp/host.err")"
+grep -q "cigi: over the paged map" <<<"$msg" || fail "cigi: no queries line: $msg"
+python3 - "$tmp/cigi.json" "$tmp/host.json" "$tmp/s.db" "$root/scripts" <<'PY' ||
+import json, sys
+sys.path.insert(0, sys.argv[4])
+from terrain_db_samples import LevelZero
+j = json.load(open(sys.argv[1]))
+h = json.load(open(sys.argv[2]))["queries"]
+c = j["cigi"]
+q = j["paging"]["host_queries"]
+assert j["fields"] == 180 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+# Every answer waited for the thread, none unknown; tiles were read for them.
+assert c["deferred_answers"] == c["answers"] and c["answers"] >= 300, c
+assert c["unknown_terrain_answers"] == 0 and q["unknown"] == 0 and q["refused"] == 0, (c, q)
+assert q["tiles_read"] > 0, q
+# What the host received: HAT/HOT and lines of sight, every one valid, within a few frames.
+assert h["hat_hot_answers"] >= 240 and h["los_answers"] >= 60, h
+assert h["valid"] == h["hat_hot_answers"] + h["los_answers"], h
+assert h["max_host_frames"] <= 12, h
+surface = LevelZero(sys.argv[3]).surface
+worst = max(abs(hot - surface(x, y)) for x, y, hot in h["hot_samples"])
+assert len(h["hot_samples"]) >= 200 and worst < 1e-3, (len(h["hot_samples"]), worst)
+print("worst HOT error %.3g m over %d answers" % (worst, len(h["hot_samples"])))
+PY
+    fail "cigi over a paged map: $msg"
 msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
     --caster span --out null --contact none 2>&1)
 [ $? -eq 2 ] || fail "span: not refused"
