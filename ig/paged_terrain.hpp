@@ -177,4 +177,21 @@ class PagedTerrain {
     std::uint64_t frame_ = 0;
 };
 
+// The ground of a paged map for what is worked out before a run, off the field thread (a scene's
+// placements): each height read first places, waiting, the level-0 tile under its point, so it
+// is the whole map's surfaceHeight there. `paged` must outlive this; one thread at a time.
+class PlacingGround final : public Ground {
+  public:
+    explicit PlacingGround(PagedTerrain& paged) : paged_(paged) {}
+    double groundHeight(double x, double y) const override {
+        paged_.placeAround(x, y);
+        return paged_.map().groundHeight(x, y);
+    }
+    double extentX() const override { return paged_.map().extentX(); }
+    double extentY() const override { return paged_.map().extentY(); }
+
+  private:
+    PagedTerrain& paged_;
+};
+
 }  // namespace ig

@@ -102,10 +102,10 @@ std::uint16_t objectId(const Ctx& ctx, double v, const std::string& entry, std::
 }
 
 // Gradient magnitude of the bilinear surface at (x, y), metres per metre.
-double slopeAt(const TerrainMap& map, double x, double y) {
+double slopeAt(const TerrainMap& map, const Ground& ground, double x, double y) {
     const double hx = 0.5 * map.spacingX(), hy = 0.5 * map.spacingY();
-    const double gx = (map.surfaceHeight(x + hx, y) - map.surfaceHeight(x - hx, y)) / (2 * hx);
-    const double gy = (map.surfaceHeight(x, y + hy) - map.surfaceHeight(x, y - hy)) / (2 * hy);
+    const double gx = (ground.groundHeight(x + hx, y) - ground.groundHeight(x - hx, y)) / (2 * hx);
+    const double gy = (ground.groundHeight(x, y + hy) - ground.groundHeight(x, y - hy)) / (2 * hy);
     return std::hypot(gx, gy);
 }
 
@@ -176,16 +176,17 @@ int Scene::modelIndex(std::string_view name) const {
     return -1;
 }
 
-ObjectLayer Scene::stampMoving(std::span<const Placement> where) const {
+ObjectLayer Scene::stampMoving(std::span<const Placement> where, const Ground* ground) const {
     CHECK_EQ(where.size(), moving.size());
     const TerrainMap& map = staticLayer->map();
+    const Ground& under = ground ? *ground : map;
     ObjectLayer layer(map, cellSize);
     for (std::size_t i = 0; i < moving.size(); ++i) {
         Placement p = where[i];
         if (!(p.x >= 0.0 && p.y >= 0.0 && p.x <= map.extentX() && p.y <= map.extentY())) continue;
         p.id = moving[i].id;
         p.scale = moving[i].scale;
-        p.z = moving[i].z ? *moving[i].z : map.surfaceHeight(p.x, p.y);
+        p.z = moving[i].z ? *moving[i].z : under.groundHeight(p.x, p.y);
         layer.place(*models[static_cast<std::size_t>(moving[i].model)], p);
     }
     layer.finish();
@@ -193,8 +194,9 @@ ObjectLayer Scene::stampMoving(std::span<const Placement> where) const {
 }
 
 Scene parseScene(std::string_view content, const std::string& path, const TerrainMap& map,
-                 bool shareSticks, double maxCellVisits) {
+                 bool shareSticks, double maxCellVisits, const Ground* ground) {
     const Ctx ctx{path};
+    const Ground& under = ground ? *ground : map;
     Json j;
     try {
         j = Json::parse(content);
@@ -278,7 +280,7 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
             p.x = number(ctx, o, entry, "x");
             p.y = number(ctx, o, entry, "y");
             checkOnMap(ctx, map, entry, p.x, p.y);
-            p.z = o.contains("z") ? height(ctx, o, entry) : map.surfaceHeight(p.x, p.y);
+            p.z = o.contains("z") ? height(ctx, o, entry) : under.groundHeight(p.x, p.y);
             p.heading = number(ctx, o, entry, "heading", 0.0) * std::numbers::pi / 180.0;
             p.scale = scale;
             charge(model, scale, entry);
@@ -351,11 +353,11 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
                 p.x = ux(rng);
                 p.y = uy(rng);
                 p.heading = uh(rng);
-                if (slopeAt(map, p.x, p.y) > tanMax) continue;
-                if (map.surfaceHeight(p.x, p.y) < minGround) continue;
+                if (slopeAt(map, under, p.x, p.y) > tanMax) continue;
+                if (under.groundHeight(p.x, p.y) < minGround) continue;
                 if (nextId > 65535) ctx.fail(entry, "ids run past 65535");
                 p.id = objectId(ctx, nextId++, entry + " (scattered id)", used);
-                p.z = map.surfaceHeight(p.x, p.y);
+                p.z = under.groundHeight(p.x, p.y);
                 p.scale = scale;
                 charge(model, scale, entry);
                 scene.staticLayer->place(*scene.models[static_cast<std::size_t>(model)], p);
@@ -367,14 +369,15 @@ Scene parseScene(std::string_view content, const std::string& path, const Terrai
     return scene;
 }
 
-Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks) {
+Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks,
+                const Ground* ground) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path + ": cannot open the scene file");
     std::ostringstream ss;
     ss << in.rdbuf();
     const std::string content = ss.str();
     if (content.size() > (std::size_t{64} << 20)) throw InputError(path + ": larger than 64 MiB");
-    return parseScene(content, path, map, shareSticks);
+    return parseScene(content, path, map, shareSticks, kMaxSceneCellVisits, ground);
 }
 
 }  // namespace ig

@@ -39,8 +39,8 @@ class Scene {
     int modelIndex(std::string_view name) const;  // -1 when none
     // A layer on the static layer's grid holding the moving objects at the given base positions
     // and headings (one per entry of `moving`, in order; CHECKed), each on the ground unless its
-    // z is set.
-    ObjectLayer stampMoving(std::span<const Placement> where) const;
+    // z is set: `ground`'s, or the static layer's map's (null).
+    ObjectLayer stampMoving(std::span<const Placement> where, const Ground* ground = nullptr) const;
 };
 
 // Loads a scene over `map`. Every problem is an InputError naming the file and the entry
@@ -52,8 +52,13 @@ class Scene {
 // 4 cm cells would otherwise run for hours.
 inline constexpr double kMaxSceneCellVisits = 1 << 28;
 // `shareSticks` false stores every cell's stick list anew (for measuring what sharing saves).
-Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks = true);
+// `ground`, when given, is where placements stand and whose slopes a scatter rule reads (a map
+// paged from a database: a ground that reads the tiles it is asked about); `map` gives the
+// grid in any case.
+Scene loadScene(const std::string& path, const TerrainMap& map, bool shareSticks = true,
+                const Ground* ground = nullptr);
 Scene parseScene(std::string_view text, const std::string& path, const TerrainMap& map,
-                 bool shareSticks = true, double maxCellVisits = kMaxSceneCellVisits);
+                 bool shareSticks = true, double maxCellVisits = kMaxSceneCellVisits,
+                 const Ground* ground = nullptr);
 
 }  // namespace ig

@@ -2,6 +2,7 @@
 
 #include "base/check.hpp"
 #include "ig/error.hpp"
+#include "ig/paged_ground.hpp"
 #include "ig/shading.hpp"
 
 #include <pthread.h>
@@ -160,7 +161,8 @@ FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderG
 
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
-                                const ig::RenderOptions& options, std::shared_ptr<PagingLog> log) {
+                                const ig::RenderOptions& options, std::shared_ptr<PagingLog> log,
+                                PagedScene objects) {
     ig::PagedTerrain::Options po = paging;
     po.pyramid = kind == ig::CasterKind::Fast;
     po.levels = options.levels;
@@ -170,24 +172,40 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         pid_t pid = -1;
         std::unique_ptr<ig::PagedTerrain> paged;
         std::shared_ptr<const ig::Caster> caster;
+        // With a scene: the moving layer (replaced before each render; the caster holds its
+        // address), the ground the moving objects stand on, the extra objects' scratch.
+        std::shared_ptr<ig::ObjectLayer> moving;
+        std::unique_ptr<ig::PagedGround> ground;
+        std::vector<ExtraObject> extra;
         bool have = false;
         ig::Pose pose;
         double time = 0.0;
     };
     auto state = std::make_shared<State>();
     const ig::SkyModel sky = options.sky;
-    return [&db, po, kind, options, state, geometry, sky, log](const ig::Pose& pose, double time,
-                                                               std::uint64_t sequence) {
+    return [&db, po, kind, options, state, geometry, sky, log, objects](
+               const ig::Pose& pose, double time, std::uint64_t sequence) {
         State& s = *state;
         if (s.pid != ::getpid()) {
-            // A forked copy's paged map has no loader threads: left alone (never destroyed,
-            // which would join them), and this process makes its own.
+            // A forked copy's paged map and ground have no threads: left alone (never
+            // destroyed, which would join them), and this process makes its own.
             s.caster.reset();
             (void)s.paged.release();
+            (void)s.ground.release();
             s.paged = std::make_unique<ig::PagedTerrain>(db, po);
             ig::RenderOptions o = options;
             o.pyramid = s.paged->pyramid();
             o.slopes = s.paged->slopes();
+            if (objects.scene) {
+                ig::PagedGround::Options go;
+                go.budgetBytes = std::min(po.cache.budgetBytes / 8 + 1, go.budgetBytes);
+                s.ground = std::make_unique<ig::PagedGround>(db, go);
+                s.ground->follow(pose.position.x, pose.position.y);
+                s.ground->waitAround(pose.position.x, pose.position.y);
+                s.moving = std::make_shared<ig::ObjectLayer>(
+                    objects.motion->stamp(objects.motion->startTime(), s.ground.get()));
+                o.objects = {objects.scene->staticLayer.get(), s.moving.get()};
+            }
             s.caster = ig::makeCaster(kind, s.paged->map(), o);
             s.pid = ::getpid();
             s.have = false;
@@ -224,6 +242,11 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                                    st.nodesMissing, pageMs, cs.tilesRead,
                                                    cs.bytesRead});
             log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
+        }
+        if (objects.scene) {
+            s.ground->follow(pose.position.x, pose.position.y);
+            if (objects.extra) objects.extra(time, s.extra);
+            *s.moving = objects.motion->stamp(time, s.extra, s.ground.get());
         }
         ig::RenderedFrame frame =
             ig::renderFrame(*s.caster, s.paged->map(), level, intr, time, sequence, g.nearM);

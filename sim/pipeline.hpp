@@ -99,6 +99,20 @@ struct PagingLog {
     std::vector<std::string> failures;  // each unreadable tile, once
 };
 
+// More objects asked for at each frame's instant, on the renderer's thread (a CIGI host's
+// entities).
+using ExtraObjects = std::function<void(double t, std::vector<ExtraObject>& out)>;
+
+// A scene for a paged renderer (makePagedRenderer): the static layer as loaded (its placements
+// stood on the database's ground at load), the moving objects and `extra`'s stamped at each
+// frame's instant on a ground of the renderer process's own (ig::PagedGround, following the
+// frame's eye: exact where its tiles are resident, on or above the surface elsewhere).
+struct PagedScene {
+    const ig::Scene* scene = nullptr;
+    const SceneMotion* motion = nullptr;
+    ExtraObjects extra;
+};
+
 // A caster over a terrain database paged by the view (ig/paged_terrain.hpp): before each frame,
 // on the renderer's thread, the tiles of that frame's footprint are placed and those along the
 // motion (from the poses of the frames so far) prefetched. The first frame waits for its tiles;
@@ -111,7 +125,7 @@ struct PagingLog {
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options,
-                                std::shared_ptr<PagingLog> log = nullptr);
+                                std::shared_ptr<PagingLog> log = nullptr, PagedScene objects = {});
 
 // A caster over `map` drawing `scene`'s objects: the static layer as loaded, and the moving
 // objects stamped at each frame's instant into a layer of their own, which is all that changes
@@ -119,7 +133,6 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
 // and motion must outlive the renderer; the caster must draw objects (reference or naive).
 // `extra`, when given, is asked on the renderer's thread for more objects at each frame's
 // instant (a CIGI host's entities) and stamped into the same layer.
-using ExtraObjects = std::function<void(double t, std::vector<ExtraObject>& out)>;
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
                                 const ig::Scene& scene, const SceneMotion& motion,

@@ -44,16 +44,18 @@ void SceneMotion::placementsAt(double t, std::vector<ig::Placement>& out) const 
     }
 }
 
-ig::ObjectLayer SceneMotion::stamp(double t) const {
+ig::ObjectLayer SceneMotion::stamp(double t, const ig::Ground* ground) const {
     const std::vector<ig::Placement> where = placementsAt(t);
-    return scene_->stampMoving(where);
+    return scene_->stampMoving(where, ground);
 }
 
-ig::ObjectLayer SceneMotion::stamp(double t, std::span<const ExtraObject> extra) const {
-    if (extra.empty()) return stamp(t);
+ig::ObjectLayer SceneMotion::stamp(double t, std::span<const ExtraObject> extra,
+                                   const ig::Ground* ground) const {
+    if (extra.empty()) return stamp(t, ground);
     // The scene's moving objects as stampMoving places them, then the extra ones.
     const std::vector<ig::Placement> where = placementsAt(t);
     const ig::TerrainMap& map = scene_->staticLayer->map();
+    const ig::Ground& under = ground ? *ground : map;
     ig::ObjectLayer layer(map, scene_->cellSize);
     const auto onMap = [&](const ig::Placement& p) {
         return p.x >= 0.0 && p.y >= 0.0 && p.x <= map.extentX() && p.y <= map.extentY();
@@ -62,7 +64,7 @@ ig::ObjectLayer SceneMotion::stamp(double t, std::span<const ExtraObject> extra)
         const ig::MovingObject& m = scene_->moving[i];
         ig::Placement p = where[i];
         if (!onMap(p)) continue;
-        p.z = m.z ? *m.z : map.surfaceHeight(p.x, p.y);
+        p.z = m.z ? *m.z : under.groundHeight(p.x, p.y);
         layer.place(*scene_->models[static_cast<std::size_t>(m.model)], p);
     }
     for (const ExtraObject& o : extra) {
@@ -71,7 +73,7 @@ ig::ObjectLayer SceneMotion::stamp(double t, std::span<const ExtraObject> extra)
             static_cast<std::size_t>(o.model) >= scene_->models.size()) {
             continue;
         }
-        if (o.onGround) p.z = map.surfaceHeight(p.x, p.y);
+        if (o.onGround) p.z = under.groundHeight(p.x, p.y);
         layer.place(*scene_->models[static_cast<std::size_t>(o.model)], p);
     }
     layer.finish();

@@ -32,11 +32,13 @@ class SceneMotion {
     std::vector<ig::Placement> placementsAt(double t) const;
     // The same into `out` (cleared first; it allocates only when it grows).
     void placementsAt(double t, std::vector<ig::Placement>& out) const;
-    // The moving objects at time t, on the static layer's object grid; an object whose
-    // trajectory takes it off the map is left out.
-    ig::ObjectLayer stamp(double t) const;
+    // The moving objects at time t, on the static layer's object grid, standing on `ground`
+    // (null: the static layer's map); an object whose trajectory takes it off the map is left
+    // out.
+    ig::ObjectLayer stamp(double t, const ig::Ground* ground = nullptr) const;
     // The same with `extra` objects beside them; one whose base is off the map is left out.
-    ig::ObjectLayer stamp(double t, std::span<const ExtraObject> extra) const;
+    ig::ObjectLayer stamp(double t, std::span<const ExtraObject> extra,
+                          const ig::Ground* ground = nullptr) const;
 
   private:
     const ig::Scene* scene_;

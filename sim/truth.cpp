@@ -93,8 +93,8 @@ TruthObject filledBox(const ig::ObjectModel& model);
 
 }  // namespace
 
-TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map)
-    : scene_(&scene), motion_(&motion), map_(&map) {
+TruthScene::TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::Ground& ground)
+    : scene_(&scene), motion_(&motion), ground_(&ground) {
     for (const auto& model : scene.models) {
         models_.push_back(filledBox(*model));
         const ig::VoxModel& g = model->grid;
@@ -181,10 +181,7 @@ TruthObject TruthScene::placedModel(int model, std::uint16_t id, double x, doubl
 TruthObject TruthScene::placedExtra(const ExtraObject& e) const {
     const ig::Placement& p = e.placement;
     double z = p.z;
-    if (e.onGround && p.x >= 0.0 && p.y >= 0.0 && p.x <= map_->extentX() &&
-        p.y <= map_->extentY()) {
-        z = map_->surfaceHeight(p.x, p.y);
-    }
+    if (e.onGround && ground_->covers(p.x, p.y)) z = ground_->groundHeight(p.x, p.y);
     return placedModel(e.model, p.id, p.x, p.y, z, p.heading, p.scale);
 }
 
@@ -201,10 +198,8 @@ void TruthScene::movingAt(double t, std::vector<TruthObject>& out,
         const ig::MovingObject& m = scene_->moving[i];
         const ig::Placement& p = where[i];
         // Off the map: not drawn (SceneMotion::stamp leaves it out), so not in the truth.
-        if (!(p.x >= 0.0 && p.y >= 0.0 && p.x <= map_->extentX() && p.y <= map_->extentY())) {
-            continue;
-        }
-        const double z = m.z ? *m.z : map_->surfaceHeight(p.x, p.y);
+        if (!ground_->covers(p.x, p.y)) continue;
+        const double z = m.z ? *m.z : ground_->groundHeight(p.x, p.y);
         out.push_back(placed(*scene_->models[static_cast<std::size_t>(m.model)], m.id, p.x, p.y, z,
                              p.heading, m.scale, true));
     }

@@ -37,10 +37,11 @@ struct TruthObject {
 };
 
 // The world's objects for the truth: the scene's static placements, and its moving objects
-// placed at any instant (the scene, the motion and the map must outlive this).
+// placed at any instant, standing on `ground` (the scene, the motion and the ground must outlive
+// this).
 class TruthScene {
   public:
-    TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::TerrainMap& map);
+    TruthScene(const ig::Scene& scene, const SceneMotion& motion, const ig::Ground& ground);
     // Every object at time t (static first, in placement order), into `out` (reused).
     void objectsAt(double t, std::vector<TruthObject>& out) const;
     // The same in two parts: the static objects (never copied), and the moving ones at t.
@@ -61,7 +62,7 @@ class TruthScene {
                        double heading, double scale, bool moving) const;
     const ig::Scene* scene_;
     const SceneMotion* motion_;
-    const ig::TerrainMap* map_;
+    const ig::Ground* ground_;
     std::vector<TruthObject> static_;
     std::vector<TruthObject> models_;  // per model of the scene: its filled voxels' box
     std::vector<std::vector<std::uint8_t>> solid_;  // per model: TruthObject::solid

@@ -677,11 +677,14 @@ int main(int argc, char** argv) {
         // A CIGI host's height and line-of-sight queries over a paged map (a thread of their
         // own, sim/terrain_queries.hpp).
         std::unique_ptr<sim::PagedTerrainQueries> terrainQueries;
+        // The ground the processor's re-stamped moving objects stand on over a paged map (it
+        // follows the objects asked about).
+        std::unique_ptr<ig::PagedGround> sceneGround;
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = !scenePath.empty()                   ? "--scene"
+                const char* why = !truthPath.empty()                   ? "--truth"
                                   : stereo                             ? "--stereo"
                                   : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                        : nullptr;
@@ -689,6 +692,7 @@ int main(int argc, char** argv) {
                     throw ig::InputError(
                         terrain.db + " is over --cache-mb and is paged: a flight " +
                         "over it takes a --trajectory, a stick, --cigi or the default scenario, " +
+                        "with or without a --scene, " +
                         "with --caster fast, naive or reference, not " + why +
                         " (or give a larger --cache-mb)");
                 }
@@ -747,7 +751,11 @@ int main(int argc, char** argv) {
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;
         if (!scenePath.empty()) {
-            scene.emplace(ig::loadScene(scenePath, map));
+            // Over a paged map the placements stand on the database's ground, read tile by
+            // tile as the scene asks (before the run).
+            std::optional<ig::PlacingGround> placing;
+            if (pagedGround) placing.emplace(*pagedGround);
+            scene.emplace(ig::loadScene(scenePath, map, true, placing ? &*placing : nullptr));
             motion.emplace(*scene);
         }
         // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
@@ -790,7 +798,9 @@ int main(int argc, char** argv) {
             cigiOptions.windowWidth = width;  // sensor gates are worked out in the output window
             cigiOptions.windowHeight = height;
             if (scene) {
-                lineOfSightScene.emplace(*scene, *motion, map);
+                lineOfSightScene.emplace(*scene, *motion,
+                                         fieldGround ? static_cast<const ig::Ground&>(*fieldGround)
+                                                     : static_cast<const ig::Ground&>(map));
                 cigiOptions.objects = &*lineOfSightScene;
             }
             if (!cigiEntities.empty()) {
@@ -1033,13 +1043,15 @@ int main(int argc, char** argv) {
         sim::FrameRenderer renderer =
             stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,
                                                       renderOptions, *scene, *motion, hostObjects)
-            : stereo  ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : scene   ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
-                                               *motion, hostObjects)
-            : pagedDb ? sim::makePagedRenderer(*pagedDb, pagedOptions, geometry, casterKind,
-                                               renderOptions, pagingLog)
-            : nested  ? sim::makeNestedRenderer(*nested, geometry, casterKind, renderOptions)
-                      : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
+            : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
+            : pagedDb
+                ? sim::makePagedRenderer(
+                      *pagedDb, pagedOptions, geometry, casterKind, renderOptions, pagingLog,
+                      scene ? sim::PagedScene{&*scene, &*motion, hostObjects} : sim::PagedScene{})
+            : scene  ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
+                                              *motion, hostObjects)
+            : nested ? sim::makeNestedRenderer(*nested, geometry, casterKind, renderOptions)
+                     : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.
@@ -1071,7 +1083,17 @@ int main(int argc, char** argv) {
         std::vector<sim::ExtraObject> entitiesAtFrame, entitiesAtField;
         const bool hostEntities = cigiSource && !cigiEntities.empty();
         if (scene && (!scene->moving.empty() || hostEntities) && !noRestamp) {
-            motionScene.emplace(*scene, *motion, map);
+            if (pagedDb) {
+                ig::PagedGround::Options go;
+                go.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                sceneGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
+                for (const ig::Placement& p : motion->placementsAt(motion->startTime()))
+                    sceneGround->waitAround(p.x, p.y);
+            }
+            motionScene.emplace(*scene, *motion,
+                                sceneGround ? static_cast<const ig::Ground&>(*sceneGround)
+                                            : static_cast<const ig::Ground&>(map));
             motionBetween.emplace(*motionScene);
             entitiesAtFrame.reserve(sim::TruthWriter::kMaxExtraObjects);
             entitiesAtField.reserve(sim::TruthWriter::kMaxExtraObjects);

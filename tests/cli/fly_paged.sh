@@ -70,6 +70,41 @@ assert lowest < 100.0, lowest  # the flight came down near its floor
 assert n == 120, n
 PY
     fail "default scenario: $msg"
+# A scene over the paged map: its placements stand on the database's ground (read at load), the
+# moving tank on the renderer's own ground; the objects are drawn (the video differs from the
+# same flight without them) and no field is missed. --truth is refused, naming why.
+cat >"$tmp/scene.json" <<JSON
+{"models": {"house": {"vox": "$root/data/models/house.vox"}, "tank": {"vox": "$root/data/models/tank.vox"}},
+ "objects": [{"id": 1, "model": "tank", "trajectory": "$tmp/tank.csv", "scale": 3}],
+ "scatter": [{"model": "house", "count": 400, "area": [2400, 2400, 3600, 3600], "seed": 5,
+              "scale": 8, "first_id": 100}]}
+JSON
+printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,2600,2600,0,45,0,0\n10,3000,3000,0,45,0,0\n' >"$tmp/tank.csv"
+for with in scene none; do
+    extra=()
+    [ $with = scene ] && extra=(--scene "$tmp/scene.json")
+    msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+        --clock simulated --size 160x120 --margin 8 --render-threads 1 \
+        --out "y4m:$tmp/$with.y4m" --contact none --json "$tmp/fly_$with.json" "${extra[@]}" \
+        2>&1) || fail "scene over a paged map ($with): $msg"
+done
+python3 - "$tmp/fly_scene.json" "$tmp/scene.y4m" "$tmp/none.y4m" <<'PY' ||
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+a = open(sys.argv[2], "rb").read()
+b = open(sys.argv[3], "rb").read()
+assert len(a) == len(b) and len(a) > 0, (len(a), len(b))
+differ = sum(1 for x, y in zip(a, b) if x != y)
+assert differ > 10000, differ  # the objects are drawn
+print("bytes differing with the scene: %d" % differ)
+PY
+    fail "scene over a paged map: $msg"
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+    --scene "$tmp/scene.json" --truth "$tmp/truth.jsonl" --out null --contact none 2>&1)
+[ $? -eq 2 ] || fail "truth: not refused"
+grep -q "not --truth" <<<"$msg" || fail "truth: $msg"
+
 # A CIGI host over the paged map: its HAT/HOT requests and lines of sight are answered on a
 # thread of their own from the database's samples (sim/terrain_queries.hpp), a field or more
 # later, while the fields go on; the heights equal the database's surface (read here from its
