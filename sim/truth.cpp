@@ -502,7 +502,9 @@ void TruthComputer::compute(const TruthScene& scene, const TruthCamera& camera,
     }
 
     // Where each object truly is at this instant, seen from this pose: the static ones where
-    // the scene holds them, the moving ones placed at this instant (the reference copies all).
+    // the scene holds them, the moving ones placed at this instant (the reference copies all),
+    // on a ground that keeps its data around this pose (a paged one).
+    scene.ground().follow(pose.position.x, pose.position.y);
     std::span<const TruthObject> fixed;
     if (reference_) {
         scene.objectsAt(time, objects_);

@@ -56,6 +56,7 @@ class TruthScene {
     // it is ground-clamped and on the map).
     TruthObject placedExtra(const ExtraObject& e) const;
     const ig::Scene& scene() const { return *scene_; }
+    const ig::Ground& ground() const { return *ground_; }
 
   private:
     TruthObject placed(const ig::ObjectModel& model, std::uint16_t id, double x, double y, double z,

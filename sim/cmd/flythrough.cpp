@@ -684,8 +684,7 @@ int main(int argc, char** argv) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = !truthPath.empty()                   ? "--truth"
-                                  : stereo                             ? "--stereo"
+                const char* why = stereo                               ? "--stereo"
                                   : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                        : nullptr;
                 if (why) {
@@ -757,6 +756,17 @@ int main(int argc, char** argv) {
             if (pagedGround) placing.emplace(*pagedGround);
             scene.emplace(ig::loadScene(scenePath, map, true, placing ? &*placing : nullptr));
             motion.emplace(*scene);
+            // Over a paged map the processor's re-stamped moving objects and the truth stand on
+            // a ground of the field process's own: it follows the truth's field pose, or else
+            // the objects asked about.
+            if (pagedDb) {
+                ig::PagedGround::Options go;
+                go.budgetBytes =
+                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                sceneGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
+                for (const ig::Placement& p : motion->placementsAt(motion->startTime()))
+                    sceneGround->waitAround(p.x, p.y);
+            }
         }
         // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
         std::optional<sim::TruthScene> lineOfSightScene;
@@ -1060,7 +1070,9 @@ int main(int argc, char** argv) {
         std::unique_ptr<sim::TruthWriter> truth;
         if (!truthPath.empty()) {
             if (truthFile.open(truthPath, &error) != 0) throw ig::InputError("--truth " + error);
-            truthScene.emplace(*scene, *motion, map);
+            truthScene.emplace(*scene, *motion,
+                               sceneGround ? static_cast<const ig::Ground&>(*sceneGround)
+                                           : static_cast<const ig::Ground&>(map));
             sim::TruthCamera camera;
             camera.window = level.window();
             camera.outWidth = opened.width;
@@ -1083,14 +1095,6 @@ int main(int argc, char** argv) {
         std::vector<sim::ExtraObject> entitiesAtFrame, entitiesAtField;
         const bool hostEntities = cigiSource && !cigiEntities.empty();
         if (scene && (!scene->moving.empty() || hostEntities) && !noRestamp) {
-            if (pagedDb) {
-                ig::PagedGround::Options go;
-                go.budgetBytes =
-                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                sceneGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
-                for (const ig::Placement& p : motion->placementsAt(motion->startTime()))
-                    sceneGround->waitAround(p.x, p.y);
-            }
             motionScene.emplace(*scene, *motion,
                                 sceneGround ? static_cast<const ig::Ground&>(*sceneGround)
                                             : static_cast<const ig::Ground&>(map));
