@@ -341,6 +341,7 @@ int main(int argc, char** argv) {
     std::string stereoLayoutText = "sbs";
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     double prefetchSeconds = 0.5;
+    int tileLoaders = 2;
     std::string faultText;
     std::string levelsText = "auto";
     std::string casterText = "fast";
@@ -440,6 +441,10 @@ int main(int argc, char** argv) {
                    "With a database paged beyond --cache-mb: how far ahead along the motion and "
                    "the turn the renderer prefetches tiles, seconds (0..10)")
         ->capture_default_str();
+    app.add_option("--tile-loaders", tileLoaders,
+                   "With a database paged beyond --cache-mb: the renderer's threads reading "
+                   "tiles (1..16)")
+        ->capture_default_str();
     app.add_option("--render-timeout-ms", renderTimeoutMs,
                    "Renderer process silent this long is killed and restarted (0: 500 ms or "
                    "eight renders, whichever is longer)")
@@ -526,6 +531,10 @@ int main(int argc, char** argv) {
         if (!(renderTimeoutMs >= 0.0 && renderTimeoutMs <= 600000.0)) {
             throw ig::InputError("--render-timeout-ms " + base::number(renderTimeoutMs) +
                                  ": must be 0 (automatic) .. 600000");
+        }
+        if (tileLoaders < 1 || tileLoaders > 16) {
+            throw ig::InputError("--tile-loaders " + std::to_string(tileLoaders) +
+                                 ": expected 1..16 threads");
         }
         if (!(prefetchSeconds >= 0.0 && prefetchSeconds <= 10.0)) {
             throw ig::InputError("--prefetch-s " + base::number(prefetchSeconds) +
@@ -1049,6 +1058,8 @@ int main(int argc, char** argv) {
         if (pagedDb) {
             pagingLog = std::make_shared<sim::PagingLog>();
             pagedOptions.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
+            pagedOptions.cache.loaderThreads = tileLoaders;
+            pagedOptions.lookahead = prefetchSeconds;
         }
         sim::FrameRenderer renderer =
             stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,

@@ -41,6 +41,25 @@ else:
 PY
 done
 
+# --prefetch-s takes effect: prefetching 3 s ahead along the motion reads more tiles than the
+# frame's own footprint (0 s), and --tile-loaders is taken or refused.
+for ahead in 0 3; do
+    msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+        --renderer thread --clock simulated --prefetch-s $ahead --tile-loaders 3 --out null \
+        --contact none --json "$tmp/ahead_$ahead.json" 2>&1) || fail "--prefetch-s $ahead: $msg"
+done
+python3 - "$tmp/ahead_0.json" "$tmp/ahead_3.json" <<'PY' || fail "--prefetch-s"
+import json, sys
+near = json.load(open(sys.argv[1]))["paging"]["tiles_read"]
+far = json.load(open(sys.argv[2]))["paging"]["tiles_read"]
+assert far > 1.2 * near, (near, far)
+print("tiles read prefetching 0 s ahead: %d, 3 s ahead: %d" % (near, far))
+PY
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+    --tile-loaders 0 --out null --contact none 2>&1)
+[ $? -eq 2 ] || fail "--tile-loaders 0: not refused"
+grep -q -- "--tile-loaders 0" <<<"$msg" || fail "--tile-loaders 0: $msg"
+
 # The default scenario over the paged map, started 20 m over the ground: the flight model stands
 # on a ground of its own (ig/paged_ground.hpp), exact where its tiles are resident; the field log's
 # poses stay over the terrain (the database's samples, read here from its level-0 tiles).
