@@ -1,5 +1,5 @@
 // A snapshot of the tiles around the point is built on the ground's thread and published whole
-// (an atomic shared pointer); a reader takes it, looks up one tile and reads four samples. The
+// (a shared pointer swapped under a mutex held for nothing else); a reader copies it, looks up one tile and reads four samples. The
 // thread keeps the snapshot it replaced until the next one, so the reader never drops the last
 // reference to a snapshot (which would free it on the field thread).
 #include "ig/paged_ground.hpp"
@@ -58,7 +58,7 @@ double PagedGround::groundHeight(double x, double y) const {
         asks_.fetch_add(1, std::memory_order_release);
     }
     const Cell c = cellOf(x, y);
-    const std::shared_ptr<const Snapshot> s = snapshot_.load(std::memory_order_acquire);
+    const std::shared_ptr<const Snapshot> s = published();
     if (s) {
         if (const std::ptrdiff_t slot = slotOf(*s, c); slot >= 0) {
             const auto k = static_cast<std::size_t>(slot);
@@ -108,7 +108,7 @@ std::ptrdiff_t PagedGround::slotOf(const Snapshot& s, const Cell& c) const {
 }
 
 bool PagedGround::exactAt(double x, double y) const {
-    const std::shared_ptr<const Snapshot> s = snapshot_.load(std::memory_order_acquire);
+    const std::shared_ptr<const Snapshot> s = published();
     if (!s) return false;
     const std::ptrdiff_t slot = slotOf(*s, cellOf(x, y));
     return slot >= 0 && s->tiles[static_cast<std::size_t>(slot)] != nullptr;
@@ -178,8 +178,12 @@ void PagedGround::update(double x, double y, double vx, double vy, bool wait) {
         }
     }
     // The replaced snapshot is dropped at the next update (see the top of the file).
-    retired_ = snapshot_.exchange(std::shared_ptr<const Snapshot>(std::move(snap)),
-                                  std::memory_order_acq_rel);
+    std::shared_ptr<const Snapshot> next(std::move(snap));
+    {
+        std::lock_guard<std::mutex> publish(snapshotMutex_);
+        snapshot_.swap(next);
+    }
+    retired_ = std::move(next);
 }
 
 void PagedGround::loop() {

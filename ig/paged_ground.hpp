@@ -94,7 +94,15 @@ class PagedGround final : public Ground {
     Options options_;
     TileCache cache_;
     double highest_ = 0.0;
-    std::atomic<std::shared_ptr<const Snapshot>> snapshot_;
+    // The published snapshot. Its mutex is held only to copy or swap the pointer (never while
+    // loading or reading tiles): libstdc++'s std::atomic<std::shared_ptr> orders its internal
+    // lock in a way ThreadSanitizer cannot follow.
+    std::shared_ptr<const Snapshot> snapshot_;
+    mutable std::mutex snapshotMutex_;
+    std::shared_ptr<const Snapshot> published() const {
+        std::lock_guard<std::mutex> lock(snapshotMutex_);
+        return snapshot_;
+    }
     std::shared_ptr<const Snapshot> retired_;  // the one replaced last (update_ guards it)
     // The last point asked for, and how many asks so far (the thread follows them).
     mutable std::atomic<double> lastX_{0.0}, lastY_{0.0};
