@@ -755,6 +755,27 @@ int main(int argc, char** argv) {
         } else {
             ig::applyAppearance(appearance, map, renderOptions);
         }
+        // A ground of the field process's own over a paged map (ig/paged_ground.hpp), its tiles
+        // around (x, y) loaded before the run.
+        const auto pagedGroundAt = [&](double x, double y) {
+            ig::PagedGround::Options go;
+            go.budgetBytes = static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+            auto ground = std::make_unique<ig::PagedGround>(*pagedDb, go);
+            ground->waitAround(x, y);
+            return ground;
+        };
+        // Where the default scenario (or --start) begins; over a paged map the ground there is
+        // placed first.
+        const auto scenarioStart = [&](const sim::Scenario& scenario) {
+            if (pagedGround) pagedGround->placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
+            sim::FlightState start = ig::usesShippedMap(terrain)
+                                         ? scenario.start
+                                         : sim::startOverMap(map, scenario.limits);
+            if (!startText.empty()) {
+                start = parseStart(startText, map, scenario.limits, pagedGround.get());
+            }
+            return start;
+        };
         // The scene: the static layer once, the moving objects per frame (the renderer).
         std::optional<ig::Scene> scene;
         std::optional<sim::SceneMotion> motion;
@@ -769,17 +790,15 @@ int main(int argc, char** argv) {
             // a ground of the field process's own: it follows the truth's field pose, or else
             // the objects asked about.
             if (pagedDb) {
-                ig::PagedGround::Options go;
-                go.budgetBytes =
-                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                sceneGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
-                for (const ig::Placement& p : motion->placementsAt(motion->startTime()))
+                const std::vector<ig::Placement> at = motion->placementsAt(motion->startTime());
+                sceneGround =
+                    pagedGroundAt(at.empty() ? 0.0 : at.front().x, at.empty() ? 0.0 : at.front().y);
+                for (const ig::Placement& p : at)
                     sceneGround->waitAround(p.x, p.y);
             }
         }
         // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
         std::optional<sim::TruthScene> lineOfSightScene;
-        const bool shippedMap = ig::usesShippedMap(terrain);
 
         // Where the aircraft is: a trajectory, a stick, or the default scenario's script.
         std::unique_ptr<sim::PoseSource> poses;
@@ -789,20 +808,11 @@ int main(int argc, char** argv) {
         const RecordingStick* loggedStick = nullptr;
         if (cigi) {
             const sim::Scenario scenario = sim::defaultScenario();
-            if (pagedGround) pagedGround->placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
-            sim::FlightState start =
-                shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
-            if (!startText.empty()) {
-                start = parseStart(startText, map, scenario.limits, pagedGround.get());
-            }
+            const sim::FlightState start = scenarioStart(scenario);
             if (pagedGround) {
                 // The ownship and the host's entities stand on a ground that follows the view;
                 // HAT/HOT and lines of sight are answered on a thread of their own.
-                ig::PagedGround::Options go;
-                go.budgetBytes =
-                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                fieldGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
-                fieldGround->waitAround(start.position.x, start.position.y);
+                fieldGround = pagedGroundAt(start.position.x, start.position.y);
                 sim::PagedTerrainQueries::Options qo;
                 qo.budgetBytes =
                     static_cast<std::size_t>(std::min(terrain.cacheMb, 64.0) * 1048576.0);
@@ -888,20 +898,11 @@ int main(int argc, char** argv) {
             }
             // Over a paged map the start's ground is placed first, and the flight model stands
             // on a ground of its own that follows the aircraft (ig/paged_ground.hpp).
-            if (pagedGround) pagedGround->placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
-            sim::FlightState start =
-                shippedMap ? scenario.start : sim::startOverMap(map, scenario.limits);
-            if (!startText.empty()) {
-                start = parseStart(startText, map, scenario.limits, pagedGround.get());
-            }
+            const sim::FlightState start = scenarioStart(scenario);
             flightSeconds = scenario.duration;
             const ig::Ground* floor = &map;
             if (pagedGround) {
-                ig::PagedGround::Options go;
-                go.budgetBytes =
-                    static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                fieldGround = std::make_unique<ig::PagedGround>(*pagedDb, go);
-                fieldGround->waitAround(start.position.x, start.position.y);
+                fieldGround = pagedGroundAt(start.position.x, start.position.y);
                 floor = fieldGround.get();
             }
             poses =

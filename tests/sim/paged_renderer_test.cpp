@@ -47,17 +47,27 @@ bool sameFrame(const ig::RenderedFrame& a, const ig::RenderedFrame& b) {
     return true;
 }
 
+// A 96 x 64 view (margin 8), the fast caster's levels auto, paged through 2 MB.
+struct Viewing {
+    sim::RenderGeometry geometry;
+    ig::RenderOptions options;
+    ig::PagedTerrain::Options paging;
+    Viewing() {
+        geometry.windowWidth = 96;
+        geometry.windowHeight = 64;
+        geometry.margin = 8;
+        options.levels = ig::kLevelsAuto;
+        paging.cache.budgetBytes = std::size_t{2} << 20;
+    }
+};
+
 TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
     const Database d;
     const ig::TerrainDb db = ig::TerrainDb::open(d.path);
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 96;
-    geometry.windowHeight = 64;
-    geometry.margin = 8;
-    ig::RenderOptions options;
-    options.levels = ig::kLevelsAuto;
-    ig::PagedTerrain::Options paging;
-    paging.cache.budgetBytes = std::size_t{2} << 20;
+    const Viewing setup;
+    const sim::RenderGeometry& geometry = setup.geometry;
+    const ig::RenderOptions& options = setup.options;
+    const ig::PagedTerrain::Options& paging = setup.paging;
     for (const ig::CasterKind kind : {ig::CasterKind::Fast}) {
         SCOPED_TRACE(std::string(ig::casterName(kind)));
         auto log = std::make_shared<sim::PagingLog>();
@@ -146,14 +156,10 @@ TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
     }
     const sim::SceneMotion wholeMotion(whole), pagedMotion(paged);
 
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 96;
-    geometry.windowHeight = 64;
-    geometry.margin = 8;
-    ig::RenderOptions options;
-    options.levels = ig::kLevelsAuto;
-    ig::PagedTerrain::Options paging;
-    paging.cache.budgetBytes = std::size_t{2} << 20;
+    const Viewing setup;
+    const sim::RenderGeometry& geometry = setup.geometry;
+    const ig::RenderOptions& options = setup.options;
+    const ig::PagedTerrain::Options& paging = setup.paging;
     auto log = std::make_shared<sim::PagingLog>();
     sim::FrameRenderer inMemory =
         sim::makeSceneRenderer(d.map, geometry, ig::CasterKind::Fast, options, whole, wholeMotion);
