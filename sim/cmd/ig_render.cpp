@@ -430,6 +430,8 @@ int renderBatch(const BatchFlags& batch, const ig::Caster& caster, const ig::Ter
 // What the flags ask of one frame from a paged database.
 struct PagedRequest {
     std::string poseText, casterText, outPath, depthPath, jsonPath;
+    std::string scenePath, objectsOut;  // a scene drawn over the frame, its object-id image
+    std::optional<double> sceneTime;
     ig::CasterKind kind = ig::CasterKind::Reference;
     ig::Intrinsics intr;
     int threads = 0;
@@ -487,6 +489,20 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     options.sky.hazeDistance = appearance.hazeDistance;
     options.supersample = appearance.supersample;
     options.supersampleMax = appearance.supersampleMax;
+    // A scene stands on the database's ground: each height it reads places the tile under it
+    // first (ig::PlacingGround), so its objects are where they are over the map in memory.
+    std::optional<ig::Scene> scene;
+    std::optional<sim::SceneMotion> motion;
+    std::optional<ig::ObjectLayer> moving;
+    double time = r.sceneTime.value_or(0.0);
+    if (!r.scenePath.empty()) {
+        const ig::PlacingGround placing(paged);
+        scene.emplace(ig::loadScene(r.scenePath, map, true, &placing));
+        motion.emplace(*scene);
+        time = r.sceneTime.value_or(motion->startTime());
+        moving.emplace(motion->stamp(time, &placing));
+        options.objects = {&*scene->staticLayer, &*moving};
+    }
     const ig::Camera camera(pose, r.intr);
     const auto start = std::chrono::steady_clock::now();
     const ig::PagedFrameStats st = paged.prepare(camera, true);
@@ -501,8 +517,12 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
                      st.substituted - st.failed, st.required, terrain.cacheMb);
     }
     const auto caster = ig::makeCaster(r.kind, map, options);
-    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr, 0.0, 0, r.nearM);
+    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr, time, 0, r.nearM);
     std::string error;
+    if (!r.objectsOut.empty() &&
+        io::writePng16(r.objectsOut, frame.width(), frame.height(), frame.objectId, &error) != 0) {
+        throw ig::InputError("--objects-out " + error);
+    }
     const auto* bytes = reinterpret_cast<const std::uint8_t*>(frame.color.data());
     if (io::writePng8(r.outPath, frame.width(), frame.height(), 3, {bytes, frame.color.size() * 3},
                       &error) != 0) {
@@ -521,6 +541,17 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     j["render_ms"] = frame.stats.renderMs;
     j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
+    if (scene) {
+        j["scene"] = {{"file", r.scenePath},
+                      {"time", time},
+                      {"static_objects", scene->staticLayer->objects().size()},
+                      {"moving_objects", scene->moving.size()}};
+        j["objects"] = nlohmann::json::array();
+        for (const ig::ObjectPixels& o : ig::objectPixelStats(frame)) {
+            j["objects"].push_back(
+                {{"id", o.id}, {"pixels", o.pixels}, {"box", {o.x0, o.y0, o.x1, o.y1}}});
+        }
+    }
     j["paging"] = {{"budget_mb", terrain.cacheMb},
                    {"tiles_needed", st.required},
                    {"tiles_substituted", st.substituted},
@@ -703,14 +734,17 @@ int main(int argc, char** argv) {
                                          " paged beyond --cache-mb (insets nest in a map held "
                                          "whole)");
                 }
-                if (stereo.enabled() || batchMode || !scenePath.empty() || !objectsOut.empty()) {
+                if (stereo.enabled() || batchMode) {
                     throw ig::InputError(
                         terrain.db +
                         " is over --cache-mb and is rendered paged: one frame, without "
-                        "--stereo, --poses or --scene (or give a larger --cache-mb)");
+                        "--stereo or --poses (or give a larger --cache-mb)");
                 }
                 PagedRequest req;
                 req.poseText = poseText;
+                req.scenePath = scenePath;
+                req.objectsOut = objectsOut;
+                req.sceneTime = sceneTime;
                 req.casterText = casterText;
                 req.outPath = outPath;
                 req.depthPath = depthPath;

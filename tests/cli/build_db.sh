@@ -38,6 +38,37 @@ if [ -x "$bin/ig-render" ]; then
         grep -q '"tiles_substituted": 0' "$tmp/paged_$caster.json" ||
             fail "paged ($caster): tiles substituted"
     done
+    # A scene over the paged map: its objects stand on the database's ground (read tile by tile
+    # as the scene asks), so the frame and its object ids are those of the whole map's.
+    root=$(cd "$(dirname "$0")/../.." && pwd)
+    printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,1000,900,0,30,0,0\n10,1300,1200,0,30,0,0\n' \
+        >"$tmp/tank.csv"
+    cat >"$tmp/scene.json" <<JSON
+{"models": {"house": {"vox": "$root/data/models/house.vox"}, "tank": {"vox": "$root/data/models/tank.vox"}},
+ "objects": [{"id": 1, "model": "tank", "trajectory": "$tmp/tank.csv", "scale": 2}],
+ "scatter": [{"model": "house", "count": 150, "area": [900, 700, 1800, 1600], "seed": 2,
+              "scale": 2, "first_id": 100}]}
+JSON
+    for c in reference fast; do
+        for where in whole paged; do
+            budget=()
+            [ $where = paged ] && budget=(--cache-mb 0.4)
+            "$bin/ig-render" --db "$tmp/a.db" "${budget[@]}" --caster $c --scene "$tmp/scene.json" \
+                --time 2 --pose 800,600,+300,40,-20,0 --size 96x72 --out "$tmp/s_${where}_$c.png" \
+                --objects-out "$tmp/id_${where}_$c.png" --json "$tmp/s_${where}_$c.json" \
+                >/dev/null 2>&1 || fail "render a scene ($where, $c)"
+        done
+        cmp -s "$tmp/s_whole_$c.png" "$tmp/s_paged_$c.png" ||
+            fail "a scene over the paged map ($c): another frame than over the whole map"
+        cmp -s "$tmp/id_whole_$c.png" "$tmp/id_paged_$c.png" ||
+            fail "a scene over the paged map ($c): other object ids than over the whole map"
+        python3 - "$tmp/s_paged_$c.json" <<'PY' || fail "a scene over the paged map ($c): no objects"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["paging"]["tiles_substituted"] == 0, j["paging"]
+assert sum(o["pixels"] for o in j["objects"]) > 200, j["objects"]
+PY
+    done
     # A budget below the frame's tiles: drawn from a coarser level, and said.
     msg=$("$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.1 --caster reference \
         --pose 800,600,+300,40,-20,0 --size 64x48 --out "$tmp/coarse.png" 2>&1) ||
