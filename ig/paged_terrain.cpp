@@ -393,20 +393,25 @@ PagedFrameStats PagedTerrain::placeAround(double x, double y) {
 }
 
 PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm::dvec3& velocity,
-                                      double yawRate) {
+                                      double yawRate, const Camera* otherEye) {
     const TerrainDbLayout& layout = db_.layout();
     const TerrainDbInfo& info = db_.info();
     // The levels the casters reading this map march: level 0 everywhere, or the fast
     // caster's (its max-height nodes whatever its levels).
     const LevelSelection selection =
         LevelSelection::forCamera(camera.intrinsics(), info, pyramid_ ? options_.levels : 0);
-    Footprint fp = frameFootprint(camera, layout, info, selection);
-    // The ground under the eye too (the check that the eye is above it, height queries).
-    fp.tiles.insert(tileUnder(camera.pose().position.x, camera.pose().position.y));
-    // The control points are cast exactly on level 0 (renderFrame), at any distance.
-    if (pyramid_) {
-        for (const glm::dvec2& px : controlPointPixels(camera.intrinsics())) {
-            addRayTiles(camera.pose().position, camera.rayDirection(px.x, px.y), fp.tiles);
+    Footprint fp;
+    for (const Camera* eye : {&camera, otherEye}) {
+        if (!eye) continue;
+        const Footprint own = frameFootprint(*eye, layout, info, selection);
+        fp.tiles.insert(own.tiles.begin(), own.tiles.end());
+        // The ground under the eye too (the check that the eye is above it, height queries).
+        fp.tiles.insert(tileUnder(eye->pose().position.x, eye->pose().position.y));
+        // The control points are cast exactly on level 0 (renderFrame), at any distance.
+        if (pyramid_) {
+            for (const glm::dvec2& px : controlPointPixels(eye->intrinsics())) {
+                addRayTiles(eye->pose().position, eye->rayDirection(px.x, px.y), fp.tiles);
+            }
         }
     }
     std::set<TileKey> prefetch;

@@ -88,8 +88,9 @@ class PagedTerrain {
     // request is served (a program rendering without a deadline: its image equals the
     // in-memory render's where every tile could be read); without, it never waits and
     // substitutes what is missing (the real-time pipeline).
+    // `otherEye`, when given, is a stereo pair's right eye: its tiles are the frame's too.
     PagedFrameStats prepare(const Camera& camera, bool wait, const glm::dvec3& velocity = {},
-                            double yawRate = 0.0);
+                            double yawRate = 0.0, const Camera* otherEye = nullptr);
 
     // Before a flight's first frame: loads (waiting) the tiles of `camera`'s view turned to
     // `headings` headings all round, so that a turn from the start finds its tiles resident

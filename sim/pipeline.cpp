@@ -4,6 +4,8 @@
 #include "ig/error.hpp"
 #include "ig/paged_ground.hpp"
 #include "ig/shading.hpp"
+#include "ig/stereo.hpp"
+#include "sim/stereo_output.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -162,7 +164,12 @@ FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderG
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options, std::shared_ptr<PagingLog> log,
-                                PagedScene objects) {
+                                PagedScene objects, double stereoSeparation) {
+    CHECK(stereoSeparation == 0.0 || (kind == ig::CasterKind::Fast && !objects.scene))
+        << "paged stereo pairs: the fast caster, without a scene";
+    ig::StereoOptions stereo;
+    stereo.eyeSeparation = stereoSeparation;
+    if (stereoSeparation > 0.0) ig::validateStereoOptions(stereo);
     ig::PagedTerrain::Options po = paging;
     po.pyramid = kind == ig::CasterKind::Fast;
     po.levels = options.levels;
@@ -172,6 +179,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         pid_t pid = -1;
         std::unique_ptr<ig::PagedTerrain> paged;
         std::shared_ptr<const ig::Caster> caster;
+        ig::RenderOptions options;  // the caster's (the paged pyramid's)
         // With a scene: the moving layer (replaced before each render; the caster holds its
         // address), the ground the moving objects stand on, the extra objects' scratch.
         std::shared_ptr<ig::ObjectLayer> moving;
@@ -183,7 +191,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
     };
     auto state = std::make_shared<State>();
     const ig::SkyModel sky = options.sky;
-    return [&db, po, kind, options, state, geometry, sky, log, objects](
+    return [&db, po, kind, options, state, geometry, sky, log, objects, stereo](
                const ig::Pose& pose, double time, std::uint64_t sequence) {
         State& s = *state;
         if (s.pid != ::getpid()) {
@@ -207,6 +215,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                 o.objects = {objects.scene->staticLayer.get(), s.moving.get()};
             }
             s.caster = ig::makeCaster(kind, s.paged->map(), o);
+            s.options = o;
             s.pid = ::getpid();
             s.have = false;
         }
@@ -226,10 +235,16 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             }
         }
         const auto start = std::chrono::steady_clock::now();
+        // A stereo pair is rendered from the left eye, and the right one is reprojected from it
+        // with its holes cast: both eyes' tiles are placed.
+        const bool pair = stereo.eyeSeparation > 0.0;
+        const EyePoses eyes = eyePoses(level, pair ? stereo.eyeSeparation : 0.0);
+        const ig::Camera first(pair ? eyes.left : level, intr);
+        const ig::Camera second(eyes.right, intr);
         // Before the first frame, the view all round: a turn from the start finds its tiles.
-        if (!s.have) s.paged->warmUp(ig::Camera(level, intr));
+        if (!s.have) s.paged->warmUp(first);
         const ig::PagedFrameStats st =
-            s.paged->prepare(ig::Camera(level, intr), !s.have, velocity, yawRate);
+            s.paged->prepare(first, !s.have, velocity, yawRate, pair ? &second : nullptr);
         const double pageMs =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count();
@@ -242,6 +257,19 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                                    st.nodesMissing, pageMs, cs.tilesRead,
                                                    cs.bytesRead});
             log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
+        }
+        if (pair) {
+            ig::RenderedFrame frame =
+                ig::renderFrame(*s.caster, s.paged->map(), eyes.left, intr, time, sequence);
+            std::vector<ig::RightPixelSource> source;
+            ig::StereoStats stats;
+            auto right = std::make_shared<ig::RenderedFrame>(ig::reprojectRightEye(
+                s.paged->map(), frame, stereo, s.options, source, stats, s.caster.get()));
+            right->sequence = sequence;
+            right->time = time;
+            frame.stats.renderMs += stats.rightMs;
+            frame.right = std::move(right);
+            return frame;
         }
         if (objects.scene) {
             s.ground->follow(pose.position.x, pose.position.y);

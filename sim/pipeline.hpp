@@ -121,11 +121,13 @@ struct PagedScene {
 // map is made by the process that renders, at its first frame (a renderer process makes its
 // own: a forked copy has no loader threads); `db` must outlive the renderer. `log`, when
 // given, gets each frame's paging as that process sees it (the field process's only with the
-// renderer in a thread).
+// renderer in a thread). With `stereoSeparation` > 0 (metres; the fast caster, no scene) it
+// renders stereo pairs as makeStereoRenderer does, the tiles of both eyes placed.
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options,
-                                std::shared_ptr<PagingLog> log = nullptr, PagedScene objects = {});
+                                std::shared_ptr<PagingLog> log = nullptr, PagedScene objects = {},
+                                double stereoSeparation = 0.0);
 
 // A caster over `map` drawing `scene`'s objects: the static layer as loaded, and the moving
 // objects stamped at each frame's instant into a layer of their own, which is all that changes

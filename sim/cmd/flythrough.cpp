@@ -693,14 +693,14 @@ int main(int argc, char** argv) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = stereo                               ? "--stereo"
+                const char* why = stereo && !scenePath.empty()         ? "--stereo with a --scene"
                                   : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                        : nullptr;
                 if (why) {
                     throw ig::InputError(
                         terrain.db + " is over --cache-mb and is paged: a flight " +
                         "over it takes a --trajectory, a stick, --cigi or the default scenario, " +
-                        "with or without a --scene, " +
+                        "with or without a --scene or --stereo, " +
                         "with --caster fast, naive or reference, not " + why +
                         " (or give a larger --cache-mb)");
                 }
@@ -1062,14 +1062,18 @@ int main(int argc, char** argv) {
             pagedOptions.cache.loaderThreads = tileLoaders;
             pagedOptions.lookahead = prefetchSeconds;
         }
+        // Over a paged map the paged renderer draws the scene or the stereo pairs (the fast
+        // caster's, as in memory).
         sim::FrameRenderer renderer =
-            stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,
-                                                      renderOptions, *scene, *motion, hostObjects)
-            : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
-            : pagedDb
+            pagedDb
                 ? sim::makePagedRenderer(
-                      *pagedDb, pagedOptions, geometry, casterKind, renderOptions, pagingLog,
-                      scene ? sim::PagedScene{&*scene, &*motion, hostObjects} : sim::PagedScene{})
+                      *pagedDb, pagedOptions, geometry, stereo ? ig::CasterKind::Fast : casterKind,
+                      renderOptions, pagingLog,
+                      scene ? sim::PagedScene{&*scene, &*motion, hostObjects} : sim::PagedScene{},
+                      stereo ? stereo->separation : 0.0)
+            : stereo && scene ? makeStereoSceneRenderer(map, geometry, stereo->separation,
+                                                        renderOptions, *scene, *motion, hostObjects)
+            : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
             : scene  ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
                                               *motion, hostObjects)
             : nested ? sim::makeNestedRenderer(*nested, geometry, casterKind, renderOptions)

@@ -146,6 +146,25 @@ assert pairs > 2000, pairs
 print("truth: %d objects placed the same over the paged map and in memory" % pairs)
 PY
 
+# Stereo pairs over the paged map (both eyes' tiles placed; PagedRenderer.StereoPairs* compares
+# them with the in-memory pairs): side by side, every field on time; with a scene, refused.
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+    --stereo 0.5 --renderer thread --clock simulated --size 160x120 --margin 8 \
+    --render-threads 1 --out "y4m:$tmp/stereo.y4m" --contact none --json "$tmp/stereo.json" \
+    2>&1) || fail "stereo over a paged map: $msg"
+head -c 40 "$tmp/stereo.y4m" | grep -q "W320 H120" || fail "stereo: not side by side"
+python3 - "$tmp/stereo.json" <<'PY' || fail "stereo over a paged map: $msg"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+assert j["stereo"]["separation_m"] == 0.5, j["stereo"]
+assert j["paging"]["frames"] == j["frames_rendered"] and j["paging"]["tiles_read"] > 0, j["paging"]
+PY
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+    --stereo 0.5 --scene "$tmp/scene.json" --out null --contact none 2>&1)
+[ $? -eq 2 ] || fail "stereo with a scene: not refused"
+grep -q "not --stereo with a --scene" <<<"$msg" || fail "stereo with a scene: $msg"
+
 # A CIGI host over the paged map: its HAT/HOT requests and lines of sight are answered on a
 # thread of their own from the database's samples (sim/terrain_queries.hpp), a field or more
 # later, while the fields go on; the heights equal the database's surface (read here from its
