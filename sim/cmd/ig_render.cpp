@@ -432,6 +432,7 @@ struct PagedRequest {
     std::string poseText, casterText, outPath, depthPath, jsonPath;
     std::string scenePath, objectsOut;  // a scene drawn over the frame, its object-id image
     std::optional<double> sceneTime;
+    const StereoFlags* stereo = nullptr;  // a stereo pair instead of one frame
     ig::CasterKind kind = ig::CasterKind::Reference;
     ig::Intrinsics intr;
     int threads = 0;
@@ -504,8 +505,14 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
         options.objects = {&*scene->staticLayer, &*moving};
     }
     const ig::Camera camera(pose, r.intr);
+    const bool pair = r.stereo && r.stereo->enabled();
+    if (pair && r.kind != ig::CasterKind::Fast) {
+        throw ig::InputError("--stereo: the pair is rendered by the fast caster; drop --caster");
+    }
+    // A pair's right eye (reprojected or cast whole) reads its own tiles too.
+    const ig::Camera rightEye(ig::rightEyePose(pose, pair ? *r.stereo->separation : 0.0), r.intr);
     const auto start = std::chrono::steady_clock::now();
-    const ig::PagedFrameStats st = paged.prepare(camera, true);
+    const ig::PagedFrameStats st = paged.prepare(camera, true, {}, 0.0, pair ? &rightEye : nullptr);
     const double pageMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     for (const std::string& m : st.failures)
@@ -515,6 +522,17 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
                      "ig-render: %zu of the frame's %zu tiles did not fit --cache-mb %g: drawn "
                      "from a coarser level\n",
                      st.substituted - st.failed, st.required, terrain.cacheMb);
+    }
+    if (pair) {
+        nlohmann::json sceneJson;
+        if (scene) {
+            sceneJson = {{"file", r.scenePath},
+                         {"time", time},
+                         {"static_objects", scene->staticLayer->objects().size()},
+                         {"moving_objects", scene->moving.size()}};
+        }
+        return renderStereoPair(*r.stereo, r.kind, map, pose, r.intr, options, time, r.depthPath,
+                                r.jsonPath, sceneJson);
     }
     const auto caster = ig::makeCaster(r.kind, map, options);
     const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr, time, 0, r.nearM);
@@ -734,14 +752,14 @@ int main(int argc, char** argv) {
                                          " paged beyond --cache-mb (insets nest in a map held "
                                          "whole)");
                 }
-                if (stereo.enabled() || batchMode) {
-                    throw ig::InputError(
-                        terrain.db +
-                        " is over --cache-mb and is rendered paged: one frame, without "
-                        "--stereo or --poses (or give a larger --cache-mb)");
+                if (batchMode) {
+                    throw ig::InputError(terrain.db +
+                                         " is over --cache-mb and is rendered paged: one frame "
+                                         "or pair, without --poses (or give a larger --cache-mb)");
                 }
                 PagedRequest req;
                 req.poseText = poseText;
+                req.stereo = &stereo;
                 req.scenePath = scenePath;
                 req.objectsOut = objectsOut;
                 req.sceneTime = sceneTime;

@@ -69,6 +69,21 @@ assert j["paging"]["tiles_substituted"] == 0, j["paging"]
 assert sum(o["pixels"] for o in j["objects"]) > 200, j["objects"]
 PY
     done
+    # A stereo pair over the paged map (both eyes' tiles placed): the whole map's pair, with the
+    # right eye reprojected and cast whole.
+    for right in reproject raycast; do
+        for where in whole paged; do
+            budget=()
+            [ $where = paged ] && budget=(--cache-mb 0.4)
+            "$bin/ig-render" --db "$tmp/a.db" "${budget[@]}" --stereo 40 --right $right \
+                --pose 800,600,+300,40,-20,0 --size 96x72 --out-left "$tmp/l_${where}_$right.png" \
+                --out-right "$tmp/r_${where}_$right.png" >/dev/null 2>&1 ||
+                fail "render a stereo pair ($where, $right)"
+        done
+        cmp -s "$tmp/l_whole_$right.png" "$tmp/l_paged_$right.png" &&
+            cmp -s "$tmp/r_whole_$right.png" "$tmp/r_paged_$right.png" ||
+            fail "a stereo pair over the paged map ($right): another pair than the whole map's"
+    done
     # A budget below the frame's tiles: drawn from a coarser level, and said.
     msg=$("$bin/ig-render" --db "$tmp/a.db" --cache-mb 0.1 --caster reference \
         --pose 800,600,+300,40,-20,0 --size 64x48 --out "$tmp/coarse.png" 2>&1) ||
