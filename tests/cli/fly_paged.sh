@@ -168,14 +168,15 @@ grep -q "not --stereo with a --scene" <<<"$msg" || fail "stereo with a scene: $m
 # A CIGI host over the paged map: its HAT/HOT requests and lines of sight are answered on a
 # thread of their own from the database's samples (sim/terrain_queries.hpp), a field or more
 # later, while the fields go on; the heights equal the database's surface (read here from its
-# level-0 tiles).
+# level-0 tiles). The renderer in a thread: in a process, its first frame (which waits for its
+# tiles) can outlast the process's first-frame allowance under the sanitizers.
 rm -f "$tmp/port" "$tmp/host.json" "$tmp/cigi.json"
 "$bin/cigi-host" --port-file "$tmp/port" --seconds 4 --queries 4 --origin 47,-122,0 \
     --start 2000,2000,1900 --speed 100 --pitch 0 --json "$tmp/host.json" 2>"$tmp/host.err" &
 hpid=$!
 for i in $(seq 1 300); do [ -s "$tmp/port" ] && break; sleep 0.1; done
 [ -s "$tmp/port" ] || fail "cigi-host wrote no port"
-msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --cigi 127.0.0.1:0 \
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --renderer thread --cigi 127.0.0.1:0 \
     --cigi-host "127.0.0.1:$(cat "$tmp/port")" --cigi-origin 47,-122 --cigi-wait 10 \
     --duration 3 --size 160x120 --margin 8 --render-threads 1 --out null --contact none \
     --json "$tmp/cigi.json" 2>&1) || fail "cigi over a paged map: $msg"
