@@ -1,7 +1,7 @@
 // A snapshot of the tiles around the point is built on the ground's thread and published whole
-// (a shared pointer swapped under a mutex held for nothing else); a reader copies it, looks up one tile and reads four samples. The
-// thread keeps the snapshot it replaced until the next one, so the reader never drops the last
-// reference to a snapshot (which would free it on the field thread).
+// (a shared pointer swapped under a mutex held for nothing else); a reader copies it, looks up one
+// tile and reads four samples. The thread keeps the snapshot it replaced until the next one, so the
+// reader never drops the last reference to a snapshot (which would free it on the field thread).
 #include "ig/paged_ground.hpp"
 
 #include <algorithm>
