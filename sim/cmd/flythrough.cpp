@@ -788,13 +788,16 @@ int main(int argc, char** argv) {
             motion.emplace(*scene);
             // Over a paged map the processor's re-stamped moving objects and the truth stand on
             // a ground of the field process's own: it follows the truth's field pose, or else
-            // the objects asked about.
-            if (pagedDb) {
+            // the objects asked about. Only those read it: a static scene without truth needs
+            // none.
+            const bool standing =
+                !scene->moving.empty() || !truthPath.empty() || !cigiEntities.empty();
+            if (pagedDb && standing) {
                 const std::vector<ig::Placement> at = motion->placementsAt(motion->startTime());
                 sceneGround =
                     pagedGroundAt(at.empty() ? 0.0 : at.front().x, at.empty() ? 0.0 : at.front().y);
-                for (const ig::Placement& p : at)
-                    sceneGround->waitAround(p.x, p.y);
+                for (std::size_t i = 1; i < at.size(); ++i)
+                    sceneGround->waitAround(at[i].x, at[i].y);
             }
         }
         // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
