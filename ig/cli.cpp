@@ -4,6 +4,7 @@
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_db.hpp"
+#include "ig/terrain_db_build.hpp"
 #include "ig/terrain_io.hpp"
 
 #include <algorithm>
@@ -143,8 +144,8 @@ int parseWhole(const std::string& text, const std::string& what, int lo, int hi)
 }
 
 // A raster inset, loaded and placed.
-InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
-                        const TerrainOptions& terrain) {
+InsetSource rasterInset(const std::string& spec, const GlobalGrid& global,
+                        const Georeference& globalGeo, const TerrainOptions& terrain) {
     const std::string what = "--inset " + base::quoted(spec);
     const std::size_t at = spec.find('@');
     const std::vector<std::string> files = split(spec.substr(0, at), ',');
@@ -162,11 +163,11 @@ InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
     if (at != std::string::npos) {
         const std::vector<std::string> p = split(spec.substr(at + 1), ',');
         if (p.size() != 3) throw InputError(what + ": expected @X,Y,FACTOR after the files");
-        in.x0 = parseWhole(p[0], what + " X", 0, global.width() - 2);
-        in.y0 = parseWhole(p[1], what + " Y", 0, global.height() - 2);
+        in.x0 = parseWhole(p[0], what + " X", 0, global.width - 2);
+        in.y0 = parseWhole(p[1], what + " Y", 0, global.height - 2);
         in.factor = parseWhole(p[2], what + " FACTOR", 2, 256);
-        src.spacing = global.spacingX() / in.factor;
-        if (std::abs(global.spacingX() - global.spacingY()) > 1e-9 * global.spacingX()) {
+        src.spacing = global.spacingX / in.factor;
+        if (std::abs(global.spacingX - global.spacingY) > 1e-9 * global.spacingX) {
             throw InputError(what +
                              ": the global map's cells are not square (give a "
                              "georeferenced inset)");
@@ -174,7 +175,7 @@ InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
     }
     TerrainMap fine = loadTerrain(src);
     if (at == std::string::npos) {
-        const Georeference& g = global.georeference();
+        const Georeference& g = globalGeo;
         const Georeference& f = fine.georeference();
         if (!g.present() || !f.present()) {
             throw InputError(what + ": " + (g.present() ? "the inset" : "the global map") +
@@ -183,16 +184,16 @@ InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
         if (g.crs != f.crs) {
             throw InputError(what + ": its coordinate system is not the global map's");
         }
-        const double ratio = global.spacingX() / fine.spacingX();
+        const double ratio = global.spacingX / fine.spacingX();
         in.factor = static_cast<int>(std::lround(ratio));
         if (std::abs(ratio - in.factor) > 1e-6 * ratio ||
-            std::abs(global.spacingY() / fine.spacingY() - in.factor) > 1e-6 * ratio) {
+            std::abs(global.spacingY / fine.spacingY() - in.factor) > 1e-6 * ratio) {
             throw InputError(what + ": its spacing " + base::number(fine.spacingX()) +
-                             " m is not the global " + base::number(global.spacingX()) +
+                             " m is not the global " + base::number(global.spacingX) +
                              " m over a whole number");
         }
-        const double gx = (f.originX - g.originX) / global.spacingX();
-        const double gy = (f.originY - g.originY) / global.spacingY();
+        const double gx = (f.originX - g.originX) / global.spacingX;
+        const double gy = (f.originY - g.originY) / global.spacingY;
         in.x0 = static_cast<int>(std::lround(gx));
         in.y0 = static_cast<int>(std::lround(gy));
         if (std::abs(gx - in.x0) > 1e-6 || std::abs(gy - in.y0) > 1e-6) {
@@ -227,20 +228,21 @@ InsetSource rasterInset(const std::string& spec, const TerrainMap& global,
 
 }  // namespace
 
-NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
-                                const InsetOptions& o) {
+std::vector<InsetSource> insetSources(const GlobalGrid& global, const Georeference& geo,
+                                      const TerrainOptions& terrain, const InsetOptions& o,
+                                      int syntheticLimit) {
     std::vector<InsetSource> sources;
     for (const std::string& spec : o.specs) {
         if (spec.rfind("synthetic:", 0) == 0) {
             const std::string what = "--inset " + base::quoted(spec);
-            const auto syn = parseSyntheticOption(terrain, 16384);
+            const auto syn = parseSyntheticOption(terrain, syntheticLimit);
             if (!syn) throw InputError(what + ": a synthetic inset needs --synthetic");
             const std::vector<std::string> p = split(spec.substr(10), ',');
             if (p.size() != 5) throw InputError(what + ": expected synthetic:X,Y,CX,CY,FACTOR");
-            const int x = parseWhole(p[0], what + " X", 0, global.width() - 2);
-            const int y = parseWhole(p[1], what + " Y", 0, global.height() - 2);
-            const int cx = parseWhole(p[2], what + " CX", 1, global.width() - 1);
-            const int cy = parseWhole(p[3], what + " CY", 1, global.height() - 1);
+            const int x = parseWhole(p[0], what + " X", 0, global.width - 2);
+            const int y = parseWhole(p[1], what + " Y", 0, global.height - 2);
+            const int cx = parseWhole(p[2], what + " CX", 1, global.width - 1);
+            const int cy = parseWhole(p[3], what + " CY", 1, global.height - 1);
             const int f = parseWhole(p[4], what + " FACTOR", 2, 256);
             if ((f & (f - 1)) != 0) {
                 throw InputError(what + ": FACTOR " + std::to_string(f) +
@@ -250,9 +252,31 @@ NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain
             src.name = "--inset " + spec;
             sources.push_back(std::move(src));
         } else {
-            sources.push_back(rasterInset(spec, global, terrain));
+            sources.push_back(rasterInset(spec, global, geo, terrain));
         }
     }
+    return sources;
+}
+
+bool databaseHasInsets(const TerrainOptions& terrain) {
+    return !terrain.db.empty() && !TerrainDb::open(terrain.db).insets().empty();
+}
+
+NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
+                                const InsetOptions& o) {
+    if (!terrain.db.empty()) {
+        const TerrainDb db = TerrainDb::open(terrain.db);
+        if (!db.insets().empty()) {
+            if (o.any()) {
+                throw InputError("--inset: " + terrain.db +
+                                 " holds insets already; add more to it with ig-build-db --db " +
+                                 terrain.db + " --inset ... --out DB");
+            }
+            return NestedTerrain::fromNested(std::move(global), readInsets(db));
+        }
+    }
+    std::vector<InsetSource> sources =
+        insetSources(GlobalGrid::of(global), global.georeference(), terrain, o, 16384);
     return NestedTerrain(std::move(global), std::move(sources), o.blendCells);
 }
 

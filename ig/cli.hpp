@@ -85,6 +85,13 @@ void addInsetOptions(CLI::App& app, InsetOptions& options);
 // naming the --inset and what is wrong.
 NestedTerrain loadNestedTerrain(TerrainMap global, const TerrainOptions& terrain,
                                 const InsetOptions& insets);
+// The inset sources the flags name over a global map of `global`'s grid and georeference
+// (synthetic insets take --synthetic's seed and spacing, its size up to `syntheticLimit`).
+std::vector<InsetSource> insetSources(const GlobalGrid& global, const Georeference& geo,
+                                      const TerrainOptions& terrain, const InsetOptions& insets,
+                                      int syntheticLimit);
+// Whether --db names a database holding insets (loadNestedTerrain nests them).
+bool databaseHasInsets(const TerrainOptions& terrain);
 
 // Appearance flags every rendering program shares (docs/design/appearance.md):
 //   --haze METRES|auto         distance for a 63 % blend to the horizon colour (0: off; auto: a

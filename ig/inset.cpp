@@ -25,8 +25,7 @@ namespace ig {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Global cells of skirt around each inset's own samples.
-constexpr int kSkirtCells = 4;
+constexpr int kSkirtCells = kInsetSkirtCells;
 
 bool isPowerOfTwo(int n) {
     return n > 0 && (n & (n - 1)) == 0;
@@ -50,8 +49,8 @@ std::uint8_t toByte(double v) {
     return static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
 }
 
-// Checks `src` against `global` and returns its placement (x1, y1); throws InputError.
-std::pair<int, int> checkPlacement(const TerrainMap& global, const InsetSource& src) {
+// Checks `src` against the global grid and returns its placement (x1, y1); throws InputError.
+std::pair<int, int> checkPlacement(const GlobalGrid& global, const InsetSource& src) {
     const std::string& n = src.name;
     if (!isPowerOfTwo(src.factor) || src.factor < 2 || src.factor > 256) {
         throw InputError(n + ": refinement factor " + std::to_string(src.factor) +
@@ -64,7 +63,7 @@ std::pair<int, int> checkPlacement(const TerrainMap& global, const InsetSource& 
                          " samples do not span whole global cells " + "at factor " +
                          std::to_string(src.factor) + " (need cells * factor + 1)");
     }
-    const double sx = global.spacingX() / src.factor, sy = global.spacingY() / src.factor;
+    const double sx = global.spacingX / src.factor, sy = global.spacingY / src.factor;
     if (std::abs(f.spacingX() - sx) > 1e-9 * sx || std::abs(f.spacingY() - sy) > 1e-9 * sy) {
         throw InputError(n + ": spacing " + std::to_string(f.spacingX()) + " x " +
                          std::to_string(f.spacingY()) + " m is not the global spacing / " +
@@ -72,14 +71,20 @@ std::pair<int, int> checkPlacement(const TerrainMap& global, const InsetSource& 
     }
     const int x1 = src.x0 + (f.width() - 1) / src.factor;
     const int y1 = src.y0 + (f.height() - 1) / src.factor;
-    if (src.x0 < 0 || src.y0 < 0 || x1 > global.width() - 1 || y1 > global.height() - 1) {
+    if (src.x0 < 0 || src.y0 < 0 || x1 > global.width - 1 || y1 > global.height - 1) {
         throw InputError(n + ": global cells [" + std::to_string(src.x0) + ", " +
                          std::to_string(x1) + ") x [" + std::to_string(src.y0) + ", " +
                          std::to_string(y1) + ") lie outside the global map's " +
-                         std::to_string(global.width() - 1) + " x " +
-                         std::to_string(global.height() - 1) + " cells");
+                         std::to_string(global.width - 1) + " x " +
+                         std::to_string(global.height - 1) + " cells");
     }
     return {x1, y1};
+}
+
+// The map's extent in global samples: the inset's own plus the skirt, clamped to the map.
+void mapExtent(const GlobalGrid& g, const Inset& in, int& mapX1, int& mapY1) {
+    mapX1 = std::min(in.x1 + kSkirtCells, g.width - 1);
+    mapY1 = std::min(in.y1 + kSkirtCells, g.height - 1);
 }
 
 }  // namespace
@@ -88,21 +93,25 @@ bool Inset::covers(double x, double y) const {
     return x >= coverMin.x && y >= coverMin.y && x <= coverMax.x && y <= coverMax.y;
 }
 
-NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources, int blendCells)
-    : global_(std::move(global)) {
-    if (global_.width() < 2 || global_.height() < 2) {
+GlobalGrid GlobalGrid::of(const TerrainMap& map) {
+    return {map.width(),    map.height(),      map.spacingX(),
+            map.spacingY(), map.heightScale(), map.heightOffset()};
+}
+
+InsetNesting::InsetNesting(const GlobalGrid& grid, std::vector<InsetSource> sources, int blendCells)
+    : grid_(grid), sources_(std::move(sources)), blendCells_(blendCells) {
+    if (grid_.width < 2 || grid_.height < 2) {
         throw InputError("insets: the global map is empty");
     }
     if (blendCells < 0) {
         throw InputError("insets: blend width " + std::to_string(blendCells) +
                          " cells must be 0 or more");
     }
-    const double scale = global_.heightScale(), offset = global_.heightOffset();
-    std::vector<std::vector<std::uint16_t>> fineRaw;
-    for (InsetSource& src : sources) {
-        if (src.name.empty()) src.name = "inset " + std::to_string(insets_.size() + 1);
-        const auto [x1, y1] = checkPlacement(global_, src);
-        for (const Inset& other : insets_) {
+    const double scale = grid_.heightScale, offset = grid_.heightOffset;
+    for (InsetSource& src : sources_) {
+        if (src.name.empty()) src.name = "inset " + std::to_string(placed_.size() + 1);
+        const auto [x1, y1] = checkPlacement(grid_, src);
+        for (const Inset& other : placed_) {
             // A global cell at least between them: each lowers samples of its own only.
             if (src.x0 <= other.x1 && x1 >= other.x0 && src.y0 <= other.y1 && y1 >= other.y0) {
                 throw InputError(src.name + ": overlaps or touches " + other.name +
@@ -132,19 +141,26 @@ NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources
         in.x1 = x1;
         in.y1 = y1;
         in.factor = src.factor;
-        in.coverMin = {in.x0 * global_.spacingX(), in.y0 * global_.spacingY()};
-        in.coverMax = {x1 * global_.spacingX(), y1 * global_.spacingY()};
-        insets_.push_back(std::move(in));
-        fineRaw.push_back(std::move(raw));
+        in.coverMin = {in.x0 * grid_.spacingX, in.y0 * grid_.spacingY};
+        in.coverMax = {x1 * grid_.spacingX, y1 * grid_.spacingY};
+        in.mapX0 = std::max(in.x0 - kSkirtCells, 0);
+        in.mapY0 = std::max(in.y0 - kSkirtCells, 0);
+        in.origin = {in.mapX0 * grid_.spacingX, in.mapY0 * grid_.spacingY};
+        placed_.push_back(std::move(in));
+        fineRaw_.push_back(std::move(raw));
     }
-
-    for (std::size_t k = 0; k < insets_.size(); ++k) {
-        Inset& in = insets_[k];
-        const TerrainMap& f = sources[k].fine;
-        const std::vector<std::uint16_t>& raw = fineRaw[k];
-        const int fw = f.width(), fac = in.factor;
+    for (std::size_t k = 0; k < placed_.size(); ++k) {
+        const Inset& in = placed_[k];
+        const std::vector<std::uint16_t>& raw = fineRaw_[k];
+        const int fw = sources_[k].fine.width(), fac = in.factor;
         // The global samples over the inset: the least fine sample of the global cells each
         // spans inside the inset, so the global bilinear surface stays under the inset's.
+        InsetLowering low;
+        low.x0 = in.x0;
+        low.y0 = in.y0;
+        low.x1 = in.x1;
+        low.y1 = in.y1;
+        low.raw.reserve(static_cast<std::size_t>(in.x1 - in.x0 + 1) * (in.y1 - in.y0 + 1));
         for (int j = in.y0; j <= in.y1; ++j) {
             const int v0 = (std::max(j - 1, in.y0) - in.y0) * fac;
             const int v1 = (std::min(j + 1, in.y1) - in.y0) * fac;
@@ -156,87 +172,197 @@ NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources
                     const std::uint16_t* row = raw.data() + static_cast<std::size_t>(v) * fw;
                     m = std::min(m, *std::min_element(row + u0, row + u1 + 1));
                 }
-                global_.setRaw(i, j, m);
+                low.raw.push_back(m);
             }
+        }
+        lowerings_.push_back(std::move(low));
+    }
+}
+
+void InsetNesting::lowerRows(int y0, int rows, std::uint16_t* heights) const {
+    for (const InsetLowering& low : lowerings_) {
+        const int a = std::max(y0, low.y0), b = std::min(y0 + rows - 1, low.y1);
+        const int lw = low.x1 - low.x0 + 1;
+        for (int j = a; j <= b; ++j) {
+            std::copy_n(low.raw.data() + static_cast<std::size_t>(j - low.y0) * lw, lw,
+                        heights + static_cast<std::size_t>(j - y0) * grid_.width + low.x0);
+        }
+    }
+}
+
+void InsetNesting::window(std::size_t k, int& x0, int& y0, int& x1, int& y1) const {
+    const Inset& in = placed_[k];
+    mapExtent(grid_, in, x1, y1);
+    x0 = in.mapX0;
+    y0 = in.mapY0;
+    // The bilinear reads at the map's far samples take the next global sample where there is one.
+    x1 = std::min(x1 + 1, grid_.width - 1);
+    y1 = std::min(y1 + 1, grid_.height - 1);
+}
+
+Inset InsetNesting::nest(std::size_t k, const TerrainMap& lowered, int ox, int oy,
+                         std::uint16_t floorRaw) const {
+    Inset in = placed_[k];
+    const TerrainMap& f = sources_[k].fine;
+    const std::vector<std::uint16_t>& raw = fineRaw_[k];
+    const int fw = f.width(), fh = f.height(), fac = in.factor;
+    const int gw = grid_.width, gh = grid_.height;
+    {
+        int wx0, wy0, wx1, wy1;
+        window(k, wx0, wy0, wx1, wy1);
+        CHECK(ox <= wx0 && oy <= wy0 && wx1 - ox < lowered.width() && wy1 - oy < lowered.height())
+            << "the window does not cover " << in.name;
+    }
+    auto rawAt = [&](int x, int y) { return lowered.raw(x - ox, y - oy); };
+    auto colorAt = [&](int x, int y) { return lowered.colorAt(x - ox, y - oy); };
+    // The inset's map: the fine samples, their outer `blendCells` cells blended toward the
+    // (lowered) global surface and colours, inside a skirt of the global surface (samples
+    // rounded up, so it stays on or over the global one), its box reaching down to the
+    // global floor. The eye is then never under the box, which the fast caster's vertical
+    // coherence needs (a ray entering the box from below breaks the chain of starts up its
+    // column), and a ray enters the map over the skirt, never through the side of the
+    // inset's own data: one that meets the skirt, or its side, has met the global surface
+    // there as near or nearer, so the composite keeps the global hit.
+    int mapX1, mapY1;
+    mapExtent(grid_, in, mapX1, mapY1);
+    const int sx = (in.x0 - in.mapX0) * fac, sy = (in.y0 - in.mapY0) * fac;
+    const int mw = (mapX1 - in.mapX0) * fac + 1, mh = (mapY1 - in.mapY0) * fac + 1;
+    const double scale = grid_.heightScale, offset = grid_.heightOffset;
+    in.map = TerrainMap(mw, mh, f.spacingX(), f.spacingY(), scale, offset);
+    const double inv = 1.0 / fac;
+    for (int mv = 0; mv < mh; ++mv) {
+        for (int mu = 0; mu < mw; ++mu) {
+            const int u = mu - sx, v = mv - sy;  // fine sample, when inside
+            const bool inside = u >= 0 && v >= 0 && u < fw && v < fh;
+            const int b = inside ? std::min({u, v, fw - 1 - u, fh - 1 - v}) : -1;
+            double h = inside ? raw[static_cast<std::size_t>(v) * fw + u] : 0.0;
+            Rgb8 c = inside ? f.colorAt(u, v) : Rgb8{};
+            if (b < blendCells_) {
+                const double t = b < 0 ? 0.0 : static_cast<double>(b) / blendCells_;
+                const double w = t * t * (3.0 - 2.0 * t);
+                const double gx = in.mapX0 + mu * inv, gy = in.mapY0 + mv * inv;
+                const double g0 = bilinearAt(
+                    gw, gh, gx, gy, [&](int x, int y) { return static_cast<double>(rawAt(x, y)); });
+                // Rounded up: the inset stays on or over the global surface (the fine
+                // samples are at least the lowered global ones around them).
+                h = std::ceil(w * h + (1.0 - w) * g0 - 1e-9);
+                double rgb[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    const double g = bilinearAt(gw, gh, gx, gy, [&](int x, int y) {
+                        const Rgb8 gc = colorAt(x, y);
+                        return static_cast<double>(ch == 0 ? gc.r : ch == 1 ? gc.g : gc.b);
+                    });
+                    const double own = ch == 0 ? c.r : ch == 1 ? c.g : c.b;
+                    rgb[ch] = w * own + (1.0 - w) * g;
+                }
+                c = Rgb8{toByte(rgb[0]), toByte(rgb[1]), toByte(rgb[2])};
+            }
+            in.map.setRaw(mu, mv, toRaw(h));
+            in.map.setColor(mu, mv, c);
+        }
+    }
+    in.map.updateRange();
+    in.map.extendFloor(floorRaw * scale + offset);
+    return in;
+}
+
+NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources, int blendCells)
+    : global_(std::move(global)) {
+    const InsetNesting nesting(GlobalGrid::of(global_), std::move(sources), blendCells);
+    for (const InsetLowering& low : nesting.lowerings()) {
+        std::size_t i = 0;
+        for (int j = low.y0; j <= low.y1; ++j) {
+            for (int x = low.x0; x <= low.x1; ++x)
+                global_.setRaw(x, j, low.raw[i++]);
         }
     }
     // The lowest global sample: the floor of every inset's map.
     const std::uint16_t floorRaw =
         *std::min_element(global_.rawHeights().begin(), global_.rawHeights().end());
-    for (std::size_t k = 0; k < insets_.size(); ++k) {
-        Inset& in = insets_[k];
-        const TerrainMap& f = sources[k].fine;
-        const std::vector<std::uint16_t>& raw = fineRaw[k];
-        const int fw = f.width(), fh = f.height(), fac = in.factor;
-        // The inset's map: the fine samples, their outer `blendCells` cells blended toward the
-        // (lowered) global surface and colours, inside a skirt of the global surface (samples
-        // rounded up, so it stays on or over the global one), its box reaching down to the
-        // global floor. The eye is then never under the box, which the fast caster's vertical
-        // coherence needs (a ray entering the box from below breaks the chain of starts up its
-        // column), and a ray enters the map over the skirt, never through the side of the
-        // inset's own data: one that meets the skirt, or its side, has met the global surface
-        // there as near or nearer, so the composite keeps the global hit.
-        const int gw = global_.width(), gh = global_.height();
-        in.mapX0 = std::max(in.x0 - kSkirtCells, 0);
-        in.mapY0 = std::max(in.y0 - kSkirtCells, 0);
-        const int mapX1 = std::min(in.x1 + kSkirtCells, gw - 1);
-        const int mapY1 = std::min(in.y1 + kSkirtCells, gh - 1);
-        const int sx = (in.x0 - in.mapX0) * fac, sy = (in.y0 - in.mapY0) * fac;
-        const int mw = (mapX1 - in.mapX0) * fac + 1, mh = (mapY1 - in.mapY0) * fac + 1;
-        in.origin = {in.mapX0 * global_.spacingX(), in.mapY0 * global_.spacingY()};
-        in.map = TerrainMap(mw, mh, f.spacingX(), f.spacingY(), scale, offset);
-        const double inv = 1.0 / fac;
-        for (int mv = 0; mv < mh; ++mv) {
-            for (int mu = 0; mu < mw; ++mu) {
-                const int u = mu - sx, v = mv - sy;  // fine sample, when inside
-                const bool inside = u >= 0 && v >= 0 && u < fw && v < fh;
-                const int b = inside ? std::min({u, v, fw - 1 - u, fh - 1 - v}) : -1;
-                double h = inside ? raw[static_cast<std::size_t>(v) * fw + u] : 0.0;
-                Rgb8 c = inside ? f.colorAt(u, v) : Rgb8{};
-                if (b < blendCells) {
-                    const double t = b < 0 ? 0.0 : static_cast<double>(b) / blendCells;
-                    const double w = t * t * (3.0 - 2.0 * t);
-                    const double gx = in.mapX0 + mu * inv, gy = in.mapY0 + mv * inv;
-                    const double g0 = bilinearAt(gw, gh, gx, gy, [&](int x, int y) {
-                        return static_cast<double>(global_.raw(x, y));
-                    });
-                    // Rounded up: the inset stays on or over the global surface (the fine
-                    // samples are at least the lowered global ones around them).
-                    h = std::ceil(w * h + (1.0 - w) * g0 - 1e-9);
-                    double rgb[3];
-                    for (int ch = 0; ch < 3; ++ch) {
-                        const double g = bilinearAt(gw, gh, gx, gy, [&](int x, int y) {
-                            const Rgb8 gc = global_.colorAt(x, y);
-                            return static_cast<double>(ch == 0 ? gc.r : ch == 1 ? gc.g : gc.b);
-                        });
-                        const double own = ch == 0 ? c.r : ch == 1 ? c.g : c.b;
-                        rgb[ch] = w * own + (1.0 - w) * g;
-                    }
-                    c = Rgb8{toByte(rgb[0]), toByte(rgb[1]), toByte(rgb[2])};
-                }
-                in.map.setRaw(mu, mv, toRaw(h));
-                in.map.setColor(mu, mv, c);
-            }
-        }
-        in.map.updateRange();
-        in.map.extendFloor(floorRaw * scale + offset);
-    }
+    for (std::size_t k = 0; k < nesting.size(); ++k)
+        insets_.push_back(nesting.nest(k, global_, 0, 0, floorRaw));
     global_.updateRange();
 }
 
-double NestedTerrain::surfaceHeight(double x, double y) const {
-    for (const Inset& in : insets_) {
-        if (in.covers(x, y)) return in.map.surfaceHeight(x - in.origin.x, y - in.origin.y);
+NestedTerrain NestedTerrain::fromNested(TerrainMap global, std::vector<Inset> insets) {
+    NestedTerrain t;
+    t.global_ = std::move(global);
+    const GlobalGrid g = GlobalGrid::of(t.global_);
+    for (std::size_t k = 0; k < insets.size(); ++k) {
+        Inset& in = insets[k];
+        const std::string& n = in.name;
+        if (!isPowerOfTwo(in.factor) || in.factor < 2 || in.factor > 256 || in.x0 < 0 ||
+            in.y0 < 0 || in.x1 <= in.x0 || in.y1 <= in.y0 || in.x1 > g.width - 1 ||
+            in.y1 > g.height - 1 || in.mapX0 != std::max(in.x0 - kSkirtCells, 0) ||
+            in.mapY0 != std::max(in.y0 - kSkirtCells, 0)) {
+            throw InputError(n + ": placement out of the global map or its rules");
+        }
+        int mapX1, mapY1;
+        mapExtent(g, in, mapX1, mapY1);
+        const int mw = (mapX1 - in.mapX0) * in.factor + 1;
+        const int mh = (mapY1 - in.mapY0) * in.factor + 1;
+        const TerrainMap& m = in.map;
+        if (m.width() != mw || m.height() != mh) {
+            throw InputError(n + ": map of " + std::to_string(m.width()) + " x " +
+                             std::to_string(m.height()) + " samples, its placement needs " +
+                             std::to_string(mw) + " x " + std::to_string(mh));
+        }
+        const double sx = g.spacingX / in.factor, sy = g.spacingY / in.factor;
+        if (std::abs(m.spacingX() - sx) > 1e-9 * sx || std::abs(m.spacingY() - sy) > 1e-9 * sy ||
+            m.heightScale() != g.heightScale || m.heightOffset() != g.heightOffset) {
+            throw InputError(n + ": spacing or height quantisation is not the global map's " +
+                             "at factor " + std::to_string(in.factor));
+        }
+        for (std::size_t o = 0; o < k; ++o) {
+            const Inset& other = insets[o];
+            if (in.x0 <= other.x1 && in.x1 >= other.x0 && in.y0 <= other.y1 && in.y1 >= other.y0) {
+                throw InputError(n + ": overlaps or touches " + other.name);
+            }
+        }
+        in.coverMin = {in.x0 * g.spacingX, in.y0 * g.spacingY};
+        in.coverMax = {in.x1 * g.spacingX, in.y1 * g.spacingY};
+        in.origin = {in.mapX0 * g.spacingX, in.mapY0 * g.spacingY};
     }
-    return global_.surfaceHeight(x, y);
+    t.insets_ = std::move(insets);
+    return t;
+}
+
+NestedMaps NestedTerrain::maps() const {
+    NestedMaps m;
+    m.global = &global_;
+    for (const Inset& in : insets_)
+        m.insets.push_back({&in, &in.map});
+    return m;
+}
+
+double NestedTerrain::surfaceHeight(double x, double y) const {
+    return maps().surfaceHeight(x, y);
 }
 
 RayHit NestedTerrain::intersect(const glm::dvec3& origin, const glm::dvec3& dir) const {
+    return maps().intersect(origin, dir);
+}
+
+double NestedTerrain::entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta,
+                                  double tb) const {
+    return maps().entryBeyond(origin, dir, ta, tb);
+}
+
+double NestedMaps::surfaceHeight(double x, double y) const {
+    for (const Part& p : insets) {
+        if (p.placement->covers(x, y)) {
+            return p.map->surfaceHeight(x - p.placement->origin.x, y - p.placement->origin.y);
+        }
+    }
+    return global->surfaceHeight(x, y);
+}
+
+RayHit NestedMaps::intersect(const glm::dvec3& origin, const glm::dvec3& dir) const {
     const glm::dvec3 d = glm::normalize(dir);
-    RayHit best = intersectTerrain(global_, origin, d);
-    for (const Inset& in : insets_) {
-        const glm::dvec3 shift{in.origin, 0.0};
-        RayHit h = intersectTerrain(in.map, origin - shift, d);
+    RayHit best = intersectTerrain(*global, origin, d);
+    for (const Part& p : insets) {
+        const glm::dvec3 shift{p.placement->origin, 0.0};
+        RayHit h = intersectTerrain(*p.map, origin - shift, d);
         if (h.hit && (!best.hit || h.distance <= best.distance)) {
             h.point += shift;
             best = h;
@@ -245,12 +371,12 @@ RayHit NestedTerrain::intersect(const glm::dvec3& origin, const glm::dvec3& dir)
     return best;
 }
 
-double NestedTerrain::entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta,
-                                  double tb) const {
-    double best = ig::entryBeyond(global_, TerrainRay(global_, origin, dir), ta, tb);
-    for (const Inset& in : insets_) {
-        const TerrainRay ray(in.map, origin - glm::dvec3{in.origin, 0.0}, dir);
-        const double t = ig::entryBeyond(in.map, ray, ta, tb);
+double NestedMaps::entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta,
+                               double tb) const {
+    double best = ig::entryBeyond(*global, TerrainRay(*global, origin, dir), ta, tb);
+    for (const Part& p : insets) {
+        const TerrainRay ray(*p.map, origin - glm::dvec3{p.placement->origin, 0.0}, dir);
+        const double t = ig::entryBeyond(*p.map, ray, ta, tb);
         if (t >= 0.0 && (best < 0.0 || t <= best)) best = t;
     }
     return best;
@@ -333,12 +459,13 @@ namespace {
 // The columns [first, second) of `camera`'s image where the inset's box (its square, from the
 // lowest of its and the global surface to its highest point) can show; the whole width when a
 // corner lies behind the camera plane.
-std::pair<int, int> insetColumns(const Camera& camera, const Inset& in, double low) {
+std::pair<int, int> insetColumns(const Camera& camera, const NestedMaps::Part& in, double low) {
     const int w = camera.intrinsics().width;
-    const double z0 = std::min(low, in.map.minHeight()), z1 = in.map.maxHeight();
+    const glm::dvec2 origin = in.placement->origin;
+    const double z0 = std::min(low, in.map->minHeight()), z1 = in.map->maxHeight();
     double lo = kInf, hi = -kInf;
-    for (const double x : {in.origin.x, in.origin.x + in.map.extentX()}) {
-        for (const double y : {in.origin.y, in.origin.y + in.map.extentY()}) {
+    for (const double x : {origin.x, origin.x + in.map->extentX()}) {
+        for (const double y : {origin.y, origin.y + in.map->extentY()}) {
             for (const double z : {z0, z1}) {
                 const auto p = camera.project({x, y, z});
                 if (!p) return {0, w};
@@ -355,8 +482,10 @@ std::pair<int, int> insetColumns(const Camera& camera, const Inset& in, double l
 
 class NestedCaster final : public Caster {
   public:
-    NestedCaster(CasterKind kind, const NestedTerrain& terrain, const RenderOptions& options)
-        : terrain_(terrain), options_(options) {
+    NestedCaster(CasterKind kind, const NestedMaps& maps, const RenderOptions& options,
+                 const std::vector<RenderOptions>& insetOptions)
+        : maps_(maps), options_(options) {
+        CHECK(insetOptions.size() == maps.insets.size());
         if (kind == CasterKind::Span) {
             throw InputError(
                 "insets: the span caster does not draw insets (use fast, naive or "
@@ -365,19 +494,16 @@ class NestedCaster final : public Caster {
         if (!options.objects.empty()) {
             throw InputError("insets: objects over a terrain with insets are not drawn");
         }
-        if (options.pyramid || options.slopes) {
-            throw InputError("insets: a paged map takes no insets");
-        }
-        global_ = makeCaster(kind, terrain.global(), options);
-        for (const Inset& in : terrain.insets()) {
+        global_ = makeCaster(kind, *maps.global, options);
+        for (std::size_t k = 0; k < maps.insets.size(); ++k) {
             // Each map lit by its own normals (the lighting pass runs on each pass's frame).
-            RenderOptions o = options;
-            if (options.lighting) {
-                auto lit = std::make_shared<SunLighting>(*options.lighting);
-                lit->normals = std::make_shared<const TerrainNormals>(in.map);
+            RenderOptions o = insetOptions[k];
+            if (o.lighting) {
+                auto lit = std::make_shared<SunLighting>(*o.lighting);
+                lit->normals = std::make_shared<const TerrainNormals>(*maps.insets[k].map);
                 o.lighting = std::move(lit);
             }
-            inner_.push_back(makeCaster(kind, in.map, o));
+            inner_.push_back(makeCaster(kind, *maps.insets[k].map, o));
         }
     }
 
@@ -428,13 +554,12 @@ class NestedCaster final : public Caster {
         const Intrinsics& intr = camera.intrinsics();
         frame.objectId.clear();
         renderColumns(*global_, camera, frame, 0, intr.width, counters);
-        const std::vector<Inset>& insets = terrain_.insets();
-        for (std::size_t k = 0; k < insets.size(); ++k) {
-            const Inset& in = insets[k];
-            const auto [c0, c1] = insetColumns(camera, in, terrain_.global().minHeight());
+        for (std::size_t k = 0; k < maps_.insets.size(); ++k) {
+            const NestedMaps::Part& in = maps_.insets[k];
+            const auto [c0, c1] = insetColumns(camera, in, maps_.global->minHeight());
             if (c0 >= c1) continue;
             Pose pose = camera.pose();
-            pose.position -= glm::dvec3{in.origin, 0.0};
+            pose.position -= glm::dvec3{in.placement->origin, 0.0};
             const Camera local(pose, intr);
             RenderedFrame part;
             part.intrinsics = intr;
@@ -457,7 +582,7 @@ class NestedCaster final : public Caster {
         }
     }
 
-    const NestedTerrain& terrain_;
+    NestedMaps maps_;
     RenderOptions options_;
     std::unique_ptr<Caster> global_;
     std::vector<std::unique_ptr<Caster>> inner_;
@@ -467,14 +592,32 @@ class NestedCaster final : public Caster {
 
 std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
                                          const RenderOptions& options) {
-    return std::make_unique<NestedCaster>(kind, terrain, options);
+    if (options.pyramid || options.slopes) {
+        throw InputError("insets: a paged map's pyramid is its own (use the maps' overload)");
+    }
+    return std::make_unique<NestedCaster>(
+        kind, terrain.maps(), options,
+        std::vector<RenderOptions>(terrain.insets().size(), options));
+}
+
+std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedMaps& maps,
+                                         const RenderOptions& globalOptions,
+                                         const std::vector<RenderOptions>& insetOptions) {
+    return std::make_unique<NestedCaster>(kind, maps, globalOptions, insetOptions);
 }
 
 RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terrain,
                                 const Pose& pose, const Intrinsics& intrinsics, double time,
                                 std::uint64_t sequence, double nearM) {
+    return renderNestedFrame(caster, terrain.maps(), pose, intrinsics, time, sequence, nearM);
+}
+
+RenderedFrame renderNestedFrame(const Caster& caster, const NestedMaps& terrain, const Pose& pose,
+                                const Intrinsics& intrinsics, double time, std::uint64_t sequence,
+                                double nearM) {
     checkNearPlane(nearM);
-    for (const Inset& in : terrain.insets()) {
+    for (const NestedMaps::Part& part : terrain.insets) {
+        const Inset& in = *part.placement;
         const glm::dvec3& p = pose.position;
         if (in.covers(p.x, p.y) && p.z <= terrain.surfaceHeight(p.x, p.y)) {
             throw InputError("pose: camera at z = " + std::to_string(p.z) +
@@ -482,7 +625,7 @@ RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terra
                              std::to_string(terrain.surfaceHeight(p.x, p.y)) + " m)");
         }
     }
-    RenderedFrame frame = newFrame(terrain.global(), pose, intrinsics, time, sequence);
+    RenderedFrame frame = newFrame(*terrain.global, pose, intrinsics, time, sequence);
     frame.nearM = nearM;
     const Camera camera(pose, intrinsics);
     renderPixels(caster, camera, frame);

@@ -8,11 +8,15 @@
 
 #include <glm/vec2.hpp>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace ig {
+
+// Global cells of the global surface around each inset's own samples in its map.
+inline constexpr int kInsetSkirtCells = 4;
 
 // A finer map for the global cells [x0, x0 + cellsX) x [y0, y0 + cellsY): its samples lie on
 // the global grid subdivided `factor` times (a power of two, 2..256), its south-west sample on
@@ -52,15 +56,84 @@ struct Inset {
 //   there stays under the inset's and a ray meets the inset first; further away, where the
 //   inset's coarse levels and the global ones meet, the global data is a slightly low copy of
 //   the same terrain rather than a hole.
+// The maps of a nested terrain as the casters read them, held elsewhere: the global map and
+// each inset's placement and map (a NestedTerrain's, or paged from a database).
+struct NestedMaps {
+    struct Part {
+        const Inset* placement = nullptr;  // where it lies (its own map unused)
+        const TerrainMap* map = nullptr;   // its map, in the inset's local coordinates
+    };
+    const TerrainMap* global = nullptr;
+    std::vector<Part> insets;
+
+    // As NestedTerrain's.
+    double surfaceHeight(double x, double y) const;
+    RayHit intersect(const glm::dvec3& origin, const glm::dvec3& dir) const;
+    double entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta, double tb) const;
+};
+
+// What nesting needs of the global map before reading its samples: its size, spacing and
+// height quantisation.
+struct GlobalGrid {
+    int width = 0, height = 0;
+    double spacingX = 1.0, spacingY = 1.0, heightScale = 1.0, heightOffset = 0.0;
+    static GlobalGrid of(const TerrainMap& map);
+};
+
+// The global samples over an inset, lowered: samples [x0, x1] x [y0, y1], rows south first.
+struct InsetLowering {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    std::vector<std::uint16_t> raw;
+};
+
+// NestedTerrain's nesting in steps, for a global map never held whole (a database being
+// built): the lowerings need only the insets; each inset's map needs only a window of the
+// lowered global map around it (window()). NestedTerrain's constructor runs the same steps
+// over the whole map, so the two give the same maps to the bit.
+class InsetNesting {
+  public:
+    // Checks the insets as NestedTerrain does (InputError naming the inset).
+    InsetNesting(const GlobalGrid& grid, std::vector<InsetSource> sources, int blendCells);
+
+    std::size_t size() const { return placed_.size(); }
+    // Inset k's placement (its map empty until nest()).
+    const Inset& placement(std::size_t k) const { return placed_[k]; }
+    const std::vector<InsetLowering>& lowerings() const { return lowerings_; }
+    // Lowers the samples of global rows [y0, y0 + rows) (full width, `heights` row-major) that
+    // lie over an inset.
+    void lowerRows(int y0, int rows, std::uint16_t* heights) const;
+    // The global samples [x0, x1] x [y0, y1] inset k's map is made from.
+    void window(std::size_t k, int& x0, int& y0, int& x1, int& y1) const;
+    // Inset k nested: `lowered` holds the lowered global samples (every lowering applied) and
+    // colours over at least window(k), its sample (0, 0) on global sample (ox, oy); the
+    // inset's box reaches down to global raw height `floorRaw`.
+    Inset nest(std::size_t k, const TerrainMap& lowered, int ox, int oy,
+               std::uint16_t floorRaw) const;
+
+  private:
+    GlobalGrid grid_;
+    std::vector<InsetSource> sources_;
+    std::vector<std::vector<std::uint16_t>> fineRaw_;
+    std::vector<Inset> placed_;
+    std::vector<InsetLowering> lowerings_;
+    int blendCells_ = 0;
+};
+
 class NestedTerrain {
   public:
     // Throws InputError naming the inset for one that does not fit the global map (size,
     // spacing, placement, a factor not a power of two, overlapping another, heights outside the
     // global quantisation's range) or a negative blend width.
     NestedTerrain(TerrainMap global, std::vector<InsetSource> insets, int blendCells = 8);
+    // Insets nested already (InsetNesting, or read back from a database): `global` holds the
+    // lowered samples. Throws InputError naming the inset whose map does not fit its
+    // placement or the global map's spacing and quantisation.
+    static NestedTerrain fromNested(TerrainMap global, std::vector<Inset> insets);
 
     const TerrainMap& global() const { return global_; }
     const std::vector<Inset>& insets() const { return insets_; }
+    // The maps, for the casters (valid while this lives and is not moved).
+    NestedMaps maps() const;
 
     // Surface height (the finest data) at world (x, y), as TerrainMap::surfaceHeight.
     double surfaceHeight(double x, double y) const;
@@ -83,6 +156,7 @@ class NestedTerrain {
     void applyRamp();
 
   private:
+    NestedTerrain() = default;
     TerrainMap global_;
     std::vector<Inset> insets_;
 };
@@ -95,11 +169,20 @@ class NestedTerrain {
 // overlap between frames).
 std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
                                          const RenderOptions& options = {});
+// The same over maps held elsewhere (a paged database's), each with its own options (its
+// pyramid and slope bounds); `insetOptions` one per inset of `maps`. `maps` is copied; the maps
+// it points to must outlive the caster.
+std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedMaps& maps,
+                                         const RenderOptions& globalOptions,
+                                         const std::vector<RenderOptions>& insetOptions);
 
 // renderFrame over a nested terrain: the view is checked against, and the nine control points
 // cast on, the nested surface.
 RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terrain,
                                 const Pose& pose, const Intrinsics& intrinsics, double time = 0.0,
+                                std::uint64_t sequence = 0, double nearM = 0.0);
+RenderedFrame renderNestedFrame(const Caster& caster, const NestedMaps& maps, const Pose& pose,
+                                const Intrinsics& intrinsics, double time = 0.0,
                                 std::uint64_t sequence = 0, double nearM = 0.0);
 
 // The synthetic generator's samples over global cells [x0, x0 + cellsX) x [y0, y0 + cellsY)

@@ -5,6 +5,7 @@
 #include "ig/terrain_db.hpp"
 
 #include "base/check.hpp"
+#include "base/text.hpp"
 #include "ig/error.hpp"
 #include "ig/slope_bound.hpp"
 #include "ig/terrain_io.hpp"
@@ -78,6 +79,14 @@ std::size_t payloadBytes(TileKind kind, int w, int h) {
     if (kind == TileKind::Nodes) return n * 2;
     return n * 2 + n * 3 + static_cast<std::size_t>(w - 1) * (h - 1) * 2;
 }
+
+// Embedded databases start on this boundary (a multiple of every page size in use), so that
+// their header and slope section map on their own.
+constexpr std::uint64_t kEmbedAlign = 65536;
+// An inset's entry: seven i32 (x0, y0, x1, y1, factor, mapX0, mapY0), u32 zero, u64 offset,
+// u64 bytes, the name (NUL-padded).
+constexpr std::size_t kInsetNameBytes = 128, kInsetEntryBytes = 48 + kInsetNameBytes;
+constexpr std::uint32_t kMaxInsets = 4096;
 
 std::string sysError() {
     return std::strerror(errno);
@@ -303,6 +312,33 @@ std::vector<std::uint8_t> encodeTile(const TerrainTile& tile, TileCodec codec,
 
 // --- writer ---------------------------------------------------------------------------------
 
+namespace {
+
+// Copies the whole of `from` into `fd` at `at`; returns its size.
+std::uint64_t copyFileInto(const std::string& from, int fd, std::uint64_t at,
+                           const std::string& to) {
+    const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
+    if (in < 0) throw InputError(from + ": cannot open: " + sysError());
+    std::vector<std::uint8_t> buf(std::size_t{1} << 20);
+    std::uint64_t done = 0;
+    for (;;) {
+        const ssize_t r = ::pread(in, buf.data(), buf.size(), static_cast<off_t>(done));
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) {
+            const std::string why = sysError();
+            ::close(in);
+            throw InputError(from + ": cannot read: " + why);
+        }
+        if (r == 0) break;
+        writeAll(fd, buf.data(), static_cast<std::size_t>(r), at + done, to);
+        done += static_cast<std::uint64_t>(r);
+    }
+    ::close(in);
+    return done;
+}
+
+}  // namespace
+
 TerrainDbWriter::TerrainDbWriter(const std::string& path, const TerrainDbLayout& layout,
                                  TileCodec codec)
     : path_(path), tmpPath_(path + ".partial"), layout_(layout), codec_(codec) {
@@ -354,7 +390,8 @@ void TerrainDbWriter::write(const TerrainTile& tile) {
     append(tile.key, stored, raw);
 }
 
-std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info) {
+std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info,
+                                      const std::vector<Embedded>& insets) {
     CHECK(!finished_);
     CHECK(std::all_of(written_.begin(), written_.end(), [](std::uint8_t w) { return w != 0; }));
     CHECK(slopeRowsWritten_ == SlopeBlocks::blocksAlong(layout_.levelHeight(0)));
@@ -376,6 +413,26 @@ std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info) {
     const std::uint64_t crsOffset = indexOffset + index_.size();
     writeAll(fd_, reinterpret_cast<const std::uint8_t*>(info.crs.data()), info.crs.size(),
              crsOffset, tmpPath_);
+    // The embedded insets, each a whole database on a boundary of kEmbedAlign (the reader
+    // maps each one's header and slope section), then their table.
+    std::uint64_t end = crsOffset + info.crs.size();
+    std::vector<std::uint8_t> table(insets.size() * kInsetEntryBytes, 0);
+    for (std::size_t k = 0; k < insets.size(); ++k) {
+        const DbInset& in = insets[k].inset;
+        end = (end + kEmbedAlign - 1) / kEmbedAlign * kEmbedAlign;
+        const std::uint64_t bytes = copyFileInto(insets[k].file, fd_, end, tmpPath_);
+        std::uint8_t* e = table.data() + k * kInsetEntryBytes;
+        const int fields[7] = {in.x0, in.y0, in.x1, in.y1, in.factor, in.mapX0, in.mapY0};
+        for (int f = 0; f < 7; ++f)
+            put<std::int32_t>(e + 4 * f, fields[f]);
+        put<std::uint64_t>(e + 32, end);
+        put<std::uint64_t>(e + 40, bytes);
+        const std::size_t n = std::min<std::size_t>(in.name.size(), kInsetNameBytes - 1);
+        std::memcpy(e + 48, in.name.data(), n);
+        end += bytes;
+    }
+    const std::uint64_t tableOffset = end;
+    writeAll(fd_, table.data(), table.size(), tableOffset, tmpPath_);
     std::uint8_t h[kHeaderBytes] = {};
     std::memcpy(h, kMagic, 8);
     put<std::uint32_t>(h + 8, kTerrainDbVersion);
@@ -402,22 +459,30 @@ std::uint64_t TerrainDbWriter::finish(const TerrainDbInfo& info) {
     put<std::uint32_t>(h + 128, static_cast<std::uint32_t>(slopeCrc));
     put<std::uint16_t>(h + 132, info.maxDx);
     put<std::uint16_t>(h + 134, info.maxDy);
+    put<std::uint64_t>(h + 136, tableOffset);
+    put<std::uint32_t>(h + 144, static_cast<std::uint32_t>(insets.size()));
+    put<std::uint32_t>(h + 148, crc32Of(table.data(), table.size()));
     put<std::uint32_t>(h + 252, crc32Of(h, 252));
     writeAll(fd_, h, kHeaderBytes, 0, tmpPath_);
     if (::fsync(fd_) != 0) throw InputError(tmpPath_ + ": cannot sync: " + sysError());
     ::close(fd_);
     fd_ = -1;
-    if (::rename(tmpPath_.c_str(), path_.c_str()) != 0) {
+    if (!keepTemporary_ && ::rename(tmpPath_.c_str(), path_.c_str()) != 0) {
         throw InputError(path_ + ": cannot rename " + tmpPath_ + " into place: " + sysError());
     }
     finished_ = true;
-    return crsOffset + info.crs.size();
+    for (const Embedded& e : insets)
+        ::unlink(e.file.c_str());
+    return tableOffset + table.size();
 }
 
 // --- reader ---------------------------------------------------------------------------------
 
 TerrainDb::TerrainDb(TerrainDb&& o) noexcept
     : path_(std::move(o.path_)),
+      file_(std::move(o.file_)),
+      base_(o.base_),
+      insets_(std::move(o.insets_)),
       fd_(o.fd_),
       info_(std::move(o.info_)),
       layout_(std::move(o.layout_)),
@@ -438,6 +503,9 @@ TerrainDb& TerrainDb::operator=(TerrainDb&& o) noexcept {
     if (this != &o) {
         if (fd_ >= 0) ::close(fd_);
         path_ = std::move(o.path_);
+        file_ = std::move(o.file_);
+        base_ = o.base_;
+        insets_ = std::move(o.insets_);
         fd_ = o.fd_;
         o.fd_ = -1;
         info_ = std::move(o.info_);
@@ -467,24 +535,42 @@ double TerrainDbInfo::maxSlope() const {
 }
 
 TerrainDb TerrainDb::open(const std::string& path) {
+    return openAt(path, path, 0, 0);
+}
+
+TerrainDb TerrainDb::openInset(std::size_t k) const {
+    CHECK(k < insets_.size());
+    const DbInset& in = insets_[k];
+    return openAt(file_, path_ + " (inset " + base::quoted(in.name) + ")", base_ + in.offset,
+                  in.bytes);
+}
+
+TerrainDb TerrainDb::openAt(const std::string& file, const std::string& path, std::uint64_t base,
+                            std::uint64_t bytes) {
     TerrainDb db;
     db.path_ = path;
-    db.fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    db.file_ = file;
+    db.base_ = base;
+    db.fd_ = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
     if (db.fd_ < 0) throw InputError(path + ": cannot open: " + sysError());
     struct stat st {};
     if (::fstat(db.fd_, &st) != 0) throw InputError(path + ": cannot stat: " + sysError());
-    db.fileBytes_ = static_cast<std::uint64_t>(st.st_size);
     auto fail = [&](const std::string& what) { throw InputError(path + ": " + what); };
+    const std::uint64_t fileSize = static_cast<std::uint64_t>(st.st_size);
+    if (base > fileSize || (bytes > 0 && bytes > fileSize - base)) {
+        fail("truncated (the file ends inside the embedded database)");
+    }
+    db.fileBytes_ = bytes > 0 ? bytes : fileSize - base;
 
     std::uint8_t h[kHeaderBytes];
-    if (!readAll(db.fd_, h, kHeaderBytes, 0, path)) {
+    if (!readAll(db.fd_, h, kHeaderBytes, base, path)) {
         fail("not a terrain database (shorter than its header)");
     }
     if (std::memcmp(h, kMagic, 8) != 0) {
         fail("not a terrain database (no VIGTERDB header; an unfinished build leaves none)");
     }
     const std::uint32_t version = get<std::uint32_t>(h + 8);
-    if (version != kTerrainDbVersion) {
+    if (version != kTerrainDbVersion && version != 2) {
         fail("database format version " + std::to_string(version) + "; this program reads " +
              std::to_string(kTerrainDbVersion) + " (rebuild it with ig-build-db)");
     }
@@ -549,7 +635,7 @@ TerrainDb TerrainDb::open(const std::string& path) {
         for (std::uint64_t at = 0; at < slopeBytes; at += chunk.size()) {
             const std::size_t n =
                 static_cast<std::size_t>(std::min<std::uint64_t>(chunk.size(), slopeBytes - at));
-            if (!readAll(db.fd_, chunk.data(), n, kSlopeOffset + at, path)) {
+            if (!readAll(db.fd_, chunk.data(), n, base + kSlopeOffset + at, path)) {
                 fail("truncated slope section");
             }
             crc = crc32(crc, chunk.data(), static_cast<uInt>(n));
@@ -559,19 +645,22 @@ TerrainDb TerrainDb::open(const std::string& path) {
         }
     }
     db.mappedBytes_ = static_cast<std::size_t>(kSlopeOffset + slopeBytes);
-    void* m = ::mmap(nullptr, db.mappedBytes_, PROT_READ, MAP_SHARED, db.fd_, 0);
+    void* m =
+        ::mmap(nullptr, db.mappedBytes_, PROT_READ, MAP_SHARED, db.fd_, static_cast<off_t>(base));
     if (m == MAP_FAILED) fail("cannot map the slope section: " + sysError());
     db.mapped_ = m;
     db.slopes_ = reinterpret_cast<const float*>(static_cast<const std::uint8_t*>(m) + kSlopeOffset);
     db.indexOffset_ = indexOffset;
     db.index_.resize(indexBytes);
-    if (!readAll(db.fd_, db.index_.data(), indexBytes, indexOffset, path)) fail("truncated index");
+    if (!readAll(db.fd_, db.index_.data(), indexBytes, base + indexOffset, path)) {
+        fail("truncated index");
+    }
     if (crc32Of(db.index_.data(), indexBytes) != get<std::uint32_t>(h + 104)) {
         fail("index checksum mismatch (corrupt index)");
     }
     info.crs.resize(crsBytes);
     if (crsBytes > 0 && !readAll(db.fd_, reinterpret_cast<std::uint8_t*>(info.crs.data()), crsBytes,
-                                 crsOffset, path)) {
+                                 base + crsOffset, path)) {
         fail("truncated CRS");
     }
     // Every entry inside the tile area, with the size its tile must have.
@@ -587,6 +676,54 @@ TerrainDb TerrainDb::open(const std::string& path) {
             get<std::uint32_t>(e + 12) != payloadBytes(key.kind, tw, th)) {
             fail("index entry of " + describeTile(key) +
                  " disagrees with the layout (offset, size or payload size out of place)");
+        }
+    }
+    if (version >= 3) {
+        // The insets: their table after the last embedded database, each database after the
+        // CRS and before the table, on the embedding boundary, none overlapping.
+        const std::uint64_t tableOffset = get<std::uint64_t>(h + 136);
+        const std::uint32_t count = get<std::uint32_t>(h + 144);
+        if (count > 0 && bytes > 0) fail("an inset's database holds insets of its own");
+        if (count > kMaxInsets) fail("header: " + std::to_string(count) + " insets");
+        const std::uint64_t tableBytes = std::uint64_t{count} * kInsetEntryBytes;
+        if (tableOffset < crsOffset + crsBytes || tableOffset + tableBytes > db.fileBytes_) {
+            fail("truncated (the insets table ends past the file's " +
+                 std::to_string(db.fileBytes_) + " bytes)");
+        }
+        std::vector<std::uint8_t> table(tableBytes);
+        if (!readAll(db.fd_, table.data(), tableBytes, base + tableOffset, path)) {
+            fail("truncated insets table");
+        }
+        if (crc32Of(table.data(), tableBytes) != get<std::uint32_t>(h + 148)) {
+            fail("insets table checksum mismatch (corrupt)");
+        }
+        std::uint64_t after = crsOffset + crsBytes;
+        for (std::uint32_t k = 0; k < count; ++k) {
+            const std::uint8_t* e = table.data() + std::size_t{k} * kInsetEntryBytes;
+            DbInset in;
+            in.x0 = get<std::int32_t>(e);
+            in.y0 = get<std::int32_t>(e + 4);
+            in.x1 = get<std::int32_t>(e + 8);
+            in.y1 = get<std::int32_t>(e + 12);
+            in.factor = get<std::int32_t>(e + 16);
+            in.mapX0 = get<std::int32_t>(e + 20);
+            in.mapY0 = get<std::int32_t>(e + 24);
+            in.offset = get<std::uint64_t>(e + 32);
+            in.bytes = get<std::uint64_t>(e + 40);
+            const char* name = reinterpret_cast<const char*>(e + 48);
+            in.name.assign(name, strnlen(name, kInsetNameBytes));
+            if (in.name.empty()) in.name = "inset " + std::to_string(k + 1);
+            if (in.offset % kEmbedAlign != 0 || in.offset < after || in.bytes < kHeaderBytes ||
+                in.offset + in.bytes > tableOffset) {
+                fail("insets table: " + in.name + "'s database lies out of place");
+            }
+            if (in.x0 < 0 || in.y0 < 0 || in.x1 <= in.x0 || in.y1 <= in.y0 || in.x1 >= info.width ||
+                in.y1 >= info.height || in.factor < 2 || in.factor > 256 ||
+                !std::has_single_bit(static_cast<unsigned>(in.factor))) {
+                fail("insets table: " + in.name + "'s placement lies outside the map");
+            }
+            after = in.offset + in.bytes;
+            db.insets_.push_back(std::move(in));
         }
     }
     return db;
@@ -608,7 +745,9 @@ TerrainTile TerrainDb::readTile(const TileKey& key) const {
         throw InputError(path_ + ": " + describeTile(key) + ": " + what);
     };
     std::vector<std::uint8_t> buf(stored);
-    if (!readAll(fd_, buf.data(), stored, off, path_)) fail("truncated (the file ends inside it)");
+    if (!readAll(fd_, buf.data(), stored, base_ + off, path_)) {
+        fail("truncated (the file ends inside it)");
+    }
     if (crc32Of(buf.data(), stored) != get<std::uint32_t>(e + 16)) {
         fail("checksum mismatch (corrupt tile)");
     }

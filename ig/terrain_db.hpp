@@ -12,7 +12,8 @@
 
 namespace ig {
 
-inline constexpr std::uint32_t kTerrainDbVersion = 2;
+// Version 3 adds the insets table (version 2 files, without it, are read as holding none).
+inline constexpr std::uint32_t kTerrainDbVersion = 3;
 inline constexpr int kMinDbTileSize = 16, kMaxDbTileSize = 4096;
 
 enum class TileCodec : std::uint8_t { None = 0, Lz4 = 1, Zstd = 2 };
@@ -94,6 +95,18 @@ struct TerrainDbInfo {
     double maxSlope() const;
 };
 
+// A high-resolution inset held in a database (docs/design/insets.md): its nested map (the
+// fine samples blended into the global surface, inside a skirt) is a whole database of its own
+// embedded in the file, so it is paged like the global map; where it lies is ig::Inset's
+// placement, in global samples.
+struct DbInset {
+    std::string name;
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;   // global samples of its corners
+    int factor = 2;                       // global spacing / its spacing
+    int mapX0 = 0, mapY0 = 0;             // the global sample at its map's sample (0, 0)
+    std::uint64_t offset = 0, bytes = 0;  // the embedded database's place in the file
+};
+
 // Encodes a tile as stored (tile header + payload, compressed by `codec`); thread-safe.
 std::vector<std::uint8_t> encodeTile(const TerrainTile& tile, TileCodec codec,
                                      std::uint32_t& rawPayloadBytes);
@@ -117,8 +130,17 @@ class TerrainDbWriter {
     // Writes row `by` of the slope section: SlopeBlocks::blocksAlong(width) bounds, as
     // SlopeBlocks computes them over the map. Every row must be written once.
     void writeSlopeRow(int by, const float* bounds);
-    // Writes index and header, syncs and renames; returns the file's size.
-    std::uint64_t finish(const TerrainDbInfo& info);
+    // An inset's database to embed at finish(): `file`, a finished database written with
+    // keepTemporary(), is copied in and removed.
+    struct Embedded {
+        DbInset inset;
+        std::string file;
+    };
+    // finish() leaves the complete file at temporaryPath() (for the caller to embed) instead
+    // of renaming it.
+    void keepTemporary() { keepTemporary_ = true; }
+    // Writes index, header and the embedded insets, syncs and renames; returns the file's size.
+    std::uint64_t finish(const TerrainDbInfo& info, const std::vector<Embedded>& insets = {});
 
   private:
     struct Entry;
@@ -131,6 +153,7 @@ class TerrainDbWriter {
     std::vector<std::uint8_t> written_;
     int slopeRowsWritten_ = 0;
     bool finished_ = false;
+    bool keepTemporary_ = false;
 };
 
 // A database opened for reading. Reads are pread()s: readTile may be called from any thread.
@@ -160,6 +183,10 @@ class TerrainDb {
     void checkPageable() const;
     // Level 0 assembled into a map (heights, colours; ranges recomputed).
     TerrainMap loadMap() const;
+    // The insets the database holds (none in a version 2 file).
+    const std::vector<DbInset>& insets() const { return insets_; }
+    // Inset k's own database (its map nested already), read from this file; checked as open().
+    TerrainDb openInset(std::size_t k) const;
     // The slope section: SlopeBlocks::blocksAlong(width) x blocksAlong(height) per-block slope
     // bounds, rows south first, equal to SlopeBlocks(map) of the whole map (checked against
     // its CRC-32 at open; mapped from the file, so only the pages read take memory).
@@ -167,7 +194,13 @@ class TerrainDb {
 
   private:
     TerrainDb() = default;
-    std::string path_;
+    // The database in bytes [base, base + bytes) of `file` (bytes 0: to its end), named `name`
+    // in messages.
+    static TerrainDb openAt(const std::string& file, const std::string& name, std::uint64_t base,
+                            std::uint64_t bytes);
+    std::string path_, file_;
+    std::uint64_t base_ = 0;
+    std::vector<DbInset> insets_;
     int fd_ = -1;
     TerrainDbInfo info_;
     TerrainDbLayout layout_;

@@ -189,6 +189,16 @@ class Builder {
         bOffsets_.resize(static_cast<std::size_t>(nodes));
     }
 
+    // The inset databases to embed, made once the map's lowest sample is known.
+    std::function<std::vector<TerrainDbWriter::Embedded>(std::uint16_t floorRaw)> embed;
+    // A database embedded in another: its box's floor at most `floorRaw`, and finish() leaves
+    // it at temporaryPath().
+    void embedded(std::uint16_t floorRaw) {
+        floorRaw_ = floorRaw;
+        writer_.keepTemporary();
+    }
+    const std::string& temporaryPath() const { return writer_.temporaryPath(); }
+
     DbBuildStats run() {
         const auto start = std::chrono::steady_clock::now();
         const double cpuStart = cpuSecondsNow();
@@ -227,12 +237,13 @@ class Builder {
             CHECK(bDone_[j] == layout_.tilesY(TileKind::Nodes, j));
         disp_.clear();
         finishNodes();
-        info_.minRaw = lo;
+        info_.minRaw = std::min(lo, floorRaw_);
         info_.maxRaw = hi;
         info_.maxDx = static_cast<std::uint16_t>(maxDx_);
         info_.maxDy = static_cast<std::uint16_t>(maxDy_);
         DbBuildStats stats;
-        stats.fileBytes = writer_.finish(info_);
+        stats.fileBytes =
+            writer_.finish(info_, embed ? embed(lo) : std::vector<TerrainDbWriter::Embedded>{});
         stats.samples = static_cast<std::uint64_t>(w) * h;
         stats.tiles = static_cast<std::uint64_t>(layout_.entryCount());
         stats.seconds =
@@ -500,6 +511,7 @@ class Builder {
     }
 
     TerrainRowSource& source_;
+    std::uint16_t floorRaw_ = 65535;
     TerrainDbInfo info_;
     DbBuildOptions options_;
     int t_;
@@ -518,7 +530,171 @@ class Builder {
     std::vector<std::vector<std::uint64_t>> cOffsets_, bOffsets_;
 };
 
+// Level 0 of a database, one tile row decoded at a time.
+class DbRowSource final : public TerrainRowSource {
+  public:
+    explicit DbRowSource(const TerrainDb& db) : db_(db) {}
+    TerrainDbInfo info() const override {
+        TerrainDbInfo i = db_.info();
+        i.minRaw = i.maxRaw = i.maxDx = i.maxDy = 0;
+        return i;
+    }
+    void readRows(int y0, int rows, std::uint16_t* heights, Rgb8* colors) override {
+        const int w = db_.info().width, t = db_.layout().tileSize();
+        const int tilesY = db_.layout().tilesY(TileKind::Display, 0);
+        for (int r = 0; r < rows; ++r) {
+            const int y = y0 + r;
+            const int ty = std::min(y / t, tilesY - 1);
+            if (ty != rowTy_) load(ty);
+            const std::size_t src = static_cast<std::size_t>(y - ty * t) * w;
+            std::copy_n(h_.data() + src, w, heights + static_cast<std::size_t>(r) * w);
+            std::copy_n(c_.data() + src, w, colors + static_cast<std::size_t>(r) * w);
+        }
+    }
+
+  private:
+    void load(int ty) {
+        const int w = db_.info().width, t = db_.layout().tileSize();
+        const int nx = db_.layout().tilesX(TileKind::Display, 0);
+        h_.assign(static_cast<std::size_t>(t + 1) * w, 0);
+        c_.assign(h_.size(), Rgb8{});
+        for (int tx = 0; tx < nx; ++tx) {
+            const TerrainTile tile = db_.readTile(TileKey{TileKind::Display, 0, tx, ty});
+            for (int v = 0; v < tile.height; ++v) {
+                const std::size_t src = static_cast<std::size_t>(v) * tile.width;
+                const std::size_t dst = static_cast<std::size_t>(v) * w + tile.x0;
+                std::copy_n(tile.heights.data() + src, tile.width, h_.data() + dst);
+                std::copy_n(tile.colors.data() + src, tile.width, c_.data() + dst);
+            }
+        }
+        rowTy_ = ty;
+    }
+
+    const TerrainDb& db_;
+    int rowTy_ = -1;
+    std::vector<std::uint16_t> h_;
+    std::vector<Rgb8> c_;
+};
+
+// A source with the global samples over new insets lowered.
+class LoweredRowSource final : public TerrainRowSource {
+  public:
+    LoweredRowSource(TerrainRowSource& source, const InsetNesting& nesting)
+        : source_(source), nesting_(nesting) {}
+    TerrainDbInfo info() const override { return source_.info(); }
+    void readRows(int y0, int rows, std::uint16_t* heights, Rgb8* colors) override {
+        source_.readRows(y0, rows, heights, colors);
+        nesting_.lowerRows(y0, rows, heights);
+    }
+
+  private:
+    TerrainRowSource& source_;
+    const InsetNesting& nesting_;
+};
+
+DbBuildStats buildNested(TerrainRowSource& source, const std::string& path,
+                         const DbBuildOptions& options) {
+    const TerrainDbInfo info = source.info();
+    const GlobalGrid grid{info.width,    info.height,      info.spacingX,
+                          info.spacingY, info.heightScale, info.heightOffset};
+    const InsetNesting nesting(grid, options.insets, options.insetBlend);
+    std::vector<Inset> all = options.nestedInsets;
+    const int apart = kInsetSkirtCells + 1;
+    for (std::size_t k = 0; k < nesting.size(); ++k) {
+        const Inset& a = nesting.placement(k);
+        for (const Inset& b : options.nestedInsets) {
+            if (a.x0 - apart <= b.x1 && a.x1 + apart >= b.x0 && a.y0 - apart <= b.y1 &&
+                a.y1 + apart >= b.y0) {
+                throw InputError(a.name + ": lies within " + std::to_string(apart) +
+                                 " global cells of " + b.name +
+                                 ", which the database holds already (nest the two in one "
+                                 "build)");
+            }
+        }
+    }
+    // Each new inset's map, from a window of the lowered global map around it.
+    for (std::size_t k = 0; k < nesting.size(); ++k) {
+        int x0, y0, x1, y1;
+        nesting.window(k, x0, y0, x1, y1);
+        const int ww = x1 - x0 + 1, wh = y1 - y0 + 1, w = info.width;
+        TerrainMap window(ww, wh, info.spacingX, info.spacingY, info.heightScale,
+                          info.heightOffset);
+        const int chunk = std::max(
+            1, std::min(wh, static_cast<int>((std::size_t{1} << 24) / (5 * std::size_t(w)))));
+        std::vector<std::uint16_t> hs(static_cast<std::size_t>(chunk) * w);
+        std::vector<Rgb8> cs(hs.size());
+        for (int y = y0; y <= y1; y += chunk) {
+            const int rows = std::min(chunk, y1 + 1 - y);
+            source.readRows(y, rows, hs.data(), cs.data());
+            nesting.lowerRows(y, rows, hs.data());
+            for (int r = 0; r < rows; ++r) {
+                const std::size_t src = static_cast<std::size_t>(r) * w + x0;
+                const std::size_t dst = window.index(0, y + r - y0);
+                std::copy_n(hs.data() + src, ww, window.rawHeights().data() + dst);
+                std::copy_n(cs.data() + src, ww, window.colors().data() + dst);
+            }
+        }
+        all.push_back(nesting.nest(k, window, x0, y0, 65535));
+    }
+    LoweredRowSource lowered(source, nesting);
+    DbBuildOptions global = options;
+    global.insets.clear();
+    global.nestedInsets.clear();
+    Builder builder(lowered, path, global);
+    builder.embed = [&](std::uint16_t floorRaw) {
+        std::vector<TerrainDbWriter::Embedded> out;
+        for (std::size_t k = 0; k < all.size(); ++k) {
+            const Inset& in = all[k];
+            DbBuildOptions own;
+            own.tileSize = options.tileSize;
+            own.codec = options.codec;
+            const auto rows = mapRowSource(in.map);
+            Builder b(*rows, path + ".inset-" + std::to_string(k + 1), own);
+            b.embedded(floorRaw);
+            b.run();
+            DbInset d;
+            d.name = in.name;
+            d.x0 = in.x0;
+            d.y0 = in.y0;
+            d.x1 = in.x1;
+            d.y1 = in.y1;
+            d.factor = in.factor;
+            d.mapX0 = in.mapX0;
+            d.mapY0 = in.mapY0;
+            out.push_back({d, b.temporaryPath()});
+        }
+        return out;
+    };
+    return builder.run();
+}
+
 }  // namespace
+
+std::unique_ptr<TerrainRowSource> dbRowSource(const TerrainDb& db) {
+    return std::make_unique<DbRowSource>(db);
+}
+
+std::vector<Inset> readInsets(const TerrainDb& db) {
+    std::vector<Inset> out;
+    for (std::size_t k = 0; k < db.insets().size(); ++k) {
+        const DbInset& d = db.insets()[k];
+        Inset in;
+        in.name = d.name;
+        in.x0 = d.x0;
+        in.y0 = d.y0;
+        in.x1 = d.x1;
+        in.y1 = d.y1;
+        in.factor = d.factor;
+        in.mapX0 = d.mapX0;
+        in.mapY0 = d.mapY0;
+        const TerrainDb own = db.openInset(k);
+        in.map = own.loadMap();
+        const TerrainDbInfo& i = own.info();
+        in.map.extendFloor(i.minRaw * i.heightScale + i.heightOffset);
+        out.push_back(std::move(in));
+    }
+    return out;
+}
 
 std::unique_ptr<TerrainRowSource> mapRowSource(const TerrainMap& map) {
     return std::make_unique<MapRowSource>(map);
@@ -538,6 +714,9 @@ DbBuildStats buildTerrainDb(TerrainRowSource& source, const std::string& path,
     const TerrainDbInfo info = source.info();
     if (info.width < 2 || info.height < 2) {
         throw InputError("terrain: needs at least 2 x 2 samples to build a database");
+    }
+    if (!options.insets.empty() || !options.nestedInsets.empty()) {
+        return buildNested(source, path, options);
     }
     Builder builder(source, path, options);
     return builder.run();

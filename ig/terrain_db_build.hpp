@@ -3,6 +3,7 @@
 // memory stays a few tile rows per level whatever the map's size.
 #pragma once
 
+#include "ig/inset.hpp"
 #include "ig/terrain_db.hpp"
 #include "ig/terrain_io.hpp"
 
@@ -25,6 +26,10 @@ class TerrainRowSource {
 
 // A map already in memory (tests, and files the streaming reader does not take).
 std::unique_ptr<TerrainRowSource> mapRowSource(const TerrainMap& map);
+// Level 0 of a database, tile row by tile row (adding insets to it).
+std::unique_ptr<TerrainRowSource> dbRowSource(const TerrainDb& db);
+// Its insets, their maps read back (each box's floor as stored).
+std::vector<Inset> readInsets(const TerrainDb& db);
 // The synthetic generator's map, any power-of-two size up to kMaxSyntheticStreamSize.
 std::unique_ptr<TerrainRowSource> syntheticRowSource(int size, std::uint64_t seed,
                                                      double spacing = 10.0);
@@ -43,6 +48,15 @@ struct DbBuildOptions {
     int stripRows = 0;
     // Called with the fraction done (0..1) now and then, from the building thread.
     std::function<void(double)> progress;
+    // High-resolution insets (docs/design/insets.md): `insets` are nested as the map streams
+    // by (the global samples over each lowered, each one's map made from a window of the
+    // lowered map around it); `nestedInsets`, nested already (an existing database's,
+    // readInsets), are kept. Each is embedded as a database of its own, its box reaching
+    // down to the map's lowest sample. A new inset closer than the skirt to a kept one is
+    // refused (nest them in one build).
+    std::vector<InsetSource> insets;
+    int insetBlend = 16;
+    std::vector<Inset> nestedInsets;
 };
 
 struct DbBuildStats {

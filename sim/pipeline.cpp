@@ -3,6 +3,7 @@
 #include "base/check.hpp"
 #include "ig/error.hpp"
 #include "ig/paged_ground.hpp"
+#include "ig/paged_insets.hpp"
 #include "ig/shading.hpp"
 #include "ig/stereo.hpp"
 #include "sim/stereo_output.hpp"
@@ -167,6 +168,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                 PagedScene objects, double stereoSeparation) {
     CHECK(stereoSeparation == 0.0 || (kind == ig::CasterKind::Fast && !objects.scene))
         << "paged stereo pairs: the fast caster, without a scene";
+    CHECK(db.insets().empty() || (stereoSeparation == 0.0 && !objects.scene))
+        << "a paged database's insets: without a scene or stereo pairs";
     ig::StereoOptions stereo;
     stereo.eyeSeparation = stereoSeparation;
     if (stereoSeparation > 0.0) ig::validateStereoOptions(stereo);
@@ -177,7 +180,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
     // prefetch follows).
     struct State {
         pid_t pid = -1;
-        std::unique_ptr<ig::PagedTerrain> paged;
+        // The map and the database's insets (ig/paged_insets.hpp); `paged` its global map.
+        std::unique_ptr<ig::PagedNestedTerrain> nested;
+        ig::PagedTerrain* paged = nullptr;
         std::shared_ptr<const ig::Caster> caster;
         ig::RenderOptions options;  // the caster's (the paged pyramid's)
         // With a scene: the moving layer (replaced before each render; the caster holds its
@@ -198,9 +203,10 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             // A forked copy's paged map and ground have no threads: left alone (never
             // destroyed, which would join them), and this process makes its own.
             s.caster.reset();
-            (void)s.paged.release();
+            (void)s.nested.release();
             (void)s.ground.release();
-            s.paged = std::make_unique<ig::PagedTerrain>(db, po);
+            s.nested = std::make_unique<ig::PagedNestedTerrain>(db, po);
+            s.paged = &s.nested->global();
             ig::RenderOptions o = options;
             o.pyramid = s.paged->pyramid();
             o.slopes = s.paged->slopes();
@@ -214,7 +220,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                     objects.motion->stamp(objects.motion->startTime(), s.ground.get()));
                 o.objects = {objects.scene->staticLayer.get(), s.moving.get()};
             }
-            s.caster = ig::makeCaster(kind, s.paged->map(), o);
+            s.caster = s.nested->insetCount() > 0 ? s.nested->makeCaster(kind, options)
+                                                  : ig::makeCaster(kind, s.paged->map(), o);
             s.options = o;
             s.pid = ::getpid();
             s.have = false;
@@ -244,7 +251,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         // Before the first frame, the view all round: a turn from the start finds its tiles.
         if (!s.have) s.paged->warmUp(first);
         const ig::PagedFrameStats st =
-            s.paged->prepare(first, !s.have, velocity, yawRate, pair ? &second : nullptr);
+            s.nested->prepare(first, !s.have, velocity, yawRate, pair ? &second : nullptr);
         const double pageMs =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count();
@@ -252,7 +259,12 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         s.pose = pose;
         s.time = time;
         if (log) {
-            const ig::TileCacheStats cs = s.paged->cache().stats();
+            ig::TileCacheStats cs = s.paged->cache().stats();
+            for (std::size_t k = 0; k < s.nested->insetCount(); ++k) {
+                const ig::TileCacheStats own = s.nested->inset(k).cache().stats();
+                cs.tilesRead += own.tilesRead;
+                cs.bytesRead += own.bytesRead;
+            }
             log->frames.push_back(PagingLog::Frame{time, st.required, st.substituted, st.failed,
                                                    st.nodesMissing, pageMs, cs.tilesRead,
                                                    cs.bytesRead});
@@ -277,7 +289,10 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             *s.moving = objects.motion->stamp(time, s.extra, s.ground.get());
         }
         ig::RenderedFrame frame =
-            ig::renderFrame(*s.caster, s.paged->map(), level, intr, time, sequence, g.nearM);
+            s.nested->insetCount() > 0
+                ? ig::renderNestedFrame(*s.caster, s.nested->maps(), level, intr, time, sequence,
+                                        g.nearM)
+                : ig::renderFrame(*s.caster, s.paged->map(), level, intr, time, sequence, g.nearM);
         clipBeyondFar(frame, g.farM, sky);
         return frame;
     };
@@ -506,9 +521,9 @@ void Pipeline::renderSimulatedUntil(double t) {
             postRequest(poses_.predict(aim), aim, nextSequence_);
             requested_.store(nextSequence_, std::memory_order_relaxed);
             std::string why;
-            Await got = awaitFrame(pendingFrame_, renderTimeout(), why);
+            Await got = awaitFrame(pendingFrame_, silenceAllowed(), why);
             while (got == Await::Frame && pendingFrame_.sequence < nextSequence_) {
-                got = awaitFrame(pendingFrame_, renderTimeout(), why);  // an older answer
+                got = awaitFrame(pendingFrame_, silenceAllowed(), why);  // an older answer
             }
             ++nextSequence_;
             if (got != Await::Frame) {
@@ -530,6 +545,14 @@ void Pipeline::renderSimulatedUntil(double t) {
 double Pipeline::renderTimeout() const {
     if (options_.renderTimeout > 0.0) return options_.renderTimeout;
     return std::max(0.5, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
+}
+
+double Pipeline::startTimeout() const {
+    return options_.startTimeout > 0.0 ? options_.startTimeout : 10.0 * renderTimeout();
+}
+
+double Pipeline::silenceAllowed() const {
+    return processFresh_.load(std::memory_order_acquire) ? startTimeout() : renderTimeout();
 }
 
 void Pipeline::postRequest(const ig::Pose& pose, double time, std::uint64_t sequence) {
@@ -561,6 +584,7 @@ void Pipeline::startProcess() {
               : options_.truth && options_.clock == ClockMode::Wall ? kTruthRenderNice
                                                                     : 0;
     process_ = std::make_unique<RendererProcess>(renderer_, *ring_, po);
+    processFresh_.store(true, std::memory_order_release);
     process_->start();
 }
 
@@ -568,7 +592,10 @@ Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, st
     const std::int64_t start = io::monotonicNs();
     for (;;) {
         const FrameRing::Fetch f = ring_->fetch(into, &why);
-        if (f == FrameRing::Fetch::New) return Await::Frame;
+        if (f == FrameRing::Fetch::New) {
+            processFresh_.store(false, std::memory_order_release);
+            return Await::Frame;
+        }
         if (f == FrameRing::Fetch::Bad) {
             why = "sent a bad frame (" + why + ")";
             return Await::Bad;
@@ -595,6 +622,7 @@ void Pipeline::restartProcess(const std::string& cause) {
     r.cause = cause;
     restartAfter_.store(requested_.load(std::memory_order_relaxed), std::memory_order_relaxed);
     const std::int64_t before = io::monotonicNs();
+    processFresh_.store(true, std::memory_order_release);
     process_->start();
     r.startSeconds = static_cast<double>(io::monotonicNs() - before) * 1e-9;
     {
@@ -616,6 +644,7 @@ void Pipeline::superviseLoop() {
             std::string cause;
             const FrameRing::Fetch got = ring_->fetch(frames_.back(), &why);
             if (got == FrameRing::Fetch::New) {
+                processFresh_.store(false, std::memory_order_release);
                 const double took = frames_.back().stats.renderMs * 1e-3;
                 stats_.addFrame(frames_.back().stats.renderMs);
                 renderSeconds_.store(
@@ -632,7 +661,7 @@ void Pipeline::superviseLoop() {
                 const std::int64_t nowNs = io::monotonicNs();
                 const std::int64_t since = std::max(ring_->lastPublishNs(), processStartNs_);
                 const double silent = static_cast<double>(nowNs - since) * 1e-9;
-                if (silent > renderTimeout()) {
+                if (silent > silenceAllowed()) {
                     cause = "silent for " + std::to_string(std::lround(silent * 1e3)) + " ms";
                 }
             }
@@ -699,8 +728,8 @@ PipelineResult Pipeline::run() {
         postRequest(poses_.predict(t0_), t0_, 0);
         std::string why;
         ig::RenderedFrame& first = frames_.back();
-        // The first frame also pays for the renderer's start: allow it ten timeouts.
-        if (awaitFrame(first, 10.0 * renderTimeout(), why) != Await::Frame) {
+        // The first frame also pays for the renderer's start.
+        if (awaitFrame(first, startTimeout(), why) != Await::Frame) {
             throw std::runtime_error("the renderer process gave no first frame: it " + why);
         }
         frames_.publish();

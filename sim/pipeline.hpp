@@ -196,6 +196,10 @@ struct PipelineOptions {
     // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
     // restarted; 0: 0.5 s or eight times the running render time, whichever is longer.
     double renderTimeout = 0.0;
+    // Process: the seconds a renderer just started (or restarted) may take for its first frame
+    // (its start, and over a paged database the tiles of its first view, read waiting); 0: ten
+    // render timeouts.
+    double startTimeout = 0.0;
     // Process, simulated clock: the seconds a restart is modelled as taking.
     double simulatedRestart = 0.25;
     // Process: a fault the renderer injects into itself once (tests, demonstrations).
@@ -238,6 +242,9 @@ class Pipeline {
     void superviseLoop();
     void restartProcess(const std::string& cause);
     double renderTimeout() const;
+    double startTimeout() const;
+    // The silence allowed the running renderer now: startTimeout() until its first frame.
+    double silenceAllowed() const;
     // Field thread: gap accounting when a frame newer than the last one shown arrives.
     void noteFrameShown(const ig::RenderedFrame& frame, double clock);
     void noteField(double frameAge);
@@ -274,6 +281,7 @@ class Pipeline {
     std::atomic<std::uint64_t> requested_{0};     // the newest sequence asked of the renderer
     std::atomic<std::uint64_t> restartAfter_{0};  // at the last restart: frames after it are newer
     std::int64_t processStartNs_ = 0;         // supervisor: when the running renderer was started
+    std::atomic<bool> processFresh_{false};   // the running renderer has sent no frame yet
     std::atomic<double> renderSeconds_{0.0};  // running render time (for the timeout)
     std::uint64_t lastShownSequence_ = ~std::uint64_t{0};
     double lastNewFrameClock_ = 0.0;

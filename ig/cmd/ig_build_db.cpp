@@ -1,5 +1,6 @@
 // ig-build-db: builds a tiled terrain database (docs/formats.md) from terrain files or the
 // synthetic generator, streaming strip by strip; prints what it built and its peak memory.
+#include "base/text.hpp"
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
@@ -15,6 +16,7 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace {
@@ -38,13 +40,18 @@ int main(int argc, char** argv) {
             "strip by strip, so maps larger than memory build in a few hundred MB."};
         ig::TerrainOptions terrain;
         ig::addTerrainOptions(app, terrain);
-        std::string out, json, codec = "none";
-        int tile = 64;
+        ig::InsetOptions insets;
+        ig::addInsetOptions(app, insets);
+        std::string out, json, codec;
+        int tile = 0;
         bool quiet = false;
-        app.add_option("--out", out, "Database file to write (replaced only when complete)")
+        app.add_option("--out", out,
+                       "Database file to write (replaced only when complete; may be --db's)")
             ->required();
-        app.add_option("--tile", tile, "Tile size in cells, a power of two 16..4096 (default 64)");
-        app.add_option("--codec", codec, "Tile compression: none, lz4 or zstd (default none)");
+        app.add_option("--tile", tile,
+                       "Tile size in cells, a power of two 16..4096 (default 64, or --db's)");
+        app.add_option("--codec", codec,
+                       "Tile compression: none, lz4 or zstd (default none, or --db's)");
         app.add_option("--json", json, "Write build statistics as JSON to this file");
         app.add_flag("--quiet", quiet, "No progress bar");
         try {
@@ -52,6 +59,23 @@ int main(int argc, char** argv) {
         } catch (const CLI::ParseError& e) {
             return app.exit(e) == 0 ? 0 : 2;
         }
+        // An existing database: its level 0 streamed again, its insets kept, new ones added.
+        std::optional<ig::TerrainDb> db;
+        if (!terrain.db.empty()) {
+            if (!terrain.height.empty() || !terrain.color.empty() ||
+                (terrain.spacing && terrain.synthetic.empty()) || terrain.heightScale ||
+                terrain.heightOffset || terrain.voidHeight) {
+                throw ig::InputError(
+                    "--db: the database holds the map; give no other terrain flags (only "
+                    "--synthetic and --spacing, the generator it was built from, for synthetic "
+                    "insets)");
+            }
+            db.emplace(ig::TerrainDb::open(terrain.db));
+            if (tile == 0) tile = db->layout().tileSize();
+            if (codec.empty()) codec = ig::tileCodecName(db->codec());
+        }
+        if (tile == 0) tile = 64;
+        if (codec.empty()) codec = "none";
         if (tile < ig::kMinDbTileSize || tile > ig::kMaxDbTileSize || (tile & (tile - 1)) != 0) {
             throw ig::InputError(
                 "--tile: " + std::to_string(tile) + " is not a power of two from " +
@@ -64,7 +88,24 @@ int main(int argc, char** argv) {
         std::unique_ptr<ig::TerrainRowSource> source;
         ig::TerrainMap whole;  // a map the streaming reader does not take, loaded whole
         std::string how;
-        if (const auto syn = ig::parseSyntheticOption(terrain, ig::kMaxSyntheticStreamSize)) {
+        if (db) {
+            if (const auto syn = ig::parseSyntheticOption(terrain, ig::kMaxSyntheticStreamSize)) {
+                if (syn->size != db->info().width || syn->size != db->info().height ||
+                    syn->spacing != db->info().spacingX) {
+                    throw ig::InputError("--synthetic: " + std::to_string(syn->size) +
+                                         " samples at " + base::number(syn->spacing) +
+                                         " m is not " + terrain.db + "'s map (" +
+                                         std::to_string(db->info().width) + " x " +
+                                         std::to_string(db->info().height) + " at " +
+                                         base::number(db->info().spacingX) + " m)");
+                }
+            }
+            source = ig::dbRowSource(*db);
+            options.nestedInsets = ig::readInsets(*db);
+            how = "level 0 of " + terrain.db + ", " + std::to_string(db->insets().size()) +
+                  " inset(s) kept";
+        } else if (const auto syn =
+                       ig::parseSyntheticOption(terrain, ig::kMaxSyntheticStreamSize)) {
             source = ig::syntheticRowSource(syn->size, syn->seed, syn->spacing);
             how = "synthetic, streamed";
         } else if (const auto src = ig::terrainSourceFromOptions(terrain)) {
@@ -82,6 +123,17 @@ int main(int argc, char** argv) {
             how = "the shipped Puget Sound map";
         }
         const ig::TerrainDbInfo info = source->info();
+        if (insets.any()) {
+            const ig::GlobalGrid grid{info.width,    info.height,      info.spacingX,
+                                      info.spacingY, info.heightScale, info.heightOffset};
+            ig::Georeference geo;
+            geo.originX = info.originX;
+            geo.originY = info.originY;
+            geo.crs = info.crs;
+            options.insets =
+                ig::insetSources(grid, geo, terrain, insets, ig::kMaxSyntheticStreamSize);
+            options.insetBlend = insets.blendCells;
+        }
         if (!quiet) {
             std::fprintf(stderr, "ig-build-db: %d x %d samples (%s) -> %s, tiles %d, %s\n",
                          info.width, info.height, how.c_str(), out.c_str(), tile, codec.c_str());
@@ -114,6 +166,11 @@ int main(int argc, char** argv) {
             "%s: %llu tiles, %.1f MB, %.2f s (%.2f s of CPU), %.3g samples/s, peak RSS %.1f MB\n",
             out.c_str(), static_cast<unsigned long long>(stats.tiles), stats.fileBytes / 1e6,
             stats.seconds, stats.cpuSeconds, rate, stats.peakRssBytes / 1e6);
+        const std::size_t insetCount = options.nestedInsets.size() + options.insets.size();
+        if (insetCount > 0) {
+            std::printf("%s: %zu inset(s) embedded, each a database of its own\n", out.c_str(),
+                        insetCount);
+        }
         if (!json.empty()) {
             nlohmann::json j = {{"width", info.width},
                                 {"height", info.height},
@@ -125,7 +182,8 @@ int main(int argc, char** argv) {
                                 {"cpu_seconds", stats.cpuSeconds},
                                 {"samples_per_second", rate},
                                 {"peak_rss_bytes", stats.peakRssBytes},
-                                {"source", how}};
+                                {"source", how},
+                                {"insets", insetCount}};
             std::ofstream f(json);
             f << j.dump(2) << "\n";
             if (!f) throw ig::InputError(json + ": cannot write");

@@ -4,6 +4,7 @@
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/paged_ground.hpp"
+#include "ig/paged_insets.hpp"
 #include "ig/paged_terrain.hpp"
 #include "ig/scene.hpp"
 #include "ig/stereo.hpp"
@@ -447,7 +448,8 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--render-timeout-ms", renderTimeoutMs,
                    "Renderer process silent this long is killed and restarted (0: 500 ms or "
-                   "eight renders, whichever is longer)")
+                   "eight renders, whichever is longer; a renderer just started gets ten times "
+                   "that for its first frame, over a paged --db 60 s)")
         ->capture_default_str();
     app.add_option("--hold-after-ms", holdAfterMs,
                    "Fields extrapolate a frame's motion up to this age, then hold it (0: never)")
@@ -680,7 +682,12 @@ int main(int argc, char** argv) {
         // places each frame's tiles; this process holds a small paged map of its own for the
         // ground under the start and the trajectory, read before the run.
         std::optional<ig::TerrainDb> pagedDb;
-        std::unique_ptr<ig::PagedTerrain> pagedGround;
+        // With the database's insets (ig/paged_insets.hpp); pagedGround is its global map.
+        std::unique_ptr<ig::PagedNestedTerrain> pagedNested;
+        ig::PagedTerrain* pagedGround = nullptr;
+        bool pagedInsets = false;
+        // The flight model's ground over the insets of a paged database.
+        std::unique_ptr<ig::PagedNestedGround> nestedFloor;
         // The flight model's ground over a paged map (a stick or the default scenario).
         std::unique_ptr<ig::PagedGround> fieldGround;
         // A CIGI host's height and line-of-sight queries over a paged map (a thread of their
@@ -707,7 +714,16 @@ int main(int argc, char** argv) {
                 ig::PagedTerrain::Options ground;
                 ground.cache.budgetBytes =
                     static_cast<std::size_t>(std::min(terrain.cacheMb, 64.0) * 1048576.0);
-                pagedGround = std::make_unique<ig::PagedTerrain>(*pagedDb, ground);
+                pagedNested = std::make_unique<ig::PagedNestedTerrain>(*pagedDb, ground);
+                pagedGround = &pagedNested->global();
+                pagedInsets = pagedNested->insetCount() > 0;
+                const char* insetWhy = cigi                 ? "--cigi"
+                                       : !scenePath.empty() ? "--scene"
+                                       : stereo             ? "--stereo"
+                                                            : nullptr;
+                if (pagedInsets && insetWhy) {
+                    throw ig::InputError(terrain.db + " holds insets: not with " + insetWhy);
+                }
             } else {
                 pagedDb.reset();
             }
@@ -715,6 +731,16 @@ int main(int argc, char** argv) {
         // Insets (docs/design/insets.md): the renderer draws the nested terrain; the flight
         // model, the trajectory's clearance and the start fly over a ground on or above it.
         std::optional<ig::NestedTerrain> nested;
+        // Insets from the flags, or held by a database loaded whole.
+        const bool nesting = insets.any() || (!pagedGround && ig::databaseHasInsets(terrain));
+        if (nesting && !insets.any()) {
+            const char* why = cigi                                 ? "--cigi"
+                              : !scenePath.empty()                 ? "--scene"
+                              : stereo                             ? "--stereo"
+                              : casterKind == ig::CasterKind::Span ? "--caster span"
+                                                                   : nullptr;
+            if (why) throw ig::InputError(terrain.db + " holds insets: not with " + why);
+        }
         if (insets.any()) {
             const char* why = pagedGround          ? "a --db paged beyond --cache-mb"
                               : cigi               ? "--cigi (a host's height queries)"
@@ -726,7 +752,7 @@ int main(int argc, char** argv) {
         }
         ig::TerrainMap loadedMap =
             pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
-        if (insets.any()) {
+        if (nesting) {
             nested.emplace(ig::loadNestedTerrain(std::move(loadedMap), terrain, insets));
             loadedMap = nested->upperGround();
         }
@@ -772,7 +798,7 @@ int main(int argc, char** argv) {
                                          ? scenario.start
                                          : sim::startOverMap(map, scenario.limits);
             if (!startText.empty()) {
-                start = parseStart(startText, map, scenario.limits, pagedGround.get());
+                start = parseStart(startText, map, scenario.limits, pagedGround);
             }
             return start;
         };
@@ -872,9 +898,10 @@ int main(int argc, char** argv) {
             sim::Trajectory trajectory = sim::Trajectory::loadCsv(trajectoryPath);
             std::function<double(double, double)> ground;
             if (pagedGround) {
+                // Over an inset, its surface (the nested caster's).
                 ground = [&](double x, double y) {
-                    pagedGround->placeAround(x, y);
-                    return map.surfaceHeight(x, y);
+                    pagedNested->placeAround(x, y);
+                    return pagedNested->maps().surfaceHeight(x, y);
                 };
             }
             sim::checkTrajectoryClearance(
@@ -907,6 +934,15 @@ int main(int argc, char** argv) {
             if (pagedGround) {
                 fieldGround = pagedGroundAt(start.position.x, start.position.y);
                 floor = fieldGround.get();
+                if (pagedInsets) {
+                    ig::PagedGround::Options go;
+                    go.budgetBytes =
+                        static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                    nestedFloor =
+                        std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb, go);
+                    nestedFloor->waitAround(start.position.x, start.position.y);
+                    floor = nestedFloor.get();
+                }
             }
             poses =
                 std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, floor);
@@ -934,6 +970,9 @@ int main(int argc, char** argv) {
         options.rendererMode =
             rendererProcess ? sim::RendererMode::Process : sim::RendererMode::Thread;
         options.renderTimeout = renderTimeoutMs * 1e-3;
+        // A renderer process over a paged database reads its first view's tiles (and the view
+        // all round) before its first frame: on a cold, slow disk, seconds.
+        if (pagedDb) options.startTimeout = std::max(60.0, 10.0 * options.renderTimeout);
         options.fault = fault;
         options.prp.holdAfter = holdAfterMs * 1e-3;
         options.prp.model = *warp;

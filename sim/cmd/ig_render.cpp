@@ -4,6 +4,7 @@
 #include "ig/cli.hpp"
 #include "ig/error.hpp"
 #include "ig/object_trace.hpp"
+#include "ig/paged_insets.hpp"
 #include "ig/paged_terrain.hpp"
 #include "ig/pose_sweep.hpp"
 #include "ig/scene.hpp"
@@ -458,7 +459,11 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     po.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
     po.pyramid = fast;
     po.levels = r.levels;
-    ig::PagedTerrain paged(db, po);
+    // The map and the insets the database holds, each paged through a cache of its own.
+    ig::PagedNestedTerrain nestedPaged(db, po);
+    ig::PagedTerrain& paged = nestedPaged.global();
+    const bool nesting = nestedPaged.insetCount() > 0;
+    const ig::NestedGround nestedGround(nestedPaged.maps());
     const ig::TerrainMap& map = paged.map();
     const ig::Appearance appearance = ig::parseAppearance(look, terrain, map);
     if (appearance.ramp || appearance.shade) {
@@ -468,12 +473,19 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     // The ground under the pose first (a height given as +H is above it).
     ig::Pose pose;
     if (r.poseText.empty()) {
-        paged.placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
+        nestedPaged.placeAround(0.25 * map.extentX(), 0.25 * map.extentY());
         pose = ig::defaultViewPose(map);
     } else {
         const ig::Pose where = ig::parsePose(r.poseText, map);
-        paged.placeAround(where.position.x, where.position.y);
+        nestedPaged.placeAround(where.position.x, where.position.y);
         pose = ig::parsePose(r.poseText, map);
+        // With insets, a height given as +H is above their surface where they lie.
+        const std::size_t comma = r.poseText.find(',', r.poseText.find(',') + 1);
+        if (nesting && comma != std::string::npos && r.poseText[comma + 1] == '+') {
+            const glm::dvec3 at = pose.position;
+            pose.position.z +=
+                nestedGround.groundHeight(at.x, at.y) - map.surfaceHeight(at.x, at.y);
+        }
     }
     if (fast && pose.roll != 0.0) {
         throw ig::InputError(
@@ -512,7 +524,8 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     // A pair's right eye (reprojected or cast whole) reads its own tiles too.
     const ig::Camera rightEye(ig::rightEyePose(pose, pair ? *r.stereo->separation : 0.0), r.intr);
     const auto start = std::chrono::steady_clock::now();
-    const ig::PagedFrameStats st = paged.prepare(camera, true, {}, 0.0, pair ? &rightEye : nullptr);
+    const ig::PagedFrameStats st =
+        nestedPaged.prepare(camera, true, {}, 0.0, pair ? &rightEye : nullptr);
     const double pageMs =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     for (const std::string& m : st.failures)
@@ -534,8 +547,11 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
         return renderStereoPair(*r.stereo, r.kind, map, pose, r.intr, options, time, r.depthPath,
                                 r.jsonPath, sceneJson);
     }
-    const auto caster = ig::makeCaster(r.kind, map, options);
-    const ig::RenderedFrame frame = ig::renderFrame(*caster, map, pose, r.intr, time, 0, r.nearM);
+    const auto caster =
+        nesting ? nestedPaged.makeCaster(r.kind, options) : ig::makeCaster(r.kind, map, options);
+    const ig::RenderedFrame frame =
+        nesting ? ig::renderNestedFrame(*caster, nestedPaged.maps(), pose, r.intr, time, 0, r.nearM)
+                : ig::renderFrame(*caster, map, pose, r.intr, time, 0, r.nearM);
     std::string error;
     if (!r.objectsOut.empty() &&
         io::writePng16(r.objectsOut, frame.width(), frame.height(), frame.objectId, &error) != 0) {
@@ -559,6 +575,14 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     j["render_ms"] = frame.stats.renderMs;
     j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
+    for (std::size_t k = 0; k < nestedPaged.insetCount(); ++k) {
+        const ig::Inset& in = nestedPaged.placement(k);
+        j["insets"].push_back({{"name", in.name},
+                               {"cells", {in.x0, in.y0, in.x1, in.y1}},
+                               {"factor", in.factor},
+                               {"spacing_m", nestedPaged.inset(k).map().spacingX()},
+                               {"tiles_read", nestedPaged.inset(k).cache().stats().tilesRead}});
+    }
     if (scene) {
         j["scene"] = {{"file", r.scenePath},
                       {"time", time},
@@ -749,8 +773,14 @@ int main(int argc, char** argv) {
             if (ig::databaseNeedsPaging(terrain, db)) {
                 if (insets.any()) {
                     throw ig::InputError("--inset: not with " + terrain.db +
-                                         " paged beyond --cache-mb (insets nest in a map held "
-                                         "whole)");
+                                         " paged beyond --cache-mb (add insets to the database "
+                                         "with ig-build-db --db " +
+                                         terrain.db + " --inset ...)");
+                }
+                if (!db.insets().empty() && (stereo.enabled() || batchMode || !scenePath.empty())) {
+                    throw ig::InputError(terrain.db +
+                                         " holds insets: one frame, without --stereo, --poses "
+                                         "or --scene");
                 }
                 if (batchMode) {
                     throw ig::InputError(terrain.db +
@@ -781,9 +811,13 @@ int main(int argc, char** argv) {
                 return renderPaged(terrain, db, look, req);
             }
         }
-        if (insets.any()) {
+        // Insets from the flags, or held by the database.
+        const bool nesting = insets.any() || ig::databaseHasInsets(terrain);
+        if (nesting) {
             if (stereo.enabled() || batchMode || !scenePath.empty()) {
-                throw ig::InputError("--inset: one frame, without --stereo, --poses or --scene");
+                throw ig::InputError(
+                    std::string(insets.any() ? "--inset" : terrain.db + " holds insets") +
+                    ": one frame, without --stereo, --poses or --scene");
             }
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
@@ -791,7 +825,7 @@ int main(int argc, char** argv) {
         // With insets the map is the global one nested with them, and heights in --pose are
         // above a ground on or over every inset (NestedTerrain::upperGround).
         std::optional<ig::NestedTerrain> nested;
-        if (insets.any()) {
+        if (nesting) {
             nested.emplace(ig::loadNestedTerrain(std::move(map), terrain, insets));
             map = nested->upperGround();
         }

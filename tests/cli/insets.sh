@@ -86,6 +86,43 @@ expect_refused "a paged database" "paged" -- "$bin/ig-render" --db "$tmp/s.db" -
     --pose 3312,2950,+300,0,-60,0 --size 160x100 --inset "$tmp/dome.png@410,410,4" \
     --out "$tmp/x.png"
 
+# Insets held in a database: built with the map, or added to a database of it (the same
+# bytes); loaded whole and paged through a cache a third of the map's size, the database
+# renders the frame the flags render.
+"$bin/ig-build-db" --synthetic 1024:3 --spacing 8 --tile 32 --inset synthetic:400,400,128,128,4 \
+    --out "$tmp/in.db" --quiet >/dev/null || fail "build a database with an inset"
+"$bin/ig-build-db" --synthetic 1024:3 --spacing 8 --tile 32 --out "$tmp/add.db" --quiet \
+    >/dev/null || fail "build a database without"
+"$bin/ig-build-db" --db "$tmp/add.db" --synthetic 1024:3 --spacing 8 \
+    --inset synthetic:400,400,128,128,4 --out "$tmp/add.db" --quiet >/dev/null ||
+    fail "add an inset to a database"
+cmp -s "$tmp/in.db" "$tmp/add.db" || fail "the inset added differs from the one built in"
+abs=(--pose 3600,3000,900,20,-25,0 --size 160x100 --levels auto --colors image)
+"$bin/ig-render" --synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4 "${abs[@]}" \
+    --out "$tmp/flags.png" 2>/dev/null || fail "render the inset from the flags"
+"$bin/ig-render" --db "$tmp/in.db" "${abs[@]}" --out "$tmp/db_whole.png" 2>/dev/null ||
+    fail "render the database with its inset whole"
+"$bin/ig-render" --db "$tmp/in.db" --cache-mb 3 "${abs[@]}" --out "$tmp/db_paged.png" \
+    --json "$tmp/db_paged.json" 2>/dev/null || fail "render the database with its inset paged"
+cmp -s "$tmp/flags.png" "$tmp/db_whole.png" || fail "the database loaded whole renders another frame"
+cmp -s "$tmp/flags.png" "$tmp/db_paged.png" || fail "the paged database renders another frame"
+python3 - "$tmp/db_paged.json" <<'PY' || fail "json (paged database with an inset)"
+import json, sys
+j = json.load(open(sys.argv[1]))
+(i,) = j["insets"]
+assert i["cells"] == [400, 400, 528, 528] and i["factor"] == 4 and i["tiles_read"] > 0, i
+assert j["paging"]["tiles_substituted"] == 0, j["paging"]
+PY
+expect_refused "a flag inset over a database holding one" "holds insets" -- "$bin/ig-render" \
+    --db "$tmp/in.db" "${abs[@]}" --inset synthetic:10,10,8,8,2 --out "$tmp/x.png"
+expect_refused "an inset next to one the database holds" "holds already" -- \
+    "$bin/ig-build-db" --db "$tmp/in.db" --synthetic 1024:3 --spacing 8 \
+    --inset synthetic:530,400,8,8,2 --out "$tmp/x.db" --quiet
+expect_refused "a synthetic inset over another generator's map" "is not" -- \
+    "$bin/ig-build-db" --db "$tmp/in.db" --synthetic 512:3 --spacing 8 \
+    --inset synthetic:10,10,8,8,2 --out "$tmp/x.db" --quiet
+[ -e "$tmp/x.db" ] && fail "a refused build wrote its output"
+
 expect_refused "a factor of 3" "FACTOR" -- "$bin/ig-render" "${common[@]}" \
     --inset synthetic:400,400,16,16,3 --out "$tmp/x.png"
 expect_refused "an inset off the map" "outside" -- "$bin/ig-render" "${common[@]}" \
@@ -119,6 +156,28 @@ done
 "$bin/flythrough" --synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4 \
     --start 3600,2800,+40,20 --clock simulated --duration 2 --out null --contact none \
     >/dev/null 2>&1 || fail "stick flight over an inset"
+# flythrough over the database's inset, loaded whole and paged (in a thread and in a renderer
+# process), and a stick flight standing on the paged inset's ground.
+for run in "whole thread" "paged thread" "paged process"; do
+    set -- $run
+    cache=()
+    [ "$1" = paged ] && cache=(--cache-mb 8)
+    msg=$("$bin/flythrough" --db "$tmp/in.db" "${cache[@]}" --trajectory "$tmp/traj.csv" \
+        --renderer "$2" --clock simulated --out null --contact none --json "$tmp/fly.json" 2>&1) ||
+        fail "fly the database's inset ($run): $msg"
+    python3 - "$tmp/fly.json" "$1" <<'PY' || fail "fly the database's inset ($run): $msg"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+assert j["frames_rendered"] > 10, j["frames_rendered"]
+assert ("paging" in j) == (sys.argv[2] == "paged"), sys.argv[2]
+PY
+done
+"$bin/flythrough" --db "$tmp/in.db" --cache-mb 8 --start 3600,2800,+40,20 --clock simulated \
+    --duration 2 --out null --contact none >/dev/null 2>&1 || fail "stick flight over a paged inset"
+expect_refused "a paged database's inset with --stereo" "holds insets" -- "$bin/flythrough" \
+    --db "$tmp/in.db" --cache-mb 8 --trajectory "$tmp/traj.csv" --stereo 0.065 \
+    --clock simulated --out null --contact none
 expect_refused "flythrough with --stereo" "--stereo" -- "$bin/flythrough" --synthetic 1024:3 \
     --spacing 8 --inset synthetic:400,400,16,16,2 --trajectory "$tmp/traj.csv" --stereo 0.065 \
     --clock simulated --out null --contact none

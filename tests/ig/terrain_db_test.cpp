@@ -284,9 +284,18 @@ TEST(TerrainDb, BadFilesAreClearErrorsNamingFileAndTile) {
     expectError(bad, "not a terrain database");
 
     std::vector<char> f = bytes;
-    f[8] = 3;  // version
+    f[8] = 4;  // version
     writeFile(bad, f);
-    expectError(bad, "format version 3");
+    expectError(bad, "format version 4");
+    f[8] = 1;  // without the slope section
+    writeFile(bad, f);
+    expectError(bad, "format version 1");
+    // Version 2 (without the insets table) is read, holding no insets.
+    f[8] = 2;
+    const std::uint32_t hc = crcOf(f.data(), 252);
+    std::memcpy(f.data() + 252, &hc, 4);
+    writeFile(bad, f);
+    EXPECT_TRUE(TerrainDb::open(bad).insets().empty());
 
     // A flipped byte in the slope section (right after the header).
     f = bytes;

@@ -8,12 +8,15 @@
 #include "sim/scenario.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+#include <thread>
 
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -114,7 +117,8 @@ struct PipelineRun {
     std::vector<double> frameTimes;  // per field: the pose time of the frame it came from
 };
 
-PipelineRun runPipeline(World& world, sim::PipelineOptions options, std::string_view script) {
+PipelineRun runPipeline(World& world, sim::PipelineOptions options, std::string_view script,
+                        const sim::FrameRenderer* renderer = nullptr) {
     auto flight = world.flight(script);
     RecordingPoses poses(*flight);
     RecordingSink sink;
@@ -126,7 +130,8 @@ PipelineRun runPipeline(World& world, sim::PipelineOptions options, std::string_
     options.onField = [&](const prp::Field& field, const io::FieldBuffer&) {
         run.frameTimes.push_back(field.frameTime);
     };
-    sim::Pipeline pipeline(poses, world.renderer(), sink, *clock, options);
+    const sim::FrameRenderer own = renderer ? *renderer : world.renderer();
+    sim::Pipeline pipeline(poses, own, sink, *clock, options);
     run.result = pipeline.run();
     run.seen = sink.seen;
     run.fieldTimes = poses.fieldTimes;
@@ -461,6 +466,40 @@ TEST(RendererProcess, FieldsGoOnThroughEveryFault) {
         EXPECT_GT(r.fieldsExtrapolated + r.fieldsHeld, 15u);
         // Fresh frames again after the restart, to the end of the run.
         EXPECT_GT(run.frameTimes.back(), world.start.time + duration - 0.25);
+    }
+}
+
+// A renderer whose first frame in each process is slow (a paged map reads its first view's
+// tiles, waiting) is given its start allowance after a restart too, not the render timeout:
+// one restart, not one per timeout until a start happens to be quick enough.
+TEST(RendererProcess, ARestartedRendererGetsItsStartAllowance) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    auto started = std::make_shared<pid_t>(-1);
+    const sim::FrameRenderer slowStart = [inner, started](const ig::Pose& pose, double time,
+                                                          std::uint64_t sequence) {
+        if (*started != ::getpid()) {
+            *started = ::getpid();
+            std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+        }
+        return inner(pose, time, sequence);
+    };
+    sim::PipelineOptions o = processOptions(3.0);
+    o.fault = sim::parseRendererFault("crash@1", "--inject-renderer-fault");
+    o.renderTimeout = 0.4;  // the start allowance: ten of them
+    const PipelineRun run = runPipeline(world, o, kGentleScript, &slowStart);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    ASSERT_EQ(run.result.stats.restarts.size(), 1u) << run.result.stats.restarts.back().cause;
+    EXPECT_NE(run.result.stats.restarts[0].cause.find("killed by signal 9"), std::string::npos);
+    EXPECT_EQ(run.result.stats.missedDeadlines, 0u);
+    EXPECT_GT(run.frameTimes.back(), world.start.time + 3.0 - 0.25);
+    // A renderer silent past the allowance is still restarted: a hang at its first frame.
+    o.startTimeout = 0.8;
+    try {
+        runPipeline(world, o, kGentleScript, &slowStart);
+        ADD_FAILURE() << "a first frame past the start allowance was awaited";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("gave no first frame"), std::string::npos) << e.what();
     }
 }
 
