@@ -491,13 +491,14 @@ class NestedCaster final : public Caster {
                 "insets: the span caster does not draw insets (use fast, naive or "
                 "reference)");
         }
-        if (!options.objects.empty()) {
-            throw InputError("insets: objects over a terrain with insets are not drawn");
-        }
+        // The objects are drawn by the global pass (their layer is over the global grid; they
+        // stand on the nested surface, over the lowered global one), and the composite hides
+        // them where an inset's surface lies nearer.
         global_ = makeCaster(kind, *maps.global, options);
         for (std::size_t k = 0; k < maps.insets.size(); ++k) {
             // Each map lit by its own normals (the lighting pass runs on each pass's frame).
             RenderOptions o = insetOptions[k];
+            o.objects.clear();
             if (o.lighting) {
                 auto lit = std::make_shared<SunLighting>(*o.lighting);
                 lit->normals = std::make_shared<const TerrainNormals>(*maps.insets[k].map);
@@ -552,7 +553,12 @@ class NestedCaster final : public Caster {
 
     void renderAll(const Camera& camera, RenderedFrame& frame, UnitCounters& counters) const {
         const Intrinsics& intr = camera.intrinsics();
-        frame.objectId.clear();
+        // The global caster's units draw the objects over their columns into the id image.
+        if (options_.objects.empty()) {
+            frame.objectId.clear();
+        } else {
+            frame.objectId.assign(static_cast<std::size_t>(intr.width) * intr.height, 0);
+        }
         renderColumns(*global_, camera, frame, 0, intr.width, counters);
         for (std::size_t k = 0; k < maps_.insets.size(); ++k) {
             const NestedMaps::Part& in = maps_.insets[k];
@@ -569,13 +575,17 @@ class NestedCaster final : public Caster {
             part.color.resize(frame.color.size());
             part.depth.assign(frame.depth.size(), std::numeric_limits<float>::infinity());
             renderColumns(*inner_[k], local, part, c0, c1, counters);
-            // The nearer surface, pixel by pixel (ties to the inset: its surface is the finer).
+            // The nearer surface, pixel by pixel (ties to the inset: its surface is the finer;
+            // an object is nearer than the surface it stands on).
+            const bool ids = !frame.objectId.empty();
             for (int y = 0; y < intr.height; ++y) {
                 const std::size_t row = static_cast<std::size_t>(y) * intr.width;
                 for (std::size_t i = row + c0; i < row + c1; ++i) {
-                    if (part.depth[i] <= frame.depth[i]) {
+                    if (part.depth[i] <= frame.depth[i] &&
+                        !(ids && frame.objectId[i] != 0 && part.depth[i] == frame.depth[i])) {
                         frame.depth[i] = part.depth[i];
                         frame.color[i] = part.color[i];
+                        if (ids) frame.objectId[i] = 0;
                     }
                 }
             }

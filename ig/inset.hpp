@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ig {
@@ -70,6 +71,19 @@ struct NestedMaps {
     double surfaceHeight(double x, double y) const;
     RayHit intersect(const glm::dvec3& origin, const glm::dvec3& dir) const;
     double entryBeyond(const glm::dvec3& origin, const glm::dvec3& dir, double ta, double tb) const;
+};
+
+// The ground of a nested terrain: the surface of the insets where they lie, the global map's
+// elsewhere (a pose's +H over a paged database with insets).
+class NestedGround final : public Ground {
+  public:
+    explicit NestedGround(NestedMaps maps) : maps_(std::move(maps)) {}
+    double groundHeight(double x, double y) const override { return maps_.surfaceHeight(x, y); }
+    double extentX() const override { return maps_.global->extentX(); }
+    double extentY() const override { return maps_.global->extentY(); }
+
+  private:
+    NestedMaps maps_;  // a copy: the maps it points to must outlive this
 };
 
 // What nesting needs of the global map before reading its samples: its size, spacing and
@@ -164,8 +178,10 @@ class NestedTerrain {
 // A caster over a nested terrain: the global map's frame, then each inset's own caster over the
 // columns where the inset can show, the nearer hit kept per pixel (depth, then colour). The
 // reference, naive and fast casters (any levels, kernel, supersampling, sun lighting: each map
-// lit by its own normals); the span caster and objects are refused with InputError. The image does
-// not depend on the thread count. Renders as one work unit (FrameStream runs it on every thread, no
+// lit by its own normals); the span caster is refused with InputError. Objects
+// (RenderOptions::objects, a layer over the global grid standing on the nested surface) are drawn
+// by the global pass and hidden where an inset's surface lies nearer. The image does not depend
+// on the thread count. Renders as one work unit (FrameStream runs it on every thread, no
 // overlap between frames).
 std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
                                          const RenderOptions& options = {});

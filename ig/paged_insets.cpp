@@ -1,6 +1,7 @@
 #include "ig/paged_insets.hpp"
 
 #include "ig/camera.hpp"
+#include "ig/terrain_db_build.hpp"
 
 #include <algorithm>
 
@@ -27,25 +28,6 @@ Camera shifted(const Camera& camera, const Inset& in) {
     return Camera(pose, camera.intrinsics());
 }
 
-// Inset k's placement in a database, in world metres.
-Inset placementOf(const TerrainDb& db, std::size_t k) {
-    const DbInset& d = db.insets()[k];
-    const TerrainDbInfo& g = db.info();
-    Inset in;
-    in.name = d.name;
-    in.x0 = d.x0;
-    in.y0 = d.y0;
-    in.x1 = d.x1;
-    in.y1 = d.y1;
-    in.factor = d.factor;
-    in.mapX0 = d.mapX0;
-    in.mapY0 = d.mapY0;
-    in.origin = {d.mapX0 * g.spacingX, d.mapY0 * g.spacingY};
-    in.coverMin = {d.x0 * g.spacingX, d.y0 * g.spacingY};
-    in.coverMax = {d.x1 * g.spacingX, d.y1 * g.spacingY};
-    return in;
-}
-
 }  // namespace
 
 PagedNestedTerrain::PagedNestedTerrain(const TerrainDb& db, const PagedTerrain::Options& options) {
@@ -64,7 +46,7 @@ PagedNestedTerrain::PagedNestedTerrain(const TerrainDb& db, const PagedTerrain::
     for (std::size_t k = 0; k < n; ++k) {
         insetDbs_.push_back(std::make_unique<TerrainDb>(db.openInset(k)));
         insets_.push_back(std::make_unique<PagedTerrain>(*insetDbs_.back(), share));
-        placements_.push_back(placementOf(db, k));
+        placements_.push_back(insetPlacement(db, k));
     }
     maps_.global = &global_->map();
     for (std::size_t k = 0; k < n; ++k)
@@ -116,7 +98,7 @@ PagedNestedGround::PagedNestedGround(const PagedGround& global, const TerrainDb&
     for (std::size_t k = 0; k < db.insets().size(); ++k) {
         dbs_.push_back(std::make_unique<TerrainDb>(db.openInset(k)));
         grounds_.push_back(std::make_unique<PagedGround>(*dbs_.back(), options));
-        placements_.push_back(placementOf(db, k));
+        placements_.push_back(insetPlacement(db, k));
     }
 }
 

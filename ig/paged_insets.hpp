@@ -53,6 +53,23 @@ class PagedNestedTerrain {
     NestedMaps maps_;
 };
 
+// PlacingGround over a paged database with insets: each height read first places, waiting,
+// the tiles under its point (the global map's, and the inset's where one lies), so it is the
+// nested surface there (a scene's placements, before a run). One thread at a time.
+class PlacingNestedGround final : public Ground {
+  public:
+    explicit PlacingNestedGround(PagedNestedTerrain& paged) : paged_(paged) {}
+    double groundHeight(double x, double y) const override {
+        paged_.placeAround(x, y);
+        return paged_.maps().surfaceHeight(x, y);
+    }
+    double extentX() const override { return paged_.global().map().extentX(); }
+    double extentY() const override { return paged_.global().map().extentY(); }
+
+  private:
+    PagedNestedTerrain& paged_;
+};
+
 // A flight model's ground over a paged database with insets: `global` (the database's own
 // PagedGround) outside them, a PagedGround of each inset's database over it (its surface, on
 // which the nested caster draws). An inset's ground follows the points asked for within
@@ -74,19 +91,6 @@ class PagedNestedGround final : public Ground {
     std::vector<std::unique_ptr<PagedGround>> grounds_;
     std::vector<Inset> placements_;
     double nearM_;
-};
-
-// The ground of a nested terrain: the surface of the insets where they lie, the global map's
-// elsewhere (a pose's +H over a paged database with insets).
-class NestedGround final : public Ground {
-  public:
-    explicit NestedGround(const NestedMaps& maps) : maps_(maps) {}
-    double groundHeight(double x, double y) const override { return maps_.surfaceHeight(x, y); }
-    double extentX() const override { return maps_.global->extentX(); }
-    double extentY() const override { return maps_.global->extentY(); }
-
-  private:
-    const NestedMaps& maps_;
 };
 
 }  // namespace ig

@@ -674,19 +674,28 @@ std::unique_ptr<TerrainRowSource> dbRowSource(const TerrainDb& db) {
     return std::make_unique<DbRowSource>(db);
 }
 
+Inset insetPlacement(const TerrainDb& db, std::size_t k) {
+    const DbInset& d = db.insets()[k];
+    const TerrainDbInfo& g = db.info();
+    Inset in;
+    in.name = d.name;
+    in.x0 = d.x0;
+    in.y0 = d.y0;
+    in.x1 = d.x1;
+    in.y1 = d.y1;
+    in.factor = d.factor;
+    in.mapX0 = d.mapX0;
+    in.mapY0 = d.mapY0;
+    in.origin = {d.mapX0 * g.spacingX, d.mapY0 * g.spacingY};
+    in.coverMin = {d.x0 * g.spacingX, d.y0 * g.spacingY};
+    in.coverMax = {d.x1 * g.spacingX, d.y1 * g.spacingY};
+    return in;
+}
+
 std::vector<Inset> readInsets(const TerrainDb& db) {
     std::vector<Inset> out;
     for (std::size_t k = 0; k < db.insets().size(); ++k) {
-        const DbInset& d = db.insets()[k];
-        Inset in;
-        in.name = d.name;
-        in.x0 = d.x0;
-        in.y0 = d.y0;
-        in.x1 = d.x1;
-        in.y1 = d.y1;
-        in.factor = d.factor;
-        in.mapX0 = d.mapX0;
-        in.mapY0 = d.mapY0;
+        Inset in = insetPlacement(db, k);
         const TerrainDb own = db.openInset(k);
         in.map = own.loadMap();
         const TerrainDbInfo& i = own.info();

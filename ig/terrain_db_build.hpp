@@ -28,6 +28,8 @@ class TerrainRowSource {
 std::unique_ptr<TerrainRowSource> mapRowSource(const TerrainMap& map);
 // Level 0 of a database, tile row by tile row (adding insets to it).
 std::unique_ptr<TerrainRowSource> dbRowSource(const TerrainDb& db);
+// Inset k of a database: its placement in world metres (its map empty).
+Inset insetPlacement(const TerrainDb& db, std::size_t k);
 // Its insets, their maps read back (each box's floor as stored).
 std::vector<Inset> readInsets(const TerrainDb& db);
 // The synthetic generator's map, any power-of-two size up to kMaxSyntheticStreamSize.

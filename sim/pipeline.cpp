@@ -168,8 +168,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                 PagedScene objects, double stereoSeparation) {
     CHECK(stereoSeparation == 0.0 || (kind == ig::CasterKind::Fast && !objects.scene))
         << "paged stereo pairs: the fast caster, without a scene";
-    CHECK(db.insets().empty() || (stereoSeparation == 0.0 && !objects.scene))
-        << "a paged database's insets: without a scene or stereo pairs";
+    CHECK(db.insets().empty() || stereoSeparation == 0.0)
+        << "a paged database's insets: without stereo pairs";
     ig::StereoOptions stereo;
     stereo.eyeSeparation = stereoSeparation;
     if (stereoSeparation > 0.0) ig::validateStereoOptions(stereo);
@@ -189,6 +189,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         // address), the ground the moving objects stand on, the extra objects' scratch.
         std::shared_ptr<ig::ObjectLayer> moving;
         std::unique_ptr<ig::PagedGround> ground;
+        // Over insets: their grounds over `ground` (the one the objects stand on then).
+        std::unique_ptr<ig::PagedNestedGround> nestedGround;
+        const ig::Ground* objectGround = nullptr;
         std::vector<ExtraObject> extra;
         bool have = false;
         ig::Pose pose;
@@ -205,6 +208,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             s.caster.reset();
             (void)s.nested.release();
             (void)s.ground.release();
+            (void)s.nestedGround.release();
             s.nested = std::make_unique<ig::PagedNestedTerrain>(db, po);
             s.paged = &s.nested->global();
             ig::RenderOptions o = options;
@@ -216,11 +220,18 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                 s.ground = std::make_unique<ig::PagedGround>(db, go);
                 s.ground->follow(pose.position.x, pose.position.y);
                 s.ground->waitAround(pose.position.x, pose.position.y);
+                s.objectGround = s.ground.get();
+                if (s.nested->insetCount() > 0) {
+                    s.nestedGround = std::make_unique<ig::PagedNestedGround>(*s.ground, db, go);
+                    s.nestedGround->follow(pose.position.x, pose.position.y);
+                    s.nestedGround->waitAround(pose.position.x, pose.position.y);
+                    s.objectGround = s.nestedGround.get();
+                }
                 s.moving = std::make_shared<ig::ObjectLayer>(
-                    objects.motion->stamp(objects.motion->startTime(), s.ground.get()));
+                    objects.motion->stamp(objects.motion->startTime(), s.objectGround));
                 o.objects = {objects.scene->staticLayer.get(), s.moving.get()};
             }
-            s.caster = s.nested->insetCount() > 0 ? s.nested->makeCaster(kind, options)
+            s.caster = s.nested->insetCount() > 0 ? s.nested->makeCaster(kind, o)
                                                   : ig::makeCaster(kind, s.paged->map(), o);
             s.options = o;
             s.pid = ::getpid();
@@ -284,9 +295,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             return frame;
         }
         if (objects.scene) {
-            s.ground->follow(pose.position.x, pose.position.y);
+            s.objectGround->follow(pose.position.x, pose.position.y);
             if (objects.extra) objects.extra(time, s.extra);
-            *s.moving = objects.motion->stamp(time, s.extra, s.ground.get());
+            *s.moving = objects.motion->stamp(time, s.extra, s.objectGround);
         }
         ig::RenderedFrame frame =
             s.nested->insetCount() > 0
@@ -301,22 +312,29 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
                                 const ig::Scene& scene, const SceneMotion& motion,
-                                ExtraObjects extra) {
+                                ExtraObjects extra, const ig::NestedTerrain* nested) {
+    // Over insets the moving objects stand on the nested surface.
+    std::shared_ptr<const ig::NestedGround> ground;
+    if (nested) ground = std::make_shared<const ig::NestedGround>(nested->maps());
     // The moving layer is replaced before each render; the caster holds its address.
-    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime()));
+    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime(), ground.get()));
     ig::RenderOptions withObjects = options;
     withObjects.objects = {scene.staticLayer.get(), moving.get()};
-    std::shared_ptr<const ig::Caster> caster = ig::makeCaster(kind, map, withObjects);
+    std::shared_ptr<const ig::Caster> caster =
+        nested ? ig::makeNestedCaster(kind, *nested, withObjects)
+               : ig::makeCaster(kind, map, withObjects);
     auto objects = std::make_shared<std::vector<ExtraObject>>();
-    return [caster, moving, objects, extra, &map, &motion, geometry, withObjects](
+    return [caster, moving, objects, extra, &map, &motion, geometry, withObjects, nested, ground](
                const ig::Pose& pose, double time, std::uint64_t sequence) {
         if (extra) extra(time, *objects);
-        *moving = motion.stamp(time, *objects);
+        *moving = motion.stamp(time, *objects, ground.get());
         const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
-        ig::RenderedFrame frame = ig::renderFrame(*caster, map, level, renderIntrinsics(g, pose),
-                                                  time, sequence, g.nearM);
+        const ig::Intrinsics intr = renderIntrinsics(g, pose);
+        ig::RenderedFrame frame =
+            nested ? ig::renderNestedFrame(*caster, *nested, level, intr, time, sequence, g.nearM)
+                   : ig::renderFrame(*caster, map, level, intr, time, sequence, g.nearM);
         clipBeyondFar(frame, g.farM, withObjects.sky);
         return frame;
     };

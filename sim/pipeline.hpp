@@ -134,11 +134,13 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
 // from frame to frame (the caster is built once). Renders one frame at a time. The map, scene
 // and motion must outlive the renderer; the caster must draw objects (reference or naive).
 // `extra`, when given, is asked on the renderer's thread for more objects at each frame's
-// instant (a CIGI host's entities) and stamped into the same layer.
+// instant (a CIGI host's entities) and stamped into the same layer. With `nested` (insets,
+// whose global map `map` shares the grid of), the nested caster draws the frame and the moving
+// objects stand on the nested surface.
 FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                 ig::CasterKind kind, const ig::RenderOptions& options,
                                 const ig::Scene& scene, const SceneMotion& motion,
-                                ExtraObjects extra = {});
+                                ExtraObjects extra = {}, const ig::NestedTerrain* nested = nullptr);
 
 // The renderer process's nice value when the run writes truth on the wall clock and no other
 // is asked for: the truth writer is scheduled before it.

@@ -696,6 +696,8 @@ int main(int argc, char** argv) {
         // The ground the processor's re-stamped moving objects stand on over a paged map (it
         // follows the objects asked about).
         std::unique_ptr<ig::PagedGround> sceneGround;
+        // Over a paged database's insets, their grounds over sceneGround.
+        std::unique_ptr<ig::PagedNestedGround> sceneInsetGround;
         if (!terrain.db.empty()) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
@@ -717,10 +719,7 @@ int main(int argc, char** argv) {
                 pagedNested = std::make_unique<ig::PagedNestedTerrain>(*pagedDb, ground);
                 pagedGround = &pagedNested->global();
                 pagedInsets = pagedNested->insetCount() > 0;
-                const char* insetWhy = cigi                 ? "--cigi"
-                                       : !scenePath.empty() ? "--scene"
-                                       : stereo             ? "--stereo"
-                                                            : nullptr;
+                const char* insetWhy = cigi ? "--cigi" : stereo ? "--stereo" : nullptr;
                 if (pagedInsets && insetWhy) {
                     throw ig::InputError(terrain.db + " holds insets: not with " + insetWhy);
                 }
@@ -735,26 +734,27 @@ int main(int argc, char** argv) {
         const bool nesting = insets.any() || (!pagedGround && ig::databaseHasInsets(terrain));
         if (nesting && !insets.any()) {
             const char* why = cigi                                 ? "--cigi"
-                              : !scenePath.empty()                 ? "--scene"
                               : stereo                             ? "--stereo"
                               : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                    : nullptr;
             if (why) throw ig::InputError(terrain.db + " holds insets: not with " + why);
         }
         if (insets.any()) {
-            const char* why = pagedGround          ? "a --db paged beyond --cache-mb"
-                              : cigi               ? "--cigi (a host's height queries)"
-                              : !scenePath.empty() ? "--scene"
-                              : stereo             ? "--stereo"
+            const char* why = pagedGround ? "a --db paged beyond --cache-mb"
+                              : cigi      ? "--cigi (a host's height queries)"
+                              : stereo    ? "--stereo"
                               : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                    : nullptr;
             if (why) throw ig::InputError(std::string("--inset: not with ") + why);
         }
         ig::TerrainMap loadedMap =
             pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
+        // The nested surface, where a scene's objects stand over insets held in memory.
+        std::optional<ig::NestedGround> insetGround;
         if (nesting) {
             nested.emplace(ig::loadNestedTerrain(std::move(loadedMap), terrain, insets));
             loadedMap = nested->upperGround();
+            insetGround.emplace(nested->maps());
         }
         // The paged map is written only by pagedGround's own placing, here before the run.
         ig::TerrainMap& map =
@@ -809,8 +809,16 @@ int main(int argc, char** argv) {
             // Over a paged map the placements stand on the database's ground, read tile by
             // tile as the scene asks (before the run).
             std::optional<ig::PlacingGround> placing;
-            if (pagedGround) placing.emplace(*pagedGround);
-            scene.emplace(ig::loadScene(scenePath, map, true, placing ? &*placing : nullptr));
+            std::optional<ig::PlacingNestedGround> placingNested;
+            const ig::Ground* placeOn = nullptr;
+            if (pagedInsets) {
+                placeOn = &placingNested.emplace(*pagedNested);
+            } else if (pagedGround) {
+                placeOn = &placing.emplace(*pagedGround);
+            } else if (nested) {
+                placeOn = &*insetGround;  // the nested surface (`map` is the upper ground)
+            }
+            scene.emplace(ig::loadScene(scenePath, map, true, placeOn));
             motion.emplace(*scene);
             // Over a paged map the processor's re-stamped moving objects and the truth stand on
             // a ground of the field process's own: it follows the truth's field pose, or else
@@ -824,6 +832,15 @@ int main(int argc, char** argv) {
                     pagedGroundAt(at.empty() ? 0.0 : at.front().x, at.empty() ? 0.0 : at.front().y);
                 for (std::size_t i = 1; i < at.size(); ++i)
                     sceneGround->waitAround(at[i].x, at[i].y);
+                if (pagedInsets) {
+                    ig::PagedGround::Options go;
+                    go.budgetBytes =
+                        static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
+                    sceneInsetGround =
+                        std::make_unique<ig::PagedNestedGround>(*sceneGround, *pagedDb, go);
+                    for (const ig::Placement& p : at)
+                        sceneInsetGround->waitAround(p.x, p.y);
+                }
             }
         }
         // The objects a CIGI host's lines of sight meet (the session's, so declared before it).
@@ -1117,10 +1134,18 @@ int main(int argc, char** argv) {
                                                         renderOptions, *scene, *motion, hostObjects)
             : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)
             : scene  ? sim::makeSceneRenderer(map, geometry, casterKind, renderOptions, *scene,
-                                              *motion, hostObjects)
+                                              *motion, hostObjects, nested ? &*nested : nullptr)
             : nested ? sim::makeNestedRenderer(*nested, geometry, casterKind, renderOptions)
                      : sim::makeCasterRenderer(map, geometry, casterKind, renderOptions);
         options.objectIds = scene.has_value();
+        // The ground the processor's re-stamped objects and the truth stand on: the nested
+        // surface over insets, a paged map's ground of the field process, or the map.
+        const auto objectGround = [&]() -> const ig::Ground& {
+            if (sceneInsetGround) return *sceneInsetGround;
+            if (sceneGround) return *sceneGround;
+            if (insetGround) return *insetGround;
+            return map;
+        };
         // Ground truth: written from a thread of its own into a file renamed into place when
         // the run is complete.
         std::optional<sim::TruthScene> truthScene;
@@ -1128,9 +1153,7 @@ int main(int argc, char** argv) {
         std::unique_ptr<sim::TruthWriter> truth;
         if (!truthPath.empty()) {
             if (truthFile.open(truthPath, &error) != 0) throw ig::InputError("--truth " + error);
-            truthScene.emplace(*scene, *motion,
-                               sceneGround ? static_cast<const ig::Ground&>(*sceneGround)
-                                           : static_cast<const ig::Ground&>(map));
+            truthScene.emplace(*scene, *motion, objectGround());
             sim::TruthCamera camera;
             camera.window = level.window();
             camera.outWidth = opened.width;
@@ -1153,9 +1176,7 @@ int main(int argc, char** argv) {
         std::vector<sim::ExtraObject> entitiesAtFrame, entitiesAtField;
         const bool hostEntities = cigiSource && !cigiEntities.empty();
         if (scene && (!scene->moving.empty() || hostEntities) && !noRestamp) {
-            motionScene.emplace(*scene, *motion,
-                                sceneGround ? static_cast<const ig::Ground&>(*sceneGround)
-                                            : static_cast<const ig::Ground&>(map));
+            motionScene.emplace(*scene, *motion, objectGround());
             motionBetween.emplace(*motionScene);
             entitiesAtFrame.reserve(sim::TruthWriter::kMaxExtraObjects);
             entitiesAtField.reserve(sim::TruthWriter::kMaxExtraObjects);

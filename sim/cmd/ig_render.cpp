@@ -509,7 +509,8 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     std::optional<ig::ObjectLayer> moving;
     double time = r.sceneTime.value_or(0.0);
     if (!r.scenePath.empty()) {
-        const ig::PlacingGround placing(paged);
+        // With insets, the objects stand on their surface where they lie.
+        const ig::PlacingNestedGround placing(nestedPaged);
         scene.emplace(ig::loadScene(r.scenePath, map, true, &placing));
         motion.emplace(*scene);
         time = r.sceneTime.value_or(motion->startTime());
@@ -777,10 +778,9 @@ int main(int argc, char** argv) {
                                          "with ig-build-db --db " +
                                          terrain.db + " --inset ...)");
                 }
-                if (!db.insets().empty() && (stereo.enabled() || batchMode || !scenePath.empty())) {
+                if (!db.insets().empty() && (stereo.enabled() || batchMode)) {
                     throw ig::InputError(terrain.db +
-                                         " holds insets: one frame, without --stereo, --poses "
-                                         "or --scene");
+                                         " holds insets: one frame, without --stereo or --poses");
                 }
                 if (batchMode) {
                     throw ig::InputError(terrain.db +
@@ -814,10 +814,10 @@ int main(int argc, char** argv) {
         // Insets from the flags, or held by the database.
         const bool nesting = insets.any() || ig::databaseHasInsets(terrain);
         if (nesting) {
-            if (stereo.enabled() || batchMode || !scenePath.empty()) {
+            if (stereo.enabled() || batchMode) {
                 throw ig::InputError(
                     std::string(insets.any() ? "--inset" : terrain.db + " holds insets") +
-                    ": one frame, without --stereo, --poses or --scene");
+                    ": one frame, without --stereo or --poses");
             }
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
@@ -860,10 +860,15 @@ int main(int argc, char** argv) {
         std::optional<ig::ObjectLayer> moving;
         double time = sceneTime.value_or(0.0);  // the sun's too
         if (!scenePath.empty()) {
-            scene.emplace(ig::loadScene(scenePath, map));
+            // Over insets, the objects stand on the nested surface (the map here is the
+            // upper ground, on the same grid).
+            std::optional<ig::NestedGround> onInsets;
+            if (nested) onInsets.emplace(nested->maps());
+            const ig::Ground* ground = onInsets ? &*onInsets : nullptr;
+            scene.emplace(ig::loadScene(scenePath, map, true, ground));
             motion.emplace(*scene);
             time = sceneTime.value_or(motion->startTime());
-            moving.emplace(motion->stamp(time));
+            moving.emplace(motion->stamp(time, ground));
             // Every caster draws the objects over its terrain by their own walk (the fast ones
             // by the objects' screen footprint), so the terrain's bounds stay as they are.
             options.objects = {&*scene->staticLayer, &*moving};

@@ -113,6 +113,63 @@ j = json.load(open(sys.argv[1]))
 assert i["cells"] == [400, 400, 528, 528] and i["factor"] == 4 and i["tiles_read"] > 0, i
 assert j["paging"]["tiles_substituted"] == 0, j["paging"]
 PY
+# A scene over the inset: houses scattered over it and a tank crossing it stand on its surface.
+# ig-render draws them the same from the flags, the database loaded whole and paged (image and
+# object ids); flythrough's ground truth over the paged database places them as in memory.
+root=$(cd "$(dirname "$0")/../.." && pwd)
+printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,3600,2600,700,20,-20,0\n2,3800,3200,700,30,-20,0\n' \
+    >"$tmp/traj.csv"
+cat >"$tmp/scene.json" <<JSON
+{"models": {"house": {"vox": "$root/data/models/house.vox"},
+            "tank": {"vox": "$root/data/models/tank.vox"}},
+ "objects": [{"id": 1, "model": "tank", "trajectory": "$tmp/tank.csv", "scale": 3}],
+ "scatter": [{"model": "house", "count": 150, "area": [3250, 3250, 4150, 4150], "seed": 5,
+              "scale": 4, "first_id": 100}]}
+JSON
+printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,3000,3400,0,90,0,0\n10,4400,3400,0,90,0,0\n' \
+    >"$tmp/tank.csv"
+sc=(--scene "$tmp/scene.json" --time 4)
+"$bin/ig-render" --synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4 "${abs[@]}" \
+    "${sc[@]}" --out "$tmp/sc_flags.png" --objects-out "$tmp/sc_flags_ids.png" 2>/dev/null ||
+    fail "render a scene over the inset from the flags"
+"$bin/ig-render" --db "$tmp/in.db" "${abs[@]}" "${sc[@]}" --out "$tmp/sc_whole.png" \
+    --objects-out "$tmp/sc_whole_ids.png" 2>/dev/null || fail "render a scene over the database whole"
+"$bin/ig-render" --db "$tmp/in.db" --cache-mb 3 "${abs[@]}" "${sc[@]}" --out "$tmp/sc_paged.png" \
+    --objects-out "$tmp/sc_paged_ids.png" 2>/dev/null || fail "render a scene over the database paged"
+cmp -s "$tmp/sc_flags.png" "$tmp/flags.png" && fail "the scene over the inset drew nothing"
+for v in whole paged; do
+    cmp -s "$tmp/sc_flags.png" "$tmp/sc_$v.png" || fail "the scene over the database ($v) differs"
+    cmp -s "$tmp/sc_flags_ids.png" "$tmp/sc_${v}_ids.png" ||
+        fail "the object ids over the database ($v) differ"
+done
+for where in paged memory; do
+    terrain=(--db "$tmp/in.db" --cache-mb 8)
+    [ $where = memory ] && terrain=(--synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4)
+    msg=$("$bin/flythrough" "${terrain[@]}" --trajectory "$tmp/traj.csv" \
+        --scene "$tmp/scene.json" --truth "$tmp/truth_$where.jsonl" --clock simulated \
+        --size 160x120 --margin 8 --render-threads 1 --out null --contact none \
+        --json "$tmp/fly_scene_$where.json" 2>&1) || fail "a scene over the inset ($where): $msg"
+done
+python3 - "$tmp/truth_paged.jsonl" "$tmp/truth_memory.jsonl" "$tmp/fly_scene_paged.json" <<'PY' ||
+import json, sys
+a = [json.loads(l) for l in open(sys.argv[1])]
+b = [json.loads(l) for l in open(sys.argv[2])]
+assert len(a) == len(b) == 120, (len(a), len(b))
+pairs = 0
+for x, y in zip(a, b):
+    ox = {o["id"]: o for o in x["objects"]}
+    oy = {o["id"]: o for o in y["objects"]}
+    assert set(ox) == set(oy), (x["field"], set(ox) ^ set(oy))
+    for i in ox:
+        assert ox[i]["true_bbox"] == oy[i]["true_bbox"], (x["field"], ox[i], oy[i])
+        pairs += 1
+assert pairs > 1000, pairs
+j = json.load(open(sys.argv[3]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+print("truth over the inset: %d objects placed the same paged and in memory" % pairs)
+PY
+    fail "the truth over the paged inset"
+
 expect_refused "a flag inset over a database holding one" "holds insets" -- "$bin/ig-render" \
     --db "$tmp/in.db" "${abs[@]}" --inset synthetic:10,10,8,8,2 --out "$tmp/x.png"
 expect_refused "an inset next to one the database holds" "holds already" -- \

@@ -7,15 +7,19 @@
 #include "ig/error.hpp"
 #include "ig/image_compare.hpp"
 #include "ig/lighting_pass.hpp"
+#include "ig/scene.hpp"
 #include "ig/synthetic.hpp"
 #include "ig/terrain_io.hpp"
+#include "ig/vox.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <random>
 #include <vector>
 
@@ -293,6 +297,90 @@ TEST(Insets, NoSpikeAcrossTheBorderAlongASlowFlight) {
         worstOf(plainDiffs), median(sharpDiffs), worstOf(sharpDiffs));
     ASSERT_GT(mNested, 0.0);
     EXPECT_LE(worst, 2.0 * mNested);
+}
+
+// Objects over an inset (a scene's placements standing on the nested surface): drawn by the
+// global pass, hidden where the inset's relief lies nearer. The object ids and the image are
+// those of the whole fine terrain with the same objects.
+TEST(Insets, ObjectsStandOnTheInsetAndItsReliefHidesThem) {
+    const NestedTerrain& t = shared();
+    const std::string dir = ::testing::TempDir() + "inset_objects_" + std::to_string(::getpid());
+    std::filesystem::create_directories(dir);
+    VoxFile vox;
+    vox.palette = defaultVoxPalette();
+    vox.models.push_back(VoxModel(3, 3, 12));
+    for (auto& v : vox.models[0].voxels)
+        v = 7;
+    writeVox(dir + "/mast.vox", vox);
+    const Inset& in = t.insets()[0];
+    std::string objects;
+    int id = 1;
+    for (int i = 0; i < 5; ++i) {
+        for (int j = 0; j < 4; ++j) {
+            const double x = in.coverMin.x + (in.coverMax.x - in.coverMin.x) * (i + 0.5) / 5;
+            const double y = in.coverMin.y + (in.coverMax.y - in.coverMin.y) * (j + 0.5) / 4;
+            objects += std::string(objects.empty() ? "" : ",") + R"({"id": )" +
+                       std::to_string(id++) + R"(, "model": "mast", "x": )" + std::to_string(x) +
+                       R"(, "y": )" + std::to_string(y) + R"(, "scale": 2})";
+        }
+    }
+    const std::string json =
+        R"({"cell_m": 1, "models": {"mast": {"vox": "mast.vox"}}, "objects": [)" + objects + "]}";
+    const NestedGround ground(t.maps());
+    const Scene overNested =
+        parseScene(json, dir + "/s.json", t.global(), true, kMaxSceneCellVisits, &ground);
+    const Scene overFine =
+        parseScene(json, dir + "/s.json", wholeFine(), true, kMaxSceneCellVisits, &ground);
+    for (std::size_t k = 0; k < overNested.staticLayer->objects().size(); ++k) {
+        const PlacedObject& o = overNested.staticLayer->objects()[k];
+        EXPECT_EQ(o.z, t.surfaceHeight(o.x, o.y));  // on the inset, over the lowered global map
+        EXPECT_GT(o.z, t.global().surfaceHeight(o.x, o.y) - 1e-9);
+    }
+    const Intrinsics intr = Intrinsics::fromFov(240, 160, degToRad(50), 8);
+    for (const CasterKind kind : {CasterKind::Fast, CasterKind::Reference}) {
+        RenderOptions options;
+        options.levels = 0;
+        options.objects = {overNested.staticLayer.get()};
+        const auto nestedCaster = makeNestedCaster(kind, t, options);
+        options.objects = {overFine.staticLayer.get()};
+        const auto wholeCaster = makeCaster(kind, wholeFine(), options);
+        RenderOptions bare;
+        bare.levels = 0;
+        const auto bareCaster = makeNestedCaster(kind, t, bare);
+        // The global pass alone: the objects over the lowered global surface, none hidden by
+        // the inset's relief.
+        options.objects = {overNested.staticLayer.get()};
+        const auto globalCaster = makeCaster(kind, t.global(), options);
+        std::size_t hidden = 0;
+        for (const double yaw : {0.0, 110.0, 230.0}) {
+            const Pose pose = lookingAtTheInset(yaw, -8, 700, 35);
+            const RenderedFrame a = renderNestedFrame(*nestedCaster, t, pose, intr);
+            const RenderedFrame b = renderFrame(*wholeCaster, wholeFine(), pose, intr);
+            const RenderedFrame none = renderNestedFrame(*bareCaster, t, pose, intr);
+            const RenderedFrame g = renderFrame(*globalCaster, t.global(), pose, intr);
+            std::size_t objectPx = 0, differ = 0;
+            for (std::size_t i = 0; i < a.objectId.size(); ++i) {
+                objectPx += b.objectId[i] != 0;
+                differ += a.objectId[i] != b.objectId[i];
+                hidden += g.objectId[i] != 0 && a.objectId[i] == 0;
+            }
+            const Comparison c = compare(a, b, 2.0);
+            std::printf("%s yaw %g: %zu object px, %zu ids differ; MAE %.4f %% of the frame\n",
+                        std::string(casterName(kind)).c_str(), yaw, objectPx, differ, c.maeAll);
+            ASSERT_GT(objectPx, 200u);
+            // Silhouettes: a ray grazing a mast's edge or a ridge in front of it may land on
+            // the other side in either render.
+            EXPECT_LE(differ, objectPx / 50 + 2);
+            EXPECT_LE(c.maeAll, 0.1);
+            // Without objects, no ids.
+            EXPECT_TRUE(std::all_of(none.objectId.begin(), none.objectId.end(),
+                                    [](std::uint16_t v) { return v == 0; }));
+        }
+        std::printf("%s: %zu object px the inset's relief hides\n",
+                    std::string(casterName(kind)).c_str(), hidden);
+        EXPECT_GT(hidden, 10u);  // 28 here
+    }
+    std::filesystem::remove_all(dir);
 }
 
 TEST(Insets, TheImageDoesNotDependOnTheThreadCount) {
