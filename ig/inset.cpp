@@ -284,12 +284,11 @@ NestedTerrain::NestedTerrain(TerrainMap global, std::vector<InsetSource> sources
     global_.updateRange();
 }
 
-NestedTerrain NestedTerrain::fromNested(TerrainMap global, std::vector<Inset> insets) {
-    NestedTerrain t;
-    t.global_ = std::move(global);
-    const GlobalGrid g = GlobalGrid::of(t.global_);
+void checkNestedInsets(const GlobalGrid& g, std::span<const Inset> insets,
+                       std::span<const TerrainMap* const> maps) {
+    CHECK(insets.size() == maps.size());
     for (std::size_t k = 0; k < insets.size(); ++k) {
-        Inset& in = insets[k];
+        const Inset& in = insets[k];
         const std::string& n = in.name;
         if (!isPowerOfTwo(in.factor) || in.factor < 2 || in.factor > 256 || in.x0 < 0 ||
             in.y0 < 0 || in.x1 <= in.x0 || in.y1 <= in.y0 || in.x1 > g.width - 1 ||
@@ -301,7 +300,7 @@ NestedTerrain NestedTerrain::fromNested(TerrainMap global, std::vector<Inset> in
         mapExtent(g, in, mapX1, mapY1);
         const int mw = (mapX1 - in.mapX0) * in.factor + 1;
         const int mh = (mapY1 - in.mapY0) * in.factor + 1;
-        const TerrainMap& m = in.map;
+        const TerrainMap& m = *maps[k];
         if (m.width() != mw || m.height() != mh) {
             throw InputError(n + ": map of " + std::to_string(m.width()) + " x " +
                              std::to_string(m.height()) + " samples, its placement needs " +
@@ -319,6 +318,18 @@ NestedTerrain NestedTerrain::fromNested(TerrainMap global, std::vector<Inset> in
                 throw InputError(n + ": overlaps or touches " + other.name);
             }
         }
+    }
+}
+
+NestedTerrain NestedTerrain::fromNested(TerrainMap global, std::vector<Inset> insets) {
+    NestedTerrain t;
+    t.global_ = std::move(global);
+    const GlobalGrid g = GlobalGrid::of(t.global_);
+    std::vector<const TerrainMap*> maps;
+    for (const Inset& in : insets)
+        maps.push_back(&in.map);
+    checkNestedInsets(g, insets, maps);
+    for (Inset& in : insets) {
         in.coverMin = {in.x0 * g.spacingX, in.y0 * g.spacingY};
         in.coverMax = {in.x1 * g.spacingX, in.y1 * g.spacingY};
         in.origin = {in.mapX0 * g.spacingX, in.mapY0 * g.spacingY};

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -174,6 +175,13 @@ class NestedTerrain {
     TerrainMap global_;
     std::vector<Inset> insets_;
 };
+
+// Checks insets nested already (read back from a database) against the global grid: each
+// placement within the map and by the nesting's rules, each map (`maps[k]`, inset k's) of the
+// size, spacing and height quantisation its placement needs, none overlapping or touching
+// another. Throws InputError naming the inset.
+void checkNestedInsets(const GlobalGrid& global, std::span<const Inset> insets,
+                       std::span<const TerrainMap* const> maps);
 
 // A caster over a nested terrain: the global map's frame, then each inset's own caster over the
 // columns where the inset can show, the nearer hit kept per pixel (depth, then colour). The

@@ -49,8 +49,12 @@ PagedNestedTerrain::PagedNestedTerrain(const TerrainDb& db, const PagedTerrain::
         placements_.push_back(insetPlacement(db, k));
     }
     maps_.global = &global_->map();
-    for (std::size_t k = 0; k < n; ++k)
+    std::vector<const TerrainMap*> maps;
+    for (std::size_t k = 0; k < n; ++k) {
         maps_.insets.push_back({&placements_[k], &insets_[k]->map()});
+        maps.push_back(&insets_[k]->map());
+    }
+    checkNestedInsets(GlobalGrid::of(global_->map()), placements_, maps);
 }
 
 PagedFrameStats PagedNestedTerrain::prepare(const Camera& camera, bool wait,

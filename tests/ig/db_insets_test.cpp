@@ -3,11 +3,13 @@
 // with the map; every image equal to the nested terrain's in memory.
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -34,6 +36,11 @@ InsetSource insetA() {
 }
 InsetSource insetB() {
     return syntheticInset(kSeed, kSpacing, 60, 300, 40, 40, 2);
+}
+
+std::uint32_t crcOf(const char* p, std::size_t n) {
+    return static_cast<std::uint32_t>(
+        crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(p), static_cast<uInt>(n)));
 }
 
 std::string tmp(const std::string& name) {
@@ -339,6 +346,41 @@ TEST(DbInsets, ABrokenInsetsTableOrDatabaseIsAClearError) {
     // Cut inside the second inset's database.
     std::vector<char> cut(bytes.begin(), bytes.begin() + std::ptrdiff_t(in.offset + in.bytes / 2));
     expectError(cut, "truncated", false);
+    // The table placing the second inset one global cell wider than its database (checksums
+    // resealed): opening it whole or paged is refused, naming the inset.
+    {
+        std::vector<char> wide = bytes;
+        std::uint64_t tableOffset = 0;
+        std::memcpy(&tableOffset, wide.data() + 136, 8);
+        char* entry = wide.data() + tableOffset + 176;
+        std::int32_t x1 = 0;
+        std::memcpy(&x1, entry + 8, 4);
+        x1 += 1;
+        std::memcpy(entry + 8, &x1, 4);
+        const std::uint32_t tc = crcOf(wide.data() + tableOffset, 2 * 176);
+        std::memcpy(wide.data() + 148, &tc, 4);
+        const std::uint32_t hc = crcOf(wide.data(), 252);
+        std::memcpy(wide.data() + 252, &hc, 4);
+        const std::string p = tmp("wide");
+        std::ofstream(p, std::ios::binary).write(wide.data(), std::streamsize(wide.size()));
+        const TerrainDb opened = TerrainDb::open(p);
+        PagedTerrain::Options po;
+        po.cache.budgetBytes = std::size_t{8} << 20;
+        for (const bool paged : {false, true}) {
+            try {
+                if (paged) {
+                    PagedNestedTerrain t(opened, po);
+                } else {
+                    NestedTerrain::fromNested(opened.loadMap(), readInsets(opened));
+                }
+                ADD_FAILURE() << "an inset wider than its database accepted";
+            } catch (const InputError& e) {
+                EXPECT_NE(std::string(e.what()).find(in.name + ": map of"), std::string::npos)
+                    << e.what();
+            }
+        }
+        std::filesystem::remove(p);
+    }
     // A tile of the second inset's database damaged: named with the inset.
     std::vector<char> tile = bytes;
     tile[in.offset + in.bytes / 2] ^= 0x55;
