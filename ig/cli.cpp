@@ -568,7 +568,7 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& what) 
     return {static_cast<int>(w), static_cast<int>(h)};
 }
 
-Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what) {
+Pose parsePose(const std::string& text, const Ground& ground, const std::string& what) {
     const auto parts = split(text, ',');
     if (parts.size() != 6) {
         throw InputError(what + ": expected x,y,z,yaw,pitch,roll (6 numbers), got " +
@@ -578,7 +578,7 @@ Pose parsePose(const std::string& text, const TerrainMap& map, const std::string
     p.position.x = parseNumber(parts[0], what + " x");
     p.position.y = parseNumber(parts[1], what + " y");
     if (!parts[2].empty() && parts[2][0] == '+') {
-        p.position.z = map.surfaceHeight(p.position.x, p.position.y) +
+        p.position.z = ground.groundHeight(p.position.x, p.position.y) +
                        parseNumber(parts[2].substr(1), what + " z");
     } else {
         p.position.z = parseNumber(parts[2], what + " z");

@@ -151,9 +151,9 @@ inline constexpr double kPugetSoundLatitude = 46.88, kPugetSoundLongitude = -122
 
 // "WxH" -> {W, H}; throws InputError naming `what`.
 std::pair<int, int> parseSize(const std::string& text, const std::string& what = "--size");
-// "x,y,z,yaw,pitch,roll" in metres and degrees; z written "+H" means H metres above the terrain
-// under (x, y). Throws InputError naming `what`.
-Pose parsePose(const std::string& text, const TerrainMap& map, const std::string& what = "--pose");
+// "x,y,z,yaw,pitch,roll" in metres and degrees; z written "+H" means H metres above the ground
+// under (x, y) (a map's surface, or a nested terrain's). Throws InputError naming `what`.
+Pose parsePose(const std::string& text, const Ground& ground, const std::string& what = "--pose");
 // A view of any map when the user names none: over the south-west quarter, 15 % of the relief
 // and 50 m above the ground (and at least 60 % of the relief above the lowest point), heading for
 // the far corner, 8 degrees down. Stick flights over such maps start there too.

@@ -783,10 +783,11 @@ int main(int argc, char** argv) {
         }
         // A ground of the field process's own over a paged map (ig/paged_ground.hpp), its tiles
         // around (x, y) loaded before the run.
+        ig::PagedGround::Options groundOptions;
+        groundOptions.budgetBytes =
+            static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
         const auto pagedGroundAt = [&](double x, double y) {
-            ig::PagedGround::Options go;
-            go.budgetBytes = static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-            auto ground = std::make_unique<ig::PagedGround>(*pagedDb, go);
+            auto ground = std::make_unique<ig::PagedGround>(*pagedDb, groundOptions);
             ground->waitAround(x, y);
             return ground;
         };
@@ -833,11 +834,8 @@ int main(int argc, char** argv) {
                 for (std::size_t i = 1; i < at.size(); ++i)
                     sceneGround->waitAround(at[i].x, at[i].y);
                 if (pagedInsets) {
-                    ig::PagedGround::Options go;
-                    go.budgetBytes =
-                        static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                    sceneInsetGround =
-                        std::make_unique<ig::PagedNestedGround>(*sceneGround, *pagedDb, go);
+                    sceneInsetGround = std::make_unique<ig::PagedNestedGround>(
+                        *sceneGround, *pagedDb, groundOptions);
                     for (const ig::Placement& p : at)
                         sceneInsetGround->waitAround(p.x, p.y);
                 }
@@ -952,11 +950,8 @@ int main(int argc, char** argv) {
                 fieldGround = pagedGroundAt(start.position.x, start.position.y);
                 floor = fieldGround.get();
                 if (pagedInsets) {
-                    ig::PagedGround::Options go;
-                    go.budgetBytes =
-                        static_cast<std::size_t>(std::min(terrain.cacheMb, 16.0) * 1048576.0);
-                    nestedFloor =
-                        std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb, go);
+                    nestedFloor = std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb,
+                                                                          groundOptions);
                     nestedFloor->waitAround(start.position.x, start.position.y);
                     floor = nestedFloor.get();
                 }

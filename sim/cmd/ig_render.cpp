@@ -478,14 +478,9 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
     } else {
         const ig::Pose where = ig::parsePose(r.poseText, map);
         nestedPaged.placeAround(where.position.x, where.position.y);
-        pose = ig::parsePose(r.poseText, map);
         // With insets, a height given as +H is above their surface where they lie.
-        const std::size_t comma = r.poseText.find(',', r.poseText.find(',') + 1);
-        if (nesting && comma != std::string::npos && r.poseText[comma + 1] == '+') {
-            const glm::dvec3 at = pose.position;
-            pose.position.z +=
-                nestedGround.groundHeight(at.x, at.y) - map.surfaceHeight(at.x, at.y);
-        }
+        pose =
+            ig::parsePose(r.poseText, nesting ? static_cast<const ig::Ground&>(nestedGround) : map);
     }
     if (fast && pose.roll != 0.0) {
         throw ig::InputError(
