@@ -491,6 +491,29 @@ std::pair<int, int> insetColumns(const Camera& camera, const NestedMaps::Part& i
     return {first, last};
 }
 
+}  // namespace
+
+std::vector<RenderOptions> insetPassOptions(const NestedMaps& maps,
+                                            const std::vector<RenderOptions>& insetOptions) {
+    CHECK(insetOptions.size() == maps.insets.size());
+    std::vector<RenderOptions> out;
+    out.reserve(insetOptions.size());
+    for (std::size_t k = 0; k < insetOptions.size(); ++k) {
+        // Each map lit by its own normals (the lighting pass runs on each pass's frame).
+        RenderOptions o = insetOptions[k];
+        o.objects.clear();
+        if (o.lighting) {
+            auto lit = std::make_shared<SunLighting>(*o.lighting);
+            lit->normals = std::make_shared<const TerrainNormals>(*maps.insets[k].map);
+            o.lighting = std::move(lit);
+        }
+        out.push_back(std::move(o));
+    }
+    return out;
+}
+
+namespace {
+
 class NestedCaster final : public Caster {
   public:
     NestedCaster(CasterKind kind, const NestedMaps& maps, const RenderOptions& options,
@@ -506,17 +529,9 @@ class NestedCaster final : public Caster {
         // stand on the nested surface, over the lowered global one), and the composite hides
         // them where an inset's surface lies nearer.
         global_ = makeCaster(kind, *maps.global, options);
-        for (std::size_t k = 0; k < maps.insets.size(); ++k) {
-            // Each map lit by its own normals (the lighting pass runs on each pass's frame).
-            RenderOptions o = insetOptions[k];
-            o.objects.clear();
-            if (o.lighting) {
-                auto lit = std::make_shared<SunLighting>(*o.lighting);
-                lit->normals = std::make_shared<const TerrainNormals>(*maps.insets[k].map);
-                o.lighting = std::move(lit);
-            }
-            inner_.push_back(makeCaster(kind, *maps.insets[k].map, o));
-        }
+        const std::vector<RenderOptions> own = insetPassOptions(maps, insetOptions);
+        for (std::size_t k = 0; k < maps.insets.size(); ++k)
+            inner_.push_back(makeCaster(kind, *maps.insets[k].map, own[k]));
     }
 
     CasterKind kind() const override { return global_->kind(); }
@@ -603,6 +618,10 @@ class NestedCaster final : public Caster {
         }
     }
 
+  public:
+    const Caster& globalPass() const { return *global_; }
+
+  private:
     NestedMaps maps_;
     RenderOptions options_;
     std::unique_ptr<Caster> global_;
@@ -610,6 +629,11 @@ class NestedCaster final : public Caster {
 };
 
 }  // namespace
+
+const Caster* nestedGlobalCaster(const Caster& caster) {
+    const auto* nested = dynamic_cast<const NestedCaster*>(&caster);
+    return nested ? &nested->globalPass() : nullptr;
+}
 
 std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedTerrain& terrain,
                                          const RenderOptions& options) {
@@ -637,6 +661,16 @@ RenderedFrame renderNestedFrame(const Caster& caster, const NestedMaps& terrain,
                                 const Intrinsics& intrinsics, double time, std::uint64_t sequence,
                                 double nearM) {
     checkNearPlane(nearM);
+    validateNestedView(terrain, pose, intrinsics);
+    RenderedFrame frame = newFrame(*terrain.global, pose, intrinsics, time, sequence);
+    frame.nearM = nearM;
+    const Camera camera(pose, intrinsics);
+    renderPixels(caster, camera, frame);
+    castNestedControlPoints(terrain, camera, frame);
+    return frame;
+}
+
+void validateNestedView(const NestedMaps& terrain, const Pose& pose, const Intrinsics& intrinsics) {
     for (const NestedMaps::Part& part : terrain.insets) {
         const Inset& in = *part.placement;
         const glm::dvec3& p = pose.position;
@@ -646,26 +680,26 @@ RenderedFrame renderNestedFrame(const Caster& caster, const NestedMaps& terrain,
                              std::to_string(terrain.surfaceHeight(p.x, p.y)) + " m)");
         }
     }
-    RenderedFrame frame = newFrame(*terrain.global, pose, intrinsics, time, sequence);
-    frame.nearM = nearM;
-    const Camera camera(pose, intrinsics);
-    renderPixels(caster, camera, frame);
+    validateView(*terrain.global, pose, intrinsics);
+}
 
-    const auto pixels = controlPointPixels(intrinsics);
+void castNestedControlPoints(const NestedMaps& terrain, const Camera& camera,
+                             RenderedFrame& frame) {
+    const glm::dvec3& eye = camera.pose().position;
+    const auto pixels = controlPointPixels(camera.intrinsics());
     for (int i = 0; i < kControlPointCount; ++i) {
         const glm::dvec3 dir = glm::normalize(camera.rayDirection(pixels[i].x, pixels[i].y));
         frame.controlPoints[i].pixel = pixels[i];
-        if (nearM > 0.0) {
+        if (frame.nearM > 0.0) {
             const double t =
-                terrain.entryBeyond(pose.position, dir, nearPlaneRange(camera, dir, nearM), kInf);
+                terrain.entryBeyond(eye, dir, nearPlaneRange(camera, dir, frame.nearM), kInf);
             frame.controlPoints[i].world =
-                t >= 0.0 ? glm::dvec4{pose.position + t * dir, 1.0} : glm::dvec4{dir, 0.0};
+                t >= 0.0 ? glm::dvec4{eye + t * dir, 1.0} : glm::dvec4{dir, 0.0};
             continue;
         }
-        const RayHit hit = terrain.intersect(pose.position, dir);
+        const RayHit hit = terrain.intersect(eye, dir);
         frame.controlPoints[i].world = hit.hit ? glm::dvec4{hit.point, 1.0} : glm::dvec4{dir, 0.0};
     }
-    return frame;
 }
 
 InsetSource syntheticInset(std::uint64_t seed, double spacing, int x0, int y0, int cellsX,

@@ -200,6 +200,10 @@ std::unique_ptr<Caster> makeNestedCaster(CasterKind kind, const NestedMaps& maps
                                          const RenderOptions& globalOptions,
                                          const std::vector<RenderOptions>& insetOptions);
 
+// The caster of a nested caster's global pass (over the global map alone, without the objects'
+// composite), or nullptr when `caster` is not a nested caster.
+const Caster* nestedGlobalCaster(const Caster& caster);
+
 // renderFrame over a nested terrain: the view is checked against, and the nine control points
 // cast on, the nested surface.
 RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terrain,
@@ -208,6 +212,18 @@ RenderedFrame renderNestedFrame(const Caster& caster, const NestedTerrain& terra
 RenderedFrame renderNestedFrame(const Caster& caster, const NestedMaps& maps, const Pose& pose,
                                 const Intrinsics& intrinsics, double time = 0.0,
                                 std::uint64_t sequence = 0, double nearM = 0.0);
+
+// The checks and control points of renderNestedFrame on their own (a frame made otherwise, such
+// as a stereo pair's reprojected right eye): InputError for a view renderFrame refuses or a
+// camera on or below an inset's surface; the nine control points cast on the nested surface
+// (beyond frame.nearM).
+void validateNestedView(const NestedMaps& maps, const Pose& pose, const Intrinsics& intrinsics);
+void castNestedControlPoints(const NestedMaps& maps, const Camera& camera, RenderedFrame& frame);
+
+// The options of each inset's own pass, as the nested caster draws it: `insetOptions` (one per
+// inset of `maps`) without objects, and a sun lighting lit by the inset map's own normals.
+std::vector<RenderOptions> insetPassOptions(const NestedMaps& maps,
+                                            const std::vector<RenderOptions>& insetOptions);
 
 // The synthetic generator's samples over global cells [x0, x0 + cellsX) x [y0, y0 + cellsY)
 // of a synthetic map with `spacing`, `factor` times finer (its finest detail octaves follow

@@ -81,11 +81,14 @@ void PagedNestedTerrain::placeAround(double x, double y) {
     }
 }
 
-std::unique_ptr<Caster> PagedNestedTerrain::makeCaster(CasterKind kind,
-                                                       const RenderOptions& options) const {
+RenderOptions PagedNestedTerrain::globalOptions(const RenderOptions& options) const {
     RenderOptions g = options;
     g.pyramid = global_->pyramid();
     g.slopes = global_->slopes();
+    return g;
+}
+
+std::vector<RenderOptions> PagedNestedTerrain::insetOptions(const RenderOptions& options) const {
     std::vector<RenderOptions> parts;
     for (const auto& p : insets_) {
         RenderOptions o = options;
@@ -93,7 +96,12 @@ std::unique_ptr<Caster> PagedNestedTerrain::makeCaster(CasterKind kind,
         o.slopes = p->slopes();
         parts.push_back(std::move(o));
     }
-    return makeNestedCaster(kind, maps_, g, parts);
+    return parts;
+}
+
+std::unique_ptr<Caster> PagedNestedTerrain::makeCaster(CasterKind kind,
+                                                       const RenderOptions& options) const {
+    return makeNestedCaster(kind, maps_, globalOptions(options), insetOptions(options));
 }
 
 PagedNestedGround::PagedNestedGround(const PagedGround& global, const TerrainDb& db,

@@ -44,6 +44,10 @@ class PagedNestedTerrain {
     // The nested caster over the paged maps (each with its own pyramid and slope bounds);
     // `options` as for the global map alone.
     std::unique_ptr<Caster> makeCaster(CasterKind kind, const RenderOptions& options) const;
+    // The options it gives the global map's caster and each inset's: `options` with the map's
+    // own pyramid and slope bounds.
+    RenderOptions globalOptions(const RenderOptions& options) const;
+    std::vector<RenderOptions> insetOptions(const RenderOptions& options) const;
 
   private:
     std::vector<std::unique_ptr<TerrainDb>> insetDbs_;

@@ -869,14 +869,32 @@ struct CastCounters {
 // coherence test allows. Once a ray has missed by leaving the map box through its top (eye over
 // the map), the marked pixels above it that pass the same test against that ray are sky without
 // casting: they are above it over the whole map, and above the highest terrain beyond it.
+// Over a nested terrain (docs/design/insets.md) each ray is marched over the global map and
+// every inset from the same start, the nearest hit kept: the nested surface is a height field,
+// so the coherence holds with the steepest of the maps' slopes; a ray is sky without casting
+// only above a rising ray from an eye over every map's top. `part` (nested only) gets each cast
+// pixel's map: 0 the global map or sky, k + 1 inset k.
 class ColumnCaster {
   public:
-    ColumnCaster(const TerrainMap& map, const Camera& camera, const SkyModel& sky,
-                 const std::vector<RightPixelSource>& source)
-        : map_(map), camera_(camera), sky_(sky), source_(source) {
+    ColumnCaster(const NestedMaps& maps, const Camera& camera, const SkyModel& sky,
+                 const std::vector<RightPixelSource>& source, std::uint16_t* part)
+        : map_(*maps.global),
+          insets_(maps.insets),
+          camera_(camera),
+          sky_(sky),
+          source_(source),
+          part_(part) {
+        const TerrainMap& map = map_;
         const glm::dvec3& p = camera.pose().position;
         eyeOverMap_ = p.x >= 0.0 && p.y >= 0.0 && p.x <= map.extentX() && p.y <= map.extentY();
         backoff_ = 2.0 * std::max(map.spacingX(), map.spacingY());
+        maxSlope_ = map.maxSlope();
+        double top = map.maxHeight();
+        for (const NestedMaps::Part& in : insets_) {
+            maxSlope_ = std::max(maxSlope_, in.map->maxSlope());
+            top = std::max(top, in.map->maxHeight());
+        }
+        eyeOverAll_ = eyeOverMap_ && p.z >= top;
     }
 
     void column(int x, RenderedFrame& right, CastCounters& counters) const {
@@ -887,8 +905,9 @@ class ColumnCaster {
             in.focal * b.forward + (x + 0.5 - in.cx()) * b.right + in.cy() * b.up;
         const glm::dvec3 down = -b.up;
         const glm::dvec3 eye = camera_.pose().position;
-        const double maxSlope = map_.maxSlope();
+        const double maxSlope = maxSlope_;
         const double topExit = map_.maxHeight() - 1e-9 * (1.0 + std::abs(map_.maxHeight()));
+        const bool nested = !insets_.empty();
 
         bool havePrev = false, haveSkyRef = false;
         RayGeom prev, skyRef;
@@ -904,6 +923,7 @@ class ColumnCaster {
             if (haveSkyRef && coherent(skyRef, g, maxSlope)) {
                 right.color[idx] = skyColor(sky_, ray.dir.z);
                 right.depth[idx] = kSkyDepth;
+                if (part_) part_[idx] = 0;
                 ++counters.sky;
                 havePrev = false;
                 continue;
@@ -916,34 +936,62 @@ class ColumnCaster {
                     havePrev = true;
                 }
             }
-            double t0, t1, t = -1.0;
+            const bool fromPrev = havePrev && coherent(prev, g, maxSlope);
+            double t0, t1, t = -1.0, tEnd = 0.0;
+            const TerrainMap* hitMap = &map_;
+            std::uint16_t hitPart = 0;
             if (clipToMapBox(map_, ray, t0, t1)) {
                 double tStart = t0;
-                if (havePrev && coherent(prev, g, maxSlope)) {
+                if (fromPrev) {
                     tStart = std::max(t0, prevDist / g.horiz);
                 } else {
                     ++counters.restarts;
                 }
                 t = marchRay(map_, ray, tStart, t1, counters.steps);
-                prevDist = (t >= 0.0 ? t : t1) * g.horiz;
-                if (t < 0.0 && eyeOverMap_ && ray.at(t1).z >= topExit) {
+                tEnd = t1;
+                if (!nested && t < 0.0 && eyeOverMap_ && ray.at(t1).z >= topExit) {
                     haveSkyRef = true;
                     skyRef = g;
                 }
-            } else {
-                prevDist = 0.0;
+            } else if (!nested && eyeOverMap_) {
                 // The eye is over the map but outside its box: above it, and this ray never
                 // comes down into it.
-                if (eyeOverMap_) {
-                    haveSkyRef = true;
-                    skyRef = g;
-                }
+                haveSkyRef = true;
+                skyRef = g;
             }
+            for (std::size_t k = 0; k < insets_.size(); ++k) {
+                const TerrainMap& m = *insets_[k].map;
+                const TerrainRay local(m, eye - glm::dvec3{insets_[k].placement->origin, 0.0},
+                                       ray.dir);
+                double a0, a1;
+                if (!clipToMapBox(m, local, a0, a1)) continue;
+                const double end = t >= 0.0 ? std::min(a1, t) : a1;
+                const double from = fromPrev ? std::max(a0, prevDist / g.horiz) : a0;
+                if (from > end) continue;
+                const double ti = marchRay(m, local, from, end, counters.steps);
+                if (ti >= 0.0 && (t < 0.0 || ti <= t)) {
+                    t = ti;
+                    hitMap = &m;
+                    hitPart = static_cast<std::uint16_t>(k + 1);
+                }
+                tEnd = std::max(tEnd, a1);
+            }
+            if (nested && t < 0.0 && eyeOverAll_ && ray.dir.z >= 0.0) {
+                haveSkyRef = true;
+                skyRef = g;
+            }
+            prevDist = (t >= 0.0 ? t : tEnd) * g.horiz;
             havePrev = true;
             prev = g;
+            if (part_) part_[idx] = hitPart;
             if (t >= 0.0) {
                 const glm::dvec3 p = ray.at(t);
-                right.color[idx] = terrainColor(map_, sky_, p.x, p.y, t);
+                if (hitPart == 0) {
+                    right.color[idx] = terrainColor(map_, sky_, p.x, p.y, t);
+                } else {
+                    const glm::dvec2 o = insets_[hitPart - 1].placement->origin;
+                    right.color[idx] = terrainColor(*hitMap, sky_, p.x - o.x, p.y - o.y, t);
+                }
                 right.depth[idx] = static_cast<float>(t);
             } else {
                 right.color[idx] = skyColor(sky_, ray.dir.z);
@@ -952,21 +1000,74 @@ class ColumnCaster {
         }
     }
 
+    // Over a nested terrain, in columns [x0, x1) cast whole by the global map's caster: each
+    // marked pixel's ray marched over every inset short of the global map's hit there, the
+    // nearest hit kept.
+    void insetsOver(int x0, int x1, RenderedFrame& right, CastCounters& counters) const {
+        const Intrinsics& in = camera_.intrinsics();
+        const CameraBasis& b = camera_.basis();
+        const glm::dvec3 eye = camera_.pose().position;
+        for (int x = x0; x < x1; ++x) {
+            const glm::dvec3 base =
+                in.focal * b.forward + (x + 0.5 - in.cx()) * b.right + in.cy() * b.up;
+            for (int y = 0; y < in.height; ++y) {
+                const std::size_t idx = static_cast<std::size_t>(y) * in.width + x;
+                if (source_[idx] != RightPixelSource::RayCast) continue;
+                const TerrainRay ray(map_, eye, base - (y + 0.5) * b.up);
+                const float depth = right.depth[idx];
+                double t = std::isfinite(depth) ? static_cast<double>(depth) : -1.0;
+                std::uint16_t hitPart = 0;
+                for (std::size_t k = 0; k < insets_.size(); ++k) {
+                    const TerrainMap& m = *insets_[k].map;
+                    const TerrainRay local(m, eye - glm::dvec3{insets_[k].placement->origin, 0.0},
+                                           ray.dir);
+                    double a0, a1;
+                    if (!clipToMapBox(m, local, a0, a1)) continue;
+                    const double end = t >= 0.0 ? std::min(a1, t) : a1;
+                    if (a0 > end) continue;
+                    const double ti = marchRay(m, local, a0, end, counters.steps);
+                    if (ti >= 0.0 && (t < 0.0 || ti <= t)) {
+                        t = ti;
+                        hitPart = static_cast<std::uint16_t>(k + 1);
+                    }
+                }
+                part_[idx] = hitPart;
+                if (hitPart == 0) continue;
+                const glm::dvec3 p = ray.at(t);
+                const glm::dvec2 o = insets_[hitPart - 1].placement->origin;
+                right.color[idx] =
+                    terrainColor(*insets_[hitPart - 1].map, sky_, p.x - o.x, p.y - o.y, t);
+                right.depth[idx] = static_cast<float>(t);
+            }
+        }
+    }
+
   private:
     const TerrainMap& map_;
+    const std::vector<NestedMaps::Part>& insets_;
     const Camera& camera_;
     const SkyModel& sky_;
     const std::vector<RightPixelSource>& source_;
-    bool eyeOverMap_ = false;
-    double backoff_ = 0.0;
+    std::uint16_t* part_;
+    bool eyeOverMap_ = false, eyeOverAll_ = false;
+    double backoff_ = 0.0, maxSlope_ = 0.0;
 };
 
 }  // namespace
 
-RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
-                                const StereoOptions& options, const RenderOptions& renderOptions,
-                                std::vector<RightPixelSource>& source, StereoStats& stats,
-                                const Caster* caster) {
+namespace {
+
+// reprojectRightEye over the global map alone (maps.insets empty) or a nested terrain, whose
+// inset passes take `insetOptions` (insetPassOptions'; one per inset).
+RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
+                            const RenderedFrame& left, const StereoOptions& options,
+                            const RenderOptions& renderOptions,
+                            std::vector<RightPixelSource>& source, StereoStats& stats,
+                            const Caster* caster) {
+    const TerrainMap& map = *maps.global;
+    const bool nested = !maps.insets.empty();
+    CHECK(insetOptions.size() == maps.insets.size());
+    CHECK(maps.insets.size() < 65535) << "reprojectRightEye: too many insets";
     validateStereoOptions(options);
     if (left.pose.roll != 0.0) {
         throw InputError("pose: stereo reprojection renders roll = 0 (the PRP applies roll)");
@@ -980,7 +1081,11 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     right.time = left.time;
     right.pose = rightEyePose(left.pose, options.eyeSeparation);
     right.intrinsics = left.intrinsics;
-    validateView(map, right.pose, right.intrinsics);
+    if (nested) {
+        validateNestedView(maps, right.pose, right.intrinsics);
+    } else {
+        validateView(map, right.pose, right.intrinsics);
+    }
     right.color.resize(n);
     right.depth.resize(n);
     source.assign(n, RightPixelSource::RayCast);
@@ -996,7 +1101,10 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
         return std::array<std::uint64_t, 3>{0, 0, 0};
     });
     tbb::combinable<CastCounters> castCounters;
-    const ColumnCaster columns(map, camera, renderOptions.sky, source);
+    // Over a nested terrain: each cast pixel's map, for its own finishing passes.
+    std::vector<std::uint16_t> part(nested ? n : 0, 0);
+    const ColumnCaster columns(maps, camera, renderOptions.sky, source,
+                               nested ? part.data() : nullptr);
     Clock::time_point castStart;
     runWithThreads(renderOptions.threads, [&] {
         // Reprojection: a pool of rows; each task reprojects a band of rows.
@@ -1062,6 +1170,7 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
                         caster->renderUnit(camera, right, wholeUnits[i], unitCounters);
                         c.steps += unitCounters.steps;
                         c.restarts += unitCounters.restarts;
+                        if (nested) columns.insetsOver(x0, x1, right, c);
                         for (int y = 0; y < h; ++y) {
                             for (int x = x0; x < x1; ++x) {
                                 const std::size_t at = static_cast<std::size_t>(y) * w + x;
@@ -1102,7 +1211,21 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
             finishLighting(renderOptions, LevelBands{}, camera, lit);
         }
         for (std::size_t i = 0; i < n; ++i) {
-            if (source[i] == RightPixelSource::RayCast) right.color[i] = lit.color[i];
+            if (source[i] == RightPixelSource::RayCast && (!nested || part[i] == 0))
+                right.color[i] = lit.color[i];
+        }
+        // The pixels an inset's surface gives take that inset's passes, in its coordinates
+        // (as the nested caster's inset passes run on their own frames).
+        for (std::size_t k = 0; k < maps.insets.size(); ++k) {
+            const auto id = static_cast<std::uint16_t>(k + 1);
+            if (std::find(part.begin(), part.end(), id) == part.end()) continue;
+            RenderedFrame own = right;
+            own.pose.position -= glm::dvec3{maps.insets[k].placement->origin, 0.0};
+            finishLighting(insetOptions[k], LevelBands{}, Camera(own.pose, own.intrinsics), own);
+            for (std::size_t i = 0; i < n; ++i) {
+                if (source[i] == RightPixelSource::RayCast && part[i] == id)
+                    right.color[i] = own.color[i];
+            }
         }
     }
     const auto end = Clock::now();
@@ -1128,8 +1251,33 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
     right.stats.steps = cast.steps;
     right.stats.restarts = cast.restarts;
     right.stats.rays = stats.rayCast - cast.sky;
-    castControlPoints(map, Camera(right.pose, right.intrinsics), right);
+    if (nested) {
+        castNestedControlPoints(maps, Camera(right.pose, right.intrinsics), right);
+    } else {
+        castControlPoints(map, Camera(right.pose, right.intrinsics), right);
+    }
     return right;
+}
+
+}  // namespace
+
+RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
+                                const StereoOptions& options, const RenderOptions& renderOptions,
+                                std::vector<RightPixelSource>& source, StereoStats& stats,
+                                const Caster* caster) {
+    NestedMaps alone;
+    alone.global = &map;
+    return reprojectOver(alone, {}, left, options, renderOptions, source, stats, caster);
+}
+
+RenderedFrame reprojectRightEye(const NestedMaps& maps,
+                                const std::vector<RenderOptions>& insetOptions,
+                                const RenderedFrame& left, const StereoOptions& options,
+                                const RenderOptions& renderOptions,
+                                std::vector<RightPixelSource>& source, StereoStats& stats,
+                                const Caster* globalCaster) {
+    return reprojectOver(maps, insetOptions, left, options, renderOptions, source, stats,
+                         globalCaster);
 }
 
 double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, RenderedFrame& right) {
@@ -1156,9 +1304,13 @@ double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, Rend
     return draw(right);
 }
 
-StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
-                         const StereoOptions& options, const RenderOptions& renderOptions,
-                         double time) {
+namespace {
+
+// renderStereo's steps over any terrain: `eye` renders an eye's frame by the fast caster (with
+// the options given), `reproject` the right eye from the left.
+template <typename RenderEye, typename Reproject>
+StereoFrame stereoPair(const Pose& pose, const StereoOptions& options,
+                       const RenderOptions& renderOptions, RenderEye&& eye, Reproject&& reproject) {
     validateStereoOptions(options);
     if (pose.roll != 0.0) {
         throw InputError(
@@ -1172,13 +1324,12 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         !renderOptions.objects.empty() && options.method == RightEyeMethod::Reproject;
     RenderOptions terrainOptions = renderOptions;
     if (objects) terrainOptions.objects.clear();
-    const auto caster = makeCaster(CasterKind::Fast, map, terrainOptions);
     StereoFrame out;
-    out.left = renderFrame(*caster, map, pose, intrinsics, time);
+    out.left = eye(terrainOptions, pose);
     out.stats.leftMs = out.left.stats.renderMs;
     if (options.method == RightEyeMethod::Raycast) {
-        out.right = renderFrame(*caster, map, rightEyePose(pose, options.eyeSeparation), intrinsics,
-                                out.left.time, out.left.sequence);
+        out.right = eye(terrainOptions, rightEyePose(pose, options.eyeSeparation));
+        out.right.sequence = out.left.sequence;
         out.stats.rightMs = out.right.stats.renderMs;
         out.stats.castMs = out.stats.rightMs;
         out.stats.rayCast = out.right.color.size();
@@ -1186,8 +1337,7 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         out.stats.restarts = out.right.stats.restarts;
         return out;
     }
-    out.right = reprojectRightEye(map, out.left, options, terrainOptions, out.source, out.stats,
-                                  caster.get());
+    out.right = reproject(terrainOptions, out.left, out.source, out.stats);
     if (objects) {
         out.stats.objectsMs = drawStereoObjects(renderOptions, out.left, out.right);
         out.stats.leftMs = out.left.stats.renderMs;
@@ -1195,6 +1345,50 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         out.right.stats.renderMs = out.stats.rightMs;
     }
     return out;
+}
+
+}  // namespace
+
+StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsics& intrinsics,
+                         const StereoOptions& options, const RenderOptions& renderOptions,
+                         double time) {
+    std::unique_ptr<Caster> caster;
+    return stereoPair(
+        pose, options, renderOptions,
+        [&](const RenderOptions& o, const Pose& at) {
+            if (!caster) caster = makeCaster(CasterKind::Fast, map, o);
+            return renderFrame(*caster, map, at, intrinsics, time);
+        },
+        [&](const RenderOptions& o, const RenderedFrame& left,
+            std::vector<RightPixelSource>& source, StereoStats& stats) {
+            return reprojectRightEye(map, left, options, o, source, stats, caster.get());
+        });
+}
+
+StereoFrame renderStereo(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
+                         const Pose& pose, const Intrinsics& intrinsics,
+                         const StereoOptions& options, const RenderOptions& renderOptions,
+                         double time) {
+    std::unique_ptr<Caster> caster;
+    return stereoPair(
+        pose, options, renderOptions,
+        [&](const RenderOptions& o, const Pose& at) {
+            if (!caster) caster = makeNestedCaster(CasterKind::Fast, maps, o, insetOptions);
+            return renderNestedFrame(*caster, maps, at, intrinsics, time);
+        },
+        [&](const RenderOptions& o, const RenderedFrame& left,
+            std::vector<RightPixelSource>& source, StereoStats& stats) {
+            return reprojectRightEye(maps, insetPassOptions(maps, insetOptions), left, options, o,
+                                     source, stats, nestedGlobalCaster(*caster));
+        });
+}
+
+StereoFrame renderStereo(const NestedTerrain& terrain, const Pose& pose,
+                         const Intrinsics& intrinsics, const StereoOptions& options,
+                         const RenderOptions& renderOptions, double time) {
+    const NestedMaps& maps = terrain.maps();
+    return renderStereo(maps, std::vector<RenderOptions>(maps.insets.size(), renderOptions), pose,
+                        intrinsics, options, renderOptions, time);
 }
 
 std::vector<Rgb8> sideBySide(const RenderedFrame& left, const RenderedFrame& right) {

@@ -4,6 +4,7 @@
 
 #include "ig/caster.hpp"
 #include "ig/frame.hpp"
+#include "ig/inset.hpp"
 #include "ig/terrain.hpp"
 
 #include <cstdint>
@@ -90,6 +91,18 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
                          const StereoOptions& options, const RenderOptions& renderOptions = {},
                          double time = 0.0);
 
+// The same over a nested terrain (docs/design/insets.md): both eyes on the nested surface, the
+// left by the nested fast caster.
+StereoFrame renderStereo(const NestedTerrain& terrain, const Pose& pose,
+                         const Intrinsics& intrinsics, const StereoOptions& options,
+                         const RenderOptions& renderOptions = {}, double time = 0.0);
+// The same over maps held elsewhere (a paged database's), as makeNestedCaster's overload:
+// `renderOptions` the global map's, `insetOptions` one per inset.
+StereoFrame renderStereo(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
+                         const Pose& pose, const Intrinsics& intrinsics,
+                         const StereoOptions& options, const RenderOptions& renderOptions,
+                         double time = 0.0);
+
 // The right eye reprojected from a rendered left frame (pose.roll == 0), gaps cast over `map`.
 // Fills `source` (per right pixel) and the right-eye fields of `stats`. With `caster` (over
 // `map`; the fast caster's units are columns), groups of columns at least a quarter to be cast
@@ -99,6 +112,20 @@ RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left
                                 const StereoOptions& options, const RenderOptions& renderOptions,
                                 std::vector<RightPixelSource>& source, StereoStats& stats,
                                 const Caster* caster = nullptr);
+
+// The same over a nested terrain's maps: the left frame drawn on the nested surface, the marked
+// pixels cast on it (each ray's nearest hit over the global map and every inset), each lit and
+// hazed by its own map's passes: the global map's by `renderOptions`, inset k's by
+// insetOptions[k] (insetPassOptions', made once). With `globalCaster` (the nested caster's
+// global pass, nestedGlobalCaster()), groups of columns mostly marked are cast whole by it over
+// the global map (its levels far away, as the left eye's), and their marked pixels' rays then
+// over the insets.
+RenderedFrame reprojectRightEye(const NestedMaps& maps,
+                                const std::vector<RenderOptions>& insetOptions,
+                                const RenderedFrame& left, const StereoOptions& options,
+                                const RenderOptions& renderOptions,
+                                std::vector<RightPixelSource>& source, StereoStats& stats,
+                                const Caster* globalCaster = nullptr);
 
 // Draws options.objects over both eyes of a pair that holds terrain alone (the right eye
 // reprojected from the left's terrain) by the objects' footprint pass, as over a mono frame

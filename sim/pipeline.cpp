@@ -168,8 +168,6 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                 PagedScene objects, double stereoSeparation) {
     CHECK(stereoSeparation == 0.0 || (kind == ig::CasterKind::Fast && !objects.scene))
         << "paged stereo pairs: the fast caster, without a scene";
-    CHECK(db.insets().empty() || stereoSeparation == 0.0)
-        << "a paged database's insets: without stereo pairs";
     ig::StereoOptions stereo;
     stereo.eyeSeparation = stereoSeparation;
     if (stereoSeparation > 0.0) ig::validateStereoOptions(stereo);
@@ -185,6 +183,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         ig::PagedTerrain* paged = nullptr;
         std::shared_ptr<const ig::Caster> caster;
         ig::RenderOptions options;  // the caster's (the paged pyramid's)
+        // A stereo pair's right eye over insets: each inset's passes (insetPassOptions).
+        std::vector<ig::RenderOptions> insetPasses;
         // With a scene: the moving layer (replaced before each render; the caster holds its
         // address), the ground the moving objects stand on, the extra objects' scratch.
         std::shared_ptr<ig::ObjectLayer> moving;
@@ -234,6 +234,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             s.caster = s.nested->insetCount() > 0 ? s.nested->makeCaster(kind, o)
                                                   : ig::makeCaster(kind, s.paged->map(), o);
             s.options = o;
+            if (stereo.eyeSeparation > 0.0 && s.nested->insetCount() > 0) {
+                s.insetPasses = ig::insetPassOptions(s.nested->maps(), s.nested->insetOptions(o));
+            }
             s.pid = ::getpid();
             s.have = false;
         }
@@ -282,12 +285,21 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
         }
         if (pair) {
+            // Over insets, both eyes on the nested surface.
+            const bool nested = s.nested->insetCount() > 0;
             ig::RenderedFrame frame =
-                ig::renderFrame(*s.caster, s.paged->map(), eyes.left, intr, time, sequence);
+                nested
+                    ? ig::renderNestedFrame(*s.caster, s.nested->maps(), eyes.left, intr, time,
+                                            sequence)
+                    : ig::renderFrame(*s.caster, s.paged->map(), eyes.left, intr, time, sequence);
             std::vector<ig::RightPixelSource> source;
             ig::StereoStats stats;
-            auto right = std::make_shared<ig::RenderedFrame>(ig::reprojectRightEye(
-                s.paged->map(), frame, stereo, s.options, source, stats, s.caster.get()));
+            auto right = std::make_shared<ig::RenderedFrame>(
+                nested ? ig::reprojectRightEye(s.nested->maps(), s.insetPasses, frame, stereo,
+                                               s.options, source, stats,
+                                               ig::nestedGlobalCaster(*s.caster))
+                       : ig::reprojectRightEye(s.paged->map(), frame, stereo, s.options, source,
+                                               stats, s.caster.get()));
             right->sequence = sequence;
             right->time = time;
             frame.stats.renderMs += stats.rightMs;

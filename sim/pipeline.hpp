@@ -122,7 +122,8 @@ struct PagedScene {
 // own: a forked copy has no loader threads); `db` must outlive the renderer. `log`, when
 // given, gets each frame's paging as that process sees it (the field process's only with the
 // renderer in a thread). With `stereoSeparation` > 0 (metres; the fast caster, no scene) it
-// renders stereo pairs as makeStereoRenderer does, the tiles of both eyes placed.
+// renders stereo pairs as makeStereoRenderer does, the tiles of both eyes placed (over the
+// database's insets, both eyes on the nested surface).
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options,

@@ -77,6 +77,37 @@ FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry
     };
 }
 
+FrameRenderer makeStereoRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
+                                 double separation, const ig::RenderOptions& options) {
+    ig::StereoOptions stereo;
+    stereo.eyeSeparation = separation;
+    ig::validateStereoOptions(stereo);
+    std::shared_ptr<const ig::Caster> caster =
+        ig::makeNestedCaster(ig::CasterKind::Fast, terrain, options);
+    // Each inset's passes over the right eye's cast pixels (its normals made once).
+    auto insetOptions = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
+        terrain.maps(), std::vector<ig::RenderOptions>(terrain.insets().size(), options)));
+    return [caster, insetOptions, &terrain, geometry, stereo, options](
+               const ig::Pose& pose, double time, std::uint64_t sequence) {
+        const RenderGeometry g = viewed(geometry, requestView());
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
+        ig::RenderedFrame frame = ig::renderNestedFrame(*caster, terrain, left,
+                                                        renderIntrinsics(g, pose), time, sequence);
+        std::vector<ig::RightPixelSource> source;
+        ig::StereoStats stats;
+        auto right = std::make_shared<ig::RenderedFrame>(
+            ig::reprojectRightEye(terrain.maps(), *insetOptions, frame, stereo, options, source,
+                                  stats, ig::nestedGlobalCaster(*caster)));
+        right->sequence = sequence;
+        right->time = time;
+        frame.stats.renderMs += stats.rightMs;
+        frame.right = std::move(right);
+        return frame;
+    };
+}
+
 namespace {
 
 // Output row at which `warp` shows world point `world` in the eye at `eye`: its true output

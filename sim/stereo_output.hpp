@@ -46,6 +46,10 @@ EyePoses eyePoses(const ig::Pose& head, double separation);
 // by the same caster), carried as the frame's `right`. The map must outlive the renderer.
 FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
                                  double separation, const ig::RenderOptions& options = {});
+// The same over a terrain with insets (ig/inset.hpp): the left eye by the nested fast caster,
+// the right eye's gaps cast on the nested surface. The terrain must outlive the renderer.
+FrameRenderer makeStereoRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
+                                 double separation, const ig::RenderOptions& options = {});
 
 // Largest difference, in output rows, between where the two eyes' warps show the same world
 // point: the pair's control points (terrain ones) and the left frame's check points. A

@@ -129,9 +129,16 @@ void writeRgb(const std::string& path, const std::string& flag, int w, int h,
 }
 
 // Renders and writes the stereo outputs; fills the stereo fields of `j`.
-void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& pose,
-               const ig::Intrinsics& intr, const ig::RenderOptions& options, double time,
-               const std::string& depthPath, nlohmann::json& j) {
+// A pair over a terrain with insets: its maps and each inset's options (as the nested
+// caster's).
+struct StereoInsets {
+    ig::NestedMaps maps;
+    std::vector<ig::RenderOptions> options;
+};
+
+void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const StereoInsets* insets,
+               const ig::Pose& pose, const ig::Intrinsics& intr, const ig::RenderOptions& options,
+               double time, const std::string& depthPath, nlohmann::json& j) {
     if (s.outLeft.empty() || s.outRight.empty()) {
         throw ig::InputError("--stereo: give --out-left and --out-right");
     }
@@ -150,7 +157,9 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
     }
     so.abuffer = !s.noAbuffer;
     so.gapThreshold = s.gapThreshold;
-    const ig::StereoFrame f = ig::renderStereo(map, pose, intr, so, options, time);
+    const ig::StereoFrame f =
+        insets ? ig::renderStereo(insets->maps, insets->options, pose, intr, so, options, time)
+               : ig::renderStereo(map, pose, intr, so, options, time);
     const int w = f.left.width(), h = f.left.height();
     writeRgb(s.outLeft, "--out-left", w, h, f.left.color);
     writeRgb(s.outRight, "--out-right", w, h, f.right.color);
@@ -199,7 +208,7 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const ig::Pose& 
 
 // The --stereo path of main: the pair, its images and its JSON.
 int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::TerrainMap& map,
-                     const ig::Pose& pose, const ig::Intrinsics& intr,
+                     const StereoInsets* insets, const ig::Pose& pose, const ig::Intrinsics& intr,
                      const ig::RenderOptions& options, double time, const std::string& depthPath,
                      const std::string& jsonPath, const nlohmann::json& scene) {
     if (kind != ig::CasterKind::Fast) {
@@ -214,7 +223,7 @@ int renderStereoPair(const StereoFlags& s, ig::CasterKind kind, const ig::Terrai
     j["pose"] = poseJson(pose);
     j["terrain"] = ig::describeTerrain(map);
     if (!scene.is_null()) j["scene"] = scene;
-    runStereo(s, map, pose, intr, options, time, depthPath, j);
+    runStereo(s, map, insets, pose, intr, options, time, depthPath, j);
     if (!jsonPath.empty()) io::writeTextOutput("--json", jsonPath, j.dump(2) + "\n");
     return 0;
 }
@@ -540,8 +549,13 @@ int renderPaged(const ig::TerrainOptions& terrain, const ig::TerrainDb& db,
                          {"static_objects", scene->staticLayer->objects().size()},
                          {"moving_objects", scene->moving.size()}};
         }
-        return renderStereoPair(*r.stereo, r.kind, map, pose, r.intr, options, time, r.depthPath,
-                                r.jsonPath, sceneJson);
+        std::optional<StereoInsets> pairInsets;
+        if (nesting) {
+            pairInsets.emplace(StereoInsets{nestedPaged.maps(), nestedPaged.insetOptions(options)});
+        }
+        return renderStereoPair(*r.stereo, r.kind, map, pairInsets ? &*pairInsets : nullptr, pose,
+                                r.intr, nesting ? nestedPaged.globalOptions(options) : options,
+                                time, r.depthPath, r.jsonPath, sceneJson);
     }
     const auto caster =
         nesting ? nestedPaged.makeCaster(r.kind, options) : ig::makeCaster(r.kind, map, options);
@@ -773,9 +787,9 @@ int main(int argc, char** argv) {
                                          "with ig-build-db --db " +
                                          terrain.db + " --inset ...)");
                 }
-                if (!db.insets().empty() && (stereo.enabled() || batchMode)) {
+                if (!db.insets().empty() && batchMode) {
                     throw ig::InputError(terrain.db +
-                                         " holds insets: one frame, without --stereo or --poses");
+                                         " holds insets: one frame or pair, without --poses");
                 }
                 if (batchMode) {
                     throw ig::InputError(terrain.db +
@@ -809,10 +823,10 @@ int main(int argc, char** argv) {
         // Insets from the flags, or held by the database.
         const bool nesting = insets.any() || ig::databaseHasInsets(terrain);
         if (nesting) {
-            if (stereo.enabled() || batchMode) {
+            if (batchMode) {
                 throw ig::InputError(
                     std::string(insets.any() ? "--inset" : terrain.db + " holds insets") +
-                    ": one frame, without --stereo or --poses");
+                    ": one frame or pair, without --poses");
             }
         }
         ig::TerrainMap map = ig::loadTerrainFromOptions(terrain);
@@ -876,8 +890,14 @@ int main(int argc, char** argv) {
                              {"static_objects", scene->staticLayer->objects().size()},
                              {"moving_objects", scene->moving.size()}};
             }
-            return renderStereoPair(stereo, kind, map, pose, intr, options, time, depthPath,
-                                    jsonPath, sceneJson);
+            std::optional<StereoInsets> pairInsets;
+            if (nested) {
+                pairInsets.emplace(
+                    StereoInsets{nested->maps(),
+                                 std::vector<ig::RenderOptions>(nested->insets().size(), options)});
+            }
+            return renderStereoPair(stereo, kind, map, pairInsets ? &*pairInsets : nullptr, pose,
+                                    intr, options, time, depthPath, jsonPath, sceneJson);
         }
         const auto caster = nested ? ig::makeNestedCaster(kind, *nested, options)
                                    : ig::makeCaster(kind, map, options);
