@@ -517,6 +517,22 @@ SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::d
     return s;
 }
 
+SensorSight sightOf(const ig::NestedMaps& maps, const ig::Pose& eye, const glm::dvec3& point,
+                    int width, int height, double hfov) {
+    if (maps.insets.empty()) return sightOf(*maps.global, eye, point, width, height, hfov);
+    SensorSight s = sightInWindow(eye, point, width, height, hfov);
+    if (s.rangeM > 0.0 && std::isfinite(s.rangeM)) {
+        TerrainQuestion q;
+        q.line = true;
+        q.origin = eye.position;
+        q.dir = (point - eye.position) / s.rangeM;
+        q.maxRange = s.rangeM;
+        const double hit = askTerrain(maps, q).range;
+        s.unoccluded = !(hit >= 0.0 && hit < s.rangeM - 0.5);
+    }
+    return s;
+}
+
 bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int width, int height,
              double hfov, double box[4]) {
     const ig::CameraBasis b = ig::CameraBasis::fromPose(eye);
@@ -587,7 +603,8 @@ cigi::Packet CigiSession::sensorResponse(SensorState& sensor, double t) {
             }
             SensorSight s;
             if (!options_.terrainQueries) {
-                s = sightOf(map_, eye, point, w, h, hfov);
+                s = options_.surface ? sightOf(*options_.surface, eye, point, w, h, hfov)
+                                     : sightOf(map_, eye, point, w, h, hfov);
             } else {
                 // Over a paged map the terrain's thread checks the line; the latest answer
                 // stands until the next (none yet: not seen).
@@ -1018,7 +1035,9 @@ cigi::Packet CigiSession::compose(const Query& q, const TerrainAnswer& terrain) 
 
 cigi::Packet CigiSession::answer(const cigi::Packet& request, std::uint8_t lsn, double t) const {
     const Query q = resolve(request, lsn, t);
-    return compose(q, q.known ? askTerrain(map_, q.question) : TerrainAnswer{});
+    if (!q.known) return compose(q, TerrainAnswer{});
+    return compose(q, options_.surface ? askTerrain(*options_.surface, q.question)
+                                       : askTerrain(map_, q.question));
 }
 
 bool CigiSession::defer(Query&& q) {

@@ -183,6 +183,9 @@ bool gateBox(const ig::Pose& eye, const std::array<glm::dvec3, 8>& corners, int 
              double hfov, double box[4]);
 SensorSight sightOf(const ig::TerrainMap& map, const ig::Pose& eye, const glm::dvec3& point,
                     int width, int height, double hfov);
+// The same over a nested terrain's surface (ig/inset.hpp).
+SensorSight sightOf(const ig::NestedMaps& maps, const ig::Pose& eye, const glm::dvec3& point,
+                    int width, int height, double hfov);
 // The same without the terrain (unoccluded left false).
 SensorSight sightInWindow(const ig::Pose& eye, const glm::dvec3& point, int width, int height,
                           double hfov);
@@ -227,6 +230,10 @@ struct CigiOptions {
     // in which it is ready (a field or more after its request), in the order asked.
     const ig::Ground* ground = nullptr;
     PagedTerrainQueries* terrainQueries = nullptr;
+    // Over insets held in memory (not owned; null: the map alone): the nested surface that
+    // HAT/HOT requests, lines of sight and the sensors' terrain checks read (the ground, then,
+    // a NestedGround over the same maps).
+    const ig::NestedMaps* surface = nullptr;
 };
 
 // One silence of a host that had been heard: from its last good datagram to the next one (or

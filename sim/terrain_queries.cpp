@@ -40,6 +40,46 @@ TerrainAnswer askTerrain(const ig::TerrainMap& map, const TerrainQuestion& q) {
     return a;
 }
 
+TerrainAnswer askTerrain(const ig::NestedMaps& maps, const TerrainQuestion& q) {
+    if (maps.insets.empty()) return askTerrain(*maps.global, q);
+    TerrainAnswer a;
+    a.ticket = q.ticket;
+    if (!q.line) {
+        a.height = maps.surfaceHeight(q.origin.x, q.origin.y);
+        a.slope = surfaceGradient(*maps.global, q.origin.x, q.origin.y);
+        for (const ig::NestedMaps::Part& p : maps.insets) {
+            if (!p.placement->covers(q.origin.x, q.origin.y)) continue;
+            const glm::dvec2 o = p.placement->origin;
+            a.slope = surfaceGradient(*p.map, q.origin.x - o.x, q.origin.y - o.y);
+            break;
+        }
+        return a;
+    }
+    // The nearest hit over the global map (lowered under each inset) and every inset's.
+    const ig::TerrainMap* hitMap = maps.global;
+    glm::dvec2 shift{0.0};
+    const ig::TerrainRay ray(*maps.global, q.origin, q.dir);
+    a.range = ig::exactHitInRange(*maps.global, ray, q.minRange, q.maxRange);
+    if (!std::isfinite(a.range)) a.range = -1.0;
+    for (const ig::NestedMaps::Part& p : maps.insets) {
+        const glm::dvec2 o = p.placement->origin;
+        const ig::TerrainRay local(*p.map, q.origin - glm::dvec3{o, 0.0}, q.dir);
+        const double end = a.range >= 0.0 ? a.range : q.maxRange;
+        const double t = ig::exactHitInRange(*p.map, local, q.minRange, end);
+        if (t >= 0.0 && std::isfinite(t) && (a.range < 0.0 || t <= a.range)) {
+            a.range = t;
+            hitMap = p.map;
+            shift = o;
+        }
+    }
+    if (a.range >= 0.0) {
+        const glm::dvec3 hit = ray.at(a.range);
+        hitMap->surfaceColor(hit.x - shift.x, hit.y - shift.y, a.color);
+        a.slope = surfaceGradient(*hitMap, hit.x - shift.x, hit.y - shift.y);
+    }
+    return a;
+}
+
 PagedTerrainQueries::PagedTerrainQueries(const ig::TerrainDb& db, const Options& options)
     : options_(options), paged_(db, [&] {
           ig::PagedTerrain::Options o;
@@ -47,17 +87,28 @@ PagedTerrainQueries::PagedTerrainQueries(const ig::TerrainDb& db, const Options&
           o.cache.loaderThreads = std::max(options.loaderThreads, 1);
           return o;
       }()) {
-    // A level-0 display tile: its samples (shared edges included), colours and cell maxima.
-    const std::size_t side = static_cast<std::size_t>(db.layout().tileSize()) + 1;
-    const std::size_t tileBytes = side * side * (2 + sizeof(ig::Rgb8) + 2);
-    // Half the budget for one placement: the other half keeps the coarse levels and nodes.
-    maxTilesPerBatch_ = std::max<std::size_t>(1, options.budgetBytes / 2 / tileBytes);
-    const std::size_t n = std::max<std::size_t>(options.maxOutstanding, 1);
-    options_.maxOutstanding = n;
-    asked_.reserve(n);
-    done_.reserve(n);
-    work_.reserve(n);
-    answers_.reserve(n);
+    // Each map's share of the budget (ig::PagedNestedTerrain: the global map half of it with
+    // insets, the insets the other half equally), half of which one placement may take: the
+    // other half keeps the coarse levels and nodes. A level-0 display tile holds its samples
+    // (shared edges included), colours and cell maxima.
+    const std::size_t n = paged_.insetCount();
+    const auto perPlacement = [&](std::size_t share, int tileSize) {
+        const std::size_t side = static_cast<std::size_t>(tileSize) + 1;
+        const std::size_t tileBytes = side * side * (2 + sizeof(ig::Rgb8) + 2);
+        return std::max<std::size_t>(1, share / 2 / tileBytes);
+    };
+    maxTilesPerBatch_.push_back(perPlacement(n > 0 ? options.budgetBytes / 2 : options.budgetBytes,
+                                             db.layout().tileSize()));
+    for (std::size_t k = 0; k < n; ++k) {
+        maxTilesPerBatch_.push_back(
+            perPlacement(options.budgetBytes / 2 / n, db.openInset(k).layout().tileSize()));
+    }
+    const std::size_t outstanding = std::max<std::size_t>(options.maxOutstanding, 1);
+    options_.maxOutstanding = outstanding;
+    asked_.reserve(outstanding);
+    done_.reserve(outstanding);
+    work_.reserve(outstanding);
+    answers_.reserve(outstanding);
     thread_ = std::thread([this] { loop(); });
 }
 
@@ -110,7 +161,9 @@ PagedTerrainQueries::Stats PagedTerrainQueries::stats() const {
 }
 
 void PagedTerrainQueries::setWithheld(std::function<bool(const ig::TileKey&)> withheld) {
-    paged_.cache().setWithheld(std::move(withheld));
+    paged_.global().cache().setWithheld(withheld);
+    for (std::size_t k = 0; k < paged_.insetCount(); ++k)
+        paged_.inset(k).cache().setWithheld(withheld);
 }
 
 void PagedTerrainQueries::loop() {
@@ -139,54 +192,81 @@ void PagedTerrainQueries::loop() {
 
 void PagedTerrainQueries::answerBatch(std::vector<Asked>& batch) {
     answers_.assign(batch.size(), TerrainAnswer{});
-    const ig::TerrainMap& map = paged_.map();
-    // The tiles each question reads.
-    std::vector<std::set<ig::TileKey>> tiles(batch.size());
+    const ig::NestedMaps& maps = paged_.maps();
+    const std::size_t n = 1 + paged_.insetCount();  // the global map, then each inset
+    const auto pagedMap = [&](std::size_t m) -> ig::PagedTerrain& {
+        return m == 0 ? paged_.global() : paged_.inset(m - 1);
+    };
+    const auto shiftOf = [&](std::size_t m) {
+        return m == 0 ? glm::dvec3(0.0) : glm::dvec3{paged_.placement(m - 1).origin, 0.0};
+    };
+    // The tiles each question reads, map by map (an inset's where it lies under the point or
+    // the line).
+    std::vector<std::vector<std::set<ig::TileKey>>> tiles(batch.size(),
+                                                          std::vector<std::set<ig::TileKey>>(n));
     for (std::size_t i = 0; i < batch.size(); ++i) {
         const TerrainQuestion& q = batch[i].q;
         answers_[i].ticket = q.ticket;
-        if (!q.line) {
-            tiles[i].insert(paged_.tileUnder(q.origin.x, q.origin.y));
-        } else {
-            const ig::TerrainRay ray(map, q.origin, q.dir);  // its unit direction
-            paged_.addRayTiles(q.origin, ray.dir, tiles[i], q.maxRange);
+        for (std::size_t m = 0; m < n; ++m) {
+            const ig::PagedTerrain& p = pagedMap(m);
+            const glm::dvec3 at = q.origin - shiftOf(m);
+            if (!q.line) {
+                if (m == 0 || paged_.placement(m - 1).covers(q.origin.x, q.origin.y))
+                    tiles[i][m].insert(p.tileUnder(at.x, at.y));
+            } else {
+                const ig::TerrainRay ray(p.map(), at, q.dir);  // its unit direction
+                p.addRayTiles(at, ray.dir, tiles[i][m], q.maxRange);
+            }
         }
     }
-    // Groups of questions whose tiles fit one placement, in order; one that needs more than
-    // a placement may hold is not known.
-    std::set<ig::TileKey> group;
+    // Groups of questions whose tiles fit one placement of every map, in order; one that needs
+    // more than a placement may hold is not known.
+    std::vector<std::set<ig::TileKey>> group(n);
     std::size_t first = 0;
     const auto flush = [&](std::size_t end) {
         if (first < end) {
-            const ig::PagedFrameStats st = paged_.placeTiles(group);
+            std::size_t copied = 0;
+            for (std::size_t m = 0; m < n; ++m) {
+                if (m > 0 && group[m].empty()) continue;
+                copied += pagedMap(m).placeTiles(group[m]).copied;
+            }
             std::lock_guard<std::mutex> lock(mutex_);
             ++stats_.batches;
-            stats_.tilesRead += st.copied;
+            stats_.tilesRead += copied;
         }
         for (std::size_t i = first; i < end; ++i) {
             if (!answers_[i].known) continue;
             bool exact = true;
-            for (const ig::TileKey& k : tiles[i])
-                exact = exact && paged_.placedExact(k);
+            for (std::size_t m = 0; m < n; ++m) {
+                for (const ig::TileKey& k : tiles[i][m])
+                    exact = exact && pagedMap(m).placedExact(k);
+            }
             if (exact) {
-                answers_[i] = askTerrain(map, batch[i].q);
+                answers_[i] = askTerrain(maps, batch[i].q);
             } else {
                 answers_[i].known = false;
             }
         }
-        group.clear();
+        for (std::set<ig::TileKey>& g : group)
+            g.clear();
         first = end;
     };
     for (std::size_t i = 0; i < batch.size(); ++i) {
-        if (tiles[i].size() > maxTilesPerBatch_) {
+        bool fits = true, full = false;
+        for (std::size_t m = 0; m < n; ++m) {
+            fits = fits && tiles[i][m].size() <= maxTilesPerBatch_[m];
+            std::size_t added = 0;
+            for (const ig::TileKey& k : tiles[i][m])
+                added += group[m].count(k) == 0;
+            full = full || group[m].size() + added > maxTilesPerBatch_[m];
+        }
+        if (!fits) {
             answers_[i].known = false;
             continue;
         }
-        std::size_t added = 0;
-        for (const ig::TileKey& k : tiles[i])
-            added += group.count(k) == 0;
-        if (group.size() + added > maxTilesPerBatch_) flush(i);
-        group.insert(tiles[i].begin(), tiles[i].end());
+        if (full) flush(i);
+        for (std::size_t m = 0; m < n; ++m)
+            group[m].insert(tiles[i][m].begin(), tiles[i][m].end());
     }
     flush(batch.size());
 }

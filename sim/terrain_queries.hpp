@@ -5,6 +5,8 @@
 // field or more later. docs/design/terrain_db.md, "A host's queries over a paged map".
 #pragma once
 
+#include "ig/inset.hpp"
+#include "ig/paged_insets.hpp"
 #include "ig/paged_terrain.hpp"
 #include "ig/terrain.hpp"
 #include "ig/terrain_db.hpp"
@@ -48,6 +50,11 @@ glm::dvec2 surfaceGradient(const ig::TerrainMap& map, double x, double y);
 // gradient (TerrainMap::surfaceHeight's bilinear surface); a line's first hit on that surface
 // (ig::exactHitInRange), with the colour and gradient there.
 TerrainAnswer askTerrain(const ig::TerrainMap& map, const TerrainQuestion& q);
+// The same over a nested terrain (ig/inset.hpp), whose maps hold every sample the question
+// reads: the nested surface's height, and its gradient from the map that gives it there (the
+// inset's where one covers the point); a line's nearest hit over the global map and every
+// inset, with the colour and gradient of the map it hit.
+TerrainAnswer askTerrain(const ig::NestedMaps& maps, const TerrainQuestion& q);
 
 class PagedTerrainQueries {
   public:
@@ -98,8 +105,9 @@ class PagedTerrainQueries {
     void answerBatch(std::vector<Asked>& batch);
 
     Options options_;
-    ig::PagedTerrain paged_;
-    std::size_t maxTilesPerBatch_ = 0;
+    // The database's map and its insets (level 0 only).
+    ig::PagedNestedTerrain paged_;
+    std::vector<std::size_t> maxTilesPerBatch_;  // per map: the global one, then each inset
     mutable std::mutex mutex_;
     std::condition_variable wake_, idle_;
     std::vector<Asked> asked_;         // waiting for the thread

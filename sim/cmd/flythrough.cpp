@@ -735,9 +735,6 @@ int main(int argc, char** argv) {
                 pagedNested = std::make_unique<ig::PagedNestedTerrain>(*pagedDb, ground);
                 pagedGround = &pagedNested->global();
                 pagedInsets = pagedNested->insetCount() > 0;
-                if (pagedInsets && cigi) {
-                    throw ig::InputError(terrain.db + " holds insets: not with --cigi");
-                }
             } else {
                 pagedDb.reset();
             }
@@ -748,14 +745,12 @@ int main(int argc, char** argv) {
         // Insets from the flags, or held by a database loaded whole.
         const bool nesting = insets.any() || (!pagedGround && ig::databaseHasInsets(terrain));
         if (nesting && !insets.any()) {
-            const char* why = cigi                                 ? "--cigi"
-                              : casterKind == ig::CasterKind::Span ? "--caster span"
-                                                                   : nullptr;
-            if (why) throw ig::InputError(terrain.db + " holds insets: not with " + why);
+            if (casterKind == ig::CasterKind::Span) {
+                throw ig::InputError(terrain.db + " holds insets: not with --caster span");
+            }
         }
         if (insets.any()) {
             const char* why = pagedGround ? "a --db paged beyond --cache-mb"
-                              : cigi      ? "--cigi (a host's height queries)"
                               : casterKind == ig::CasterKind::Span ? "--caster span"
                                                                    : nullptr;
             if (why) throw ig::InputError(std::string("--inset: not with ") + why);
@@ -764,10 +759,13 @@ int main(int argc, char** argv) {
             pagedGround ? ig::TerrainMap() : ig::loadTerrainFromOptions(terrain);
         // The nested surface, where a scene's objects stand over insets held in memory.
         std::optional<ig::NestedGround> insetGround;
+        // Its maps, the surface a CIGI host's queries read.
+        std::optional<ig::NestedMaps> nestedMaps;
         if (nesting) {
             nested.emplace(ig::loadNestedTerrain(std::move(loadedMap), terrain, insets));
             loadedMap = nested->upperGround();
-            insetGround.emplace(nested->maps());
+            nestedMaps.emplace(nested->maps());
+            insetGround.emplace(*nestedMaps);
         }
         // The paged map is written only by pagedGround's own placing, here before the run.
         ig::TerrainMap& map =
@@ -877,6 +875,19 @@ int main(int argc, char** argv) {
                 terrainQueries = std::make_unique<sim::PagedTerrainQueries>(*pagedDb, qo);
                 cigiOptions.ground = fieldGround.get();
                 cigiOptions.terrainQueries = terrainQueries.get();
+                if (pagedInsets) {
+                    // Over the database's insets, their surface (the queries' thread reads
+                    // their tiles too).
+                    nestedFloor = std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb,
+                                                                          groundOptions);
+                    nestedFloor->waitAround(start.position.x, start.position.y);
+                    cigiOptions.ground = nestedFloor.get();
+                }
+            } else if (nested) {
+                // Over insets the ownship, the entities and the host's queries meet the nested
+                // surface.
+                cigiOptions.ground = &*insetGround;
+                cigiOptions.surface = &*nestedMaps;
             }
             cigiOptions.startPose.position = start.position;
             cigiOptions.startPose.yaw = start.heading;
@@ -884,9 +895,12 @@ int main(int argc, char** argv) {
             cigiOptions.windowWidth = width;  // sensor gates are worked out in the output window
             cigiOptions.windowHeight = height;
             if (scene) {
-                lineOfSightScene.emplace(*scene, *motion,
-                                         fieldGround ? static_cast<const ig::Ground&>(*fieldGround)
-                                                     : static_cast<const ig::Ground&>(map));
+                lineOfSightScene.emplace(
+                    *scene, *motion,
+                    nestedFloor   ? static_cast<const ig::Ground&>(*nestedFloor)
+                    : fieldGround ? static_cast<const ig::Ground&>(*fieldGround)
+                    : insetGround ? static_cast<const ig::Ground&>(*insetGround)
+                                  : static_cast<const ig::Ground&>(map));
                 cigiOptions.objects = &*lineOfSightScene;
             }
             if (!cigiEntities.empty()) {

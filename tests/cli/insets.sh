@@ -271,4 +271,31 @@ PY
 done
 cmp -s "$tmp/st_flags.y4m" "$tmp/st_whole.y4m" ||
     fail "the pairs flown over the database loaded whole differ from the flags'"
+# A CIGI host flying over the inset: its HAT/HOT requests and lines of sight are answered on the
+# nested surface, from the flags in memory and from the paged database (a thread of its own
+# reading the inset's tiles too); every field on time, every answer valid.
+for where in memory paged; do
+    terrain=(--synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4)
+    [ $where = paged ] && terrain=(--db "$tmp/in.db" --cache-mb 8)
+    rm -f "$tmp/port" "$tmp/host.json"
+    "$bin/cigi-host" --port-file "$tmp/port" --seconds 4 --queries 4 --origin 47,-122,0 \
+        --start 3300,3300,900 --speed 100 --pitch 0 --json "$tmp/host.json" 2>"$tmp/host.err" &
+    hpid=$!
+    for i in $(seq 1 300); do [ -s "$tmp/port" ] && break; sleep 0.1; done
+    [ -s "$tmp/port" ] || fail "cigi-host wrote no port"
+    msg=$("$bin/flythrough" "${terrain[@]}" --renderer thread --cigi 127.0.0.1:0 \
+        --cigi-host "127.0.0.1:$(cat "$tmp/port")" --cigi-origin 47,-122 --cigi-wait 10 \
+        --duration 3 --size 160x120 --margin 8 --render-threads 1 --out null --contact none \
+        --json "$tmp/cigi.json" 2>&1) || fail "cigi over the inset ($where): $msg"
+    wait "$hpid" || fail "cigi-host ($where): $(cat "$tmp/host.err")"
+    python3 - "$tmp/cigi.json" "$tmp/host.json" <<'PY' || fail "cigi over the inset ($where): $msg"
+import json, sys
+j = json.load(open(sys.argv[1]))
+h = json.load(open(sys.argv[2]))["queries"]
+assert j["fields"] == 180 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+assert j["cigi"]["unknown_terrain_answers"] == 0, j["cigi"]
+assert h["hat_hot_answers"] >= 240 and h["los_answers"] >= 60, h
+assert h["valid"] == h["hat_hot_answers"] + h["los_answers"], h
+PY
+done
 echo "insets: ok"

@@ -8,9 +8,13 @@
 
 #include "common/cigi_host.hpp"
 #include "common/small_terrain_db.hpp"
+#include "ig/inset.hpp"
 #include "ig/paged_ground.hpp"
+#include "ig/paged_insets.hpp"
 #include "ig/paged_terrain.hpp"
+#include "ig/synthetic.hpp"
 #include "ig/terrain_db.hpp"
+#include "ig/terrain_db_build.hpp"
 #include "io/cigi.hpp"
 
 #include <gtest/gtest.h>
@@ -18,9 +22,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <filesystem>
 #include <future>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -136,12 +143,21 @@ struct Pair {
     const ig::TerrainMap& map() const { return small.map; }
 };
 
-// HAT, HOT and extended requests at a grid of points between samples, over the whole map.
-std::vector<cigi::Packet> heightRequests(const Pair& p) {
+// The part of a map that requests cover: [x0, x1] x [y0, y1], points `step` metres apart.
+struct Area {
+    double x0 = 0.0, y0 = 0.0, x1 = 0.0, y1 = 0.0, step = 1.0;
+};
+
+// HAT, HOT and extended requests at a grid of points between samples, over the whole map (or
+// `area`).
+template <typename P>
+std::vector<cigi::Packet> heightRequests(const P& p, std::optional<Area> area = {}) {
+    const Area a = area.value_or(Area{7.3, 3.9, p.map().extentX(), p.map().extentY(), 0.0});
+    const double sx = area ? a.step : 211.7, sy = area ? a.step : 197.3;
     std::vector<cigi::Packet> out;
     std::uint16_t id = 0;
-    for (double x = 7.3; x < p.map().extentX(); x += 211.7) {
-        for (double y = 3.9; y < p.map().extentY(); y += 197.3) {
+    for (double x = a.x0; x < a.x1; x += sx) {
+        for (double y = a.y0; y < a.y1; y += sy) {
             const glm::dvec3 g = p.memory.geo().geodeticFromWorld({x, y, 2500.0});
             for (cigi::HatHotType type :
                  {cigi::HatHotType::Hat, cigi::HatHotType::Hot, cigi::HatHotType::Extended}) {
@@ -158,13 +174,18 @@ std::vector<cigi::Packet> heightRequests(const Pair& p) {
     return out;
 }
 
-// Lines of sight: segments down through the terrain and over it, vectors down at the terrain.
-std::vector<cigi::Packet> lineRequests(const Pair& p) {
+// Lines of sight: segments down through the terrain and over it, vectors down at the terrain,
+// from a grid of points over the whole map (or `area`).
+template <typename P>
+std::vector<cigi::Packet> lineRequests(const P& p, std::optional<Area> area = {}) {
+    const Area a = area.value_or(
+        Area{100.0, 150.0, p.map().extentX() - 100.0, p.map().extentY() - 100.0, 0.0});
+    const double sx = area ? a.step : 293.0, sy = area ? a.step : 611.0;
     std::vector<cigi::Packet> out;
     std::uint16_t id = 0;
     const double top = p.map().maxHeight();
-    for (double x = 100.0; x < p.map().extentX() - 100.0; x += 293.0) {
-        for (double y = 150.0; y < p.map().extentY() - 100.0; y += 611.0) {
+    for (double x = a.x0; x < a.x1; x += sx) {
+        for (double y = a.y0; y < a.y1; y += sy) {
             const glm::dvec3 src{x, y, top + 60.0};
             const glm::dvec3 gs = p.memory.geo().geodeticFromWorld(src);
             for (const double dz : {-1500.0, 40.0}) {
@@ -402,6 +423,114 @@ TEST(CigiPaged, TheFieldThreadNeverWaitsForTheDisk) {
     }
     EXPECT_EQ(paged.size(), requests.size());
     EXPECT_GE(p.paged.stats().maxAnswerFields, 10u);
+}
+
+// A database holding an inset (a 256² map at 8 m, a 2 m inset over 48 x 40 cells), and the
+// same nested terrain in memory: one session over each, and one over the global map alone.
+struct InsetPair {
+    std::string path =
+        vig_test::testTmpPath("cigi_paged", "insets_" + std::to_string(::getpid()) + ".db");
+    static ig::InsetSource inset() { return ig::syntheticInset(5, 8.0, 100, 100, 48, 40, 4); }
+    ig::NestedTerrain nested{ig::makeSyntheticTerrain(256, 5, 8.0), {inset()}, 16};
+    ig::NestedMaps maps = nested.maps();
+    ig::NestedGround nestedGround{maps};
+    ig::TerrainMap plain = ig::makeSyntheticTerrain(256, 5, 8.0);
+    ig::TerrainDb db = [&] {
+        auto rows = ig::mapRowSource(plain);
+        ig::DbBuildOptions o;
+        o.tileSize = 16;
+        o.insets = {inset()};
+        ig::buildTerrainDb(*rows, path, o);
+        return ig::TerrainDb::open(path);
+    }();
+    ig::PagedTerrain empty{db, [] {
+                               ig::PagedTerrain::Options o;
+                               o.cache.budgetBytes = std::size_t{1} << 20;
+                               return o;
+                           }()};
+    ig::PagedGround ground{db, ig::PagedGround::Options{}};
+    ig::PagedNestedGround pagedNestedGround{ground, db, ig::PagedGround::Options{}};
+    sim::PagedTerrainQueries queries{db, [] {
+                                         sim::PagedTerrainQueries::Options o;
+                                         o.budgetBytes = std::size_t{512} << 10;
+                                         return o;
+                                     }()};
+    Host memoryHost, pagedHost, plainHost;
+    sim::CigiSession memory{nested.global(), [&] {
+                                sim::CigiOptions o = optionsFor(memoryHost, nested.global());
+                                o.ground = &nestedGround;
+                                o.surface = &maps;
+                                return o;
+                            }()};
+    sim::CigiSession paged{empty.map(), [&] {
+                               sim::CigiOptions o = optionsFor(pagedHost, nested.global());
+                               o.ground = &pagedNestedGround;
+                               o.terrainQueries = &queries;
+                               return o;
+                           }()};
+    sim::CigiSession flat{plain, optionsFor(plainHost, plain)};
+
+    InsetPair() {
+        std::string error;
+        for (sim::CigiSession* s : {&memory, &paged, &flat})
+            EXPECT_EQ(s->open(&error), 0) << error;
+        memoryHost.ig = memory.localEndpoint();
+        pagedHost.ig = paged.localEndpoint();
+        plainHost.ig = flat.localEndpoint();
+        for (sim::CigiSession* s : {&memory, &paged, &flat})
+            s->poll(0.0);
+        for (Host* h : {&memoryHost, &pagedHost, &plainHost})
+            h->receiveAll();
+    }
+    ~InsetPair() { std::filesystem::remove(path); }
+    const ig::TerrainMap& map() const { return nested.global(); }
+};
+
+// Over a database's inset a host's HAT/HOT and lines of sight read the inset's surface: the
+// paged session's answers equal, to the byte, those of a session over the nested terrain in
+// memory, and many differ from the global map's alone.
+TEST(CigiPaged, OverAnInsetAnswersAreTheNestedSurfacesToTheByte) {
+    InsetPair p;
+    const ig::Inset& in = p.nested.insets()[0];
+    const Area around{in.coverMin.x - 60.0, in.coverMin.y - 60.0, in.coverMax.x + 60.0,
+                      in.coverMax.y + 60.0, 37.3};
+    for (const auto& requests : {heightRequests(p, around), lineRequests(p, around)}) {
+        ASSERT_GT(requests.size(), 100u);
+        Answers memory, paged, flat;
+        p.memoryHost.send(requests);
+        p.pagedHost.send(requests);
+        p.plainHost.send(requests);
+        for (int field = 1;
+             field < 120 && (memory.size() < requests.size() || paged.size() < requests.size() ||
+                             flat.size() < requests.size());
+             ++field) {
+            for (sim::CigiSession* s : {&p.memory, &p.paged, &p.flat})
+                s->poll(field * kPeriod);
+            take(p.memoryHost, memory);
+            take(p.pagedHost, paged);
+            take(p.plainHost, flat);
+            p.queries.waitIdle();
+        }
+        ASSERT_EQ(memory.size(), requests.size());
+        ASSERT_EQ(paged.size(), requests.size());
+        ASSERT_EQ(flat.size(), requests.size());
+        std::size_t same = 0, differFromFlat = 0, valid = 0;
+        for (const auto& [key, sent] : memory) {
+            same += paged.at(key) == sent;
+            EXPECT_TRUE(paged.at(key) == sent) << "request " << key.second;
+            differFromFlat += !(flat.at(key) == sent);
+            valid += validOf(sent.packet);
+        }
+        std::printf(
+            "%zu answers over the inset: %zu the same paged, %zu valid, %zu differ from "
+            "the global map's alone\n",
+            memory.size(), same, valid, differFromFlat);
+        EXPECT_EQ(same, requests.size());
+        EXPECT_GT(valid, requests.size() / 2);
+        EXPECT_GT(differFromFlat, requests.size() / 4);
+    }
+    EXPECT_EQ(p.queries.stats().unknown, 0u);
+    EXPECT_EQ(p.paged.stats().unknownTerrain, 0u);
 }
 
 }  // namespace
