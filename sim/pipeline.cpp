@@ -166,8 +166,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options, std::shared_ptr<PagingLog> log,
                                 PagedScene objects, double stereoSeparation) {
-    CHECK(stereoSeparation == 0.0 || (kind == ig::CasterKind::Fast && !objects.scene))
-        << "paged stereo pairs: the fast caster, without a scene";
+    CHECK(stereoSeparation == 0.0 || kind == ig::CasterKind::Fast)
+        << "paged stereo pairs: the fast caster";
     ig::StereoOptions stereo;
     stereo.eyeSeparation = stereoSeparation;
     if (stereoSeparation > 0.0) ig::validateStereoOptions(stereo);
@@ -183,6 +183,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         ig::PagedTerrain* paged = nullptr;
         std::shared_ptr<const ig::Caster> caster;
         ig::RenderOptions options;  // the caster's (the paged pyramid's)
+        // A stereo pair with a scene: the caster draws the terrain alone, the objects are
+        // drawn over both eyes afterwards with these.
+        ig::RenderOptions withObjects;
         // A stereo pair's right eye over insets: each inset's passes (insetPassOptions).
         std::vector<ig::RenderOptions> insetPasses;
         // With a scene: the moving layer (replaced before each render; the caster holds its
@@ -231,6 +234,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                     objects.motion->stamp(objects.motion->startTime(), s.objectGround));
                 o.objects = {objects.scene->staticLayer.get(), s.moving.get()};
             }
+            s.withObjects = o;
+            // A pair's reprojection works on the terrain alone (ig::renderStereo).
+            if (stereo.eyeSeparation > 0.0) o.objects.clear();
             s.caster = s.nested->insetCount() > 0 ? s.nested->makeCaster(kind, o)
                                                   : ig::makeCaster(kind, s.paged->map(), o);
             s.options = o;
@@ -284,6 +290,11 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                                    cs.bytesRead});
             log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
         }
+        if (objects.scene) {
+            s.objectGround->follow(pose.position.x, pose.position.y);
+            if (objects.extra) objects.extra(time, s.extra);
+            *s.moving = objects.motion->stamp(time, s.extra, s.objectGround);
+        }
         if (pair) {
             // Over insets, both eyes on the nested surface.
             const bool nested = s.nested->insetCount() > 0;
@@ -300,16 +311,14 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                                ig::nestedGlobalCaster(*s.caster))
                        : ig::reprojectRightEye(s.paged->map(), frame, stereo, s.options, source,
                                                stats, s.caster.get()));
+            // A scene's objects over both eyes, as over a mono frame.
+            const double objectsMs =
+                objects.scene ? ig::drawStereoObjects(s.withObjects, frame, *right) : 0.0;
             right->sequence = sequence;
             right->time = time;
-            frame.stats.renderMs += stats.rightMs;
+            frame.stats.renderMs += stats.rightMs + objectsMs;
             frame.right = std::move(right);
             return frame;
-        }
-        if (objects.scene) {
-            s.objectGround->follow(pose.position.x, pose.position.y);
-            if (objects.extra) objects.extra(time, s.extra);
-            *s.moving = objects.motion->stamp(time, s.extra, s.objectGround);
         }
         ig::RenderedFrame frame =
             s.nested->insetCount() > 0

@@ -121,9 +121,10 @@ struct PagedScene {
 // map is made by the process that renders, at its first frame (a renderer process makes its
 // own: a forked copy has no loader threads); `db` must outlive the renderer. `log`, when
 // given, gets each frame's paging as that process sees it (the field process's only with the
-// renderer in a thread). With `stereoSeparation` > 0 (metres; the fast caster, no scene) it
-// renders stereo pairs as makeStereoRenderer does, the tiles of both eyes placed (over the
-// database's insets, both eyes on the nested surface).
+// renderer in a thread). With `stereoSeparation` > 0 (metres; the fast caster) it renders
+// stereo pairs as makeStereoRenderer does, the tiles of both eyes placed (over the database's
+// insets, both eyes on the nested surface; a scene's objects drawn over both eyes after the
+// reprojection of the terrain, as ig::renderStereo does).
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options,

@@ -718,15 +718,12 @@ int main(int argc, char** argv) {
             ig::checkDatabaseOptions(terrain);
             pagedDb.emplace(ig::TerrainDb::open(terrain.db));
             if (ig::databaseNeedsPaging(terrain, *pagedDb)) {
-                const char* why = stereo && !scenePath.empty()         ? "--stereo with a --scene"
-                                  : casterKind == ig::CasterKind::Span ? "--caster span"
-                                                                       : nullptr;
-                if (why) {
+                if (casterKind == ig::CasterKind::Span) {
                     throw ig::InputError(
                         terrain.db + " is over --cache-mb and is paged: a flight " +
                         "over it takes a --trajectory, a stick, --cigi or the default scenario, " +
                         "with or without a --scene or --stereo, " +
-                        "with --caster fast, naive or reference, not " + why +
+                        "with --caster fast, naive or reference, not --caster span" +
                         " (or give a larger --cache-mb)");
                 }
                 ig::PagedTerrain::Options ground;

@@ -160,10 +160,43 @@ assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["misse
 assert j["stereo"]["separation_m"] == 0.5, j["stereo"]
 assert j["paging"]["frames"] == j["frames_rendered"] and j["paging"]["tiles_read"] > 0, j["paging"]
 PY
-msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
-    --stereo 0.5 --scene "$tmp/scene.json" --out null --contact none 2>&1)
-[ $? -eq 2 ] || fail "stereo with a scene: not refused"
-grep -q "not --stereo with a --scene" <<<"$msg" || fail "stereo with a scene: $msg"
+# With a scene: the objects drawn over both eyes after the terrain's reprojection, in a thread
+# and in a renderer process; the pairs differ from the bare ones in both halves.
+for renderer in thread process; do
+    msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+        --stereo 0.5 --scene "$tmp/scene.json" --renderer $renderer --clock simulated \
+        --size 160x120 --margin 8 --render-threads 1 --out "y4m:$tmp/stereo_scene.y4m" \
+        --contact none --json "$tmp/stereo_scene.json" 2>&1) ||
+        fail "stereo with a scene over a paged map ($renderer): $msg"
+    python3 - "$tmp/stereo_scene.json" "$tmp/stereo.y4m" "$tmp/stereo_scene.y4m" <<'PY' ||
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+assert j["scene"]["static_objects"] + j["scene"]["moving_objects"] > 0, j["scene"]
+def frames(path):
+    data = open(path, "rb").read()
+    header, _, rest = data.partition(b"\n")
+    w = int(next(f[1:] for f in header.split() if f.startswith(b"W")))
+    h = int(next(f[1:] for f in header.split() if f.startswith(b"H")))
+    out, pos = [], 0
+    while pos < len(rest):
+        pos = rest.index(b"\n", pos) + 1
+        out.append(rest[pos:pos + w * h])
+        pos += w * h * 2  # 4:2:2
+    return w, h, out
+w, h, bare = frames(sys.argv[2])
+_, _, drawn = frames(sys.argv[3])
+halves = [0, 0]
+for a, b in zip(bare, drawn):
+    for y in range(h):
+        row = slice(y * w, (y + 1) * w)
+        ra, rb = a[row], b[row]
+        halves[0] += ra[: w // 2] != rb[: w // 2]
+        halves[1] += ra[w // 2 :] != rb[w // 2 :]
+assert halves[0] > 0 and halves[1] > 0, halves
+PY
+        fail "stereo with a scene over a paged map ($renderer): $msg"
+done
 
 # A CIGI host over the paged map: its HAT/HOT requests and lines of sight are answered on a
 # thread of their own from the database's samples (sim/terrain_queries.hpp), a field or more

@@ -234,7 +234,7 @@ done
     --duration 2 --out null --contact none >/dev/null 2>&1 || fail "stick flight over a paged inset"
 # Stereo pairs over the inset: ig-render's pair from the flags, the database loaded whole and
 # paged are the same images; the inset changes both eyes. flythrough flies pairs over it (a
-# scene's objects on it in memory), every field on time.
+# scene's objects on it, in memory and paged), every field on time.
 st=(--stereo 12 --size 160x100 --pose 3600,3000,900,20,-25,0 --levels auto --colors image)
 for v in flags whole paged plain; do
     terrain=(--synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4)
@@ -253,12 +253,14 @@ for v in whole paged; do
 done
 cmp -s "$tmp/st_flags_r.png" "$tmp/st_plain_r.png" && fail "the inset changed nothing in the right eye"
 cmp -s "$tmp/st_flags_l.png" "$tmp/st_flags_r.png" && fail "the right eye is the left"
-for run in "flags thread" "whole thread" "paged thread" "paged process" "scene thread"; do
+for run in "flags thread" "whole thread" "paged thread" "paged process" "scene thread" \
+    "pagedscene process"; do
     set -- $run
     terrain=(--synthetic 1024:3 --spacing 8 --inset synthetic:400,400,128,128,4)
     [ "$1" = whole ] && terrain=(--db "$tmp/in.db")
     [ "$1" = paged ] && terrain=(--db "$tmp/in.db" --cache-mb 8)
     [ "$1" = scene ] && terrain+=(--scene "$tmp/scene.json")
+    [ "$1" = pagedscene ] && terrain=(--db "$tmp/in.db" --cache-mb 8 --scene "$tmp/scene.json")
     msg=$("$bin/flythrough" "${terrain[@]}" --trajectory "$tmp/traj.csv" --stereo 12 \
         --renderer "$2" --clock simulated --size 160x120 --out "y4m:$tmp/st_$1.y4m" --contact none \
         --json "$tmp/fly.json" 2>&1) || fail "fly pairs over the inset ($run): $msg"
