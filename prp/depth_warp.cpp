@@ -443,7 +443,8 @@ void DepthWarp::markDepthJumps(const DepthProjection& proj, const FieldView& fie
 DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,
                                  const ig::Pose& fieldPose, const OutputGeometry& geometry,
                                  const Quadratic& holeWarp, const FieldView& field, int gainQ8,
-                                 bool agc, DepthKernel kernel, DepthMethod method) {
+                                 bool agc, DepthKernel kernel, DepthMethod method,
+                                 std::chrono::steady_clock::time_point giveUpAt) {
     const int w = frame.width(), h = frame.height();
     const std::size_t fieldPixels =
         static_cast<std::size_t>(field.width) * static_cast<std::size_t>(field.lines);
@@ -458,6 +459,13 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     const DepthProjection proj = DepthProjection::of(frame, fieldPose, geometry);
     const bool avx2 = useAvx2(kernel);
     DepthWarpResult result;
+    const bool deadline = giveUpAt != std::chrono::steady_clock::time_point::max();
+    const auto late = [&] {
+        if (!deadline || std::chrono::steady_clock::now() <= giveUpAt) return false;
+        result = DepthWarpResult{};
+        result.abandoned = true;
+        return true;
+    };
 
     // The gather's bilinear taps need two rendered pixels each way.
     bool splatAll = method == DepthMethod::Splat || w < 2 || h < 2;
@@ -468,6 +476,7 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
         std::uint16_t* tiles = tileUnsettled_.data();
         std::fill(tiles, tiles + static_cast<std::size_t>(tilesAcross) * tilesDown, 0);
         for (int line = 0; line < field.lines; ++line) {
+            if (line % kCheckRows == kCheckRows - 1 && late()) return result;
             const std::size_t at = static_cast<std::size_t>(line) * field.width;
             const GatherLine gl = GatherLine::of(holeWarp, field.firstLine + 2 * line + 0.5);
             std::uint16_t* band = tiles + static_cast<std::size_t>(line / kGatherTileLines) *
@@ -503,6 +512,7 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
             splatAll = true;
         } else {
             for (int ty = 0; ty < tilesDown; ++ty) {
+                if (late()) return result;
                 for (int tx = 0; tx < tilesAcross; ++tx) {
                     if (tiles[static_cast<std::size_t>(ty) * tilesAcross + tx] == 0) continue;
                     const int l0 = ty * kGatherTileLines;
@@ -518,10 +528,17 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
     if (splatAll) {
         std::fill(depth_.begin(), depth_.begin() + static_cast<std::ptrdiff_t>(fieldPixels),
                   kNoPoint);
-        splatRows(proj, frame, field.firstLine, field.width, 0, h, 0, w, false, 0, 0, 0, 0, avx2);
+        // Row after row as at once (the z-test keeps the same points in the same order).
+        for (int y = 0; y < h; y += kCheckRows) {
+            if (late()) return result;
+            splatRows(proj, frame, field.firstLine, field.width, y, std::min(h, y + kCheckRows), 0,
+                      w, false, 0, 0, 0, 0, avx2);
+        }
+        if (late()) return result;
         result.holes = fillHoles(proj, holeWarp, field, 0, field.lines, 0, field.width);
         result.splatPixels = fieldPixels;
     }
+    if (late()) return result;
     const ApplyResult r = applyPoints(
         {color, w, h}, pointX_.data(), pointY_.data(), static_cast<std::size_t>(field.width), field,
         gainQ8, agc, kernel == DepthKernel::Scalar ? WarpKernel::Scalar : WarpKernel::Auto);

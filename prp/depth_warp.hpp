@@ -8,6 +8,7 @@
 #include "prp/warp_apply.hpp"
 #include "prp/warp_fit.hpp"
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -125,6 +126,9 @@ struct DepthWarpResult {
     std::uint64_t holes = 0;        // output pixels no rendered pixel landed on (quadratic used)
     std::uint64_t unsettled = 0;    // gather: pixels whose steps did not settle
     std::uint64_t splatPixels = 0;  // output pixels made by the splat (tiles, or the whole field)
+    // The clock passed apply()'s `giveUpAt` first: nothing of the field is written (the points
+    // are incomplete), the other fields are not set.
+    bool abandoned = false;
 };
 
 // The depth model's fast path, with its scratch buffers (sized on first use, then reused).
@@ -137,12 +141,17 @@ class DepthWarp {
     // `holeWarp`'s point. Gather: each output pixel's source point by gather steps from
     // `holeWarp`'s point; tiles of kGatherTileWidth x kGatherTileLines with a pixel that did not
     // settle are splatted (only the rendered pixels near theirs), the whole field when more than
-    // kGatherMaxSplatShare of the tiles have one.
+    // kGatherMaxSplatShare of the tiles have one. The clock is looked at every kCheckRows
+    // rendered rows (or field lines) before the field is written: past `giveUpAt` the warp is
+    // abandoned (DepthWarpResult::abandoned), the field left as it was.
     DepthWarpResult apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,
                           const ig::Pose& fieldPose, const OutputGeometry& geometry,
                           const Quadratic& holeWarp, const FieldView& field, int gainQ8, bool agc,
                           DepthKernel kernel = DepthKernel::Auto,
-                          DepthMethod method = DepthMethod::Splat);
+                          DepthMethod method = DepthMethod::Splat,
+                          std::chrono::steady_clock::time_point giveUpAt =
+                              std::chrono::steady_clock::time_point::max());
+    static constexpr int kCheckRows = 16;
 
     static constexpr int kGatherTileWidth = 64;
     static constexpr int kGatherTileLines = 8;

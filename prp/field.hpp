@@ -53,6 +53,9 @@ struct WarpInfo {
     // Auto: the field wanted the depth model, whose recent fields took longer than
     // PrpOptions::autoDepthBudget: the quadratic warped it.
     bool depthOverBudget = false;
+    // Auto on a deadline: the depth model was still unfinished at PrpOptions::autoDepthBudget
+    // and was abandoned; the quadratic warped the field.
+    bool depthAbandoned = false;
 };
 
 // One field: only the lines of its parity. `pixels` is reused from field to field.

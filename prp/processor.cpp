@@ -193,6 +193,14 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
                              view.firstLine, out.lines};
     if (useDepth) {
         const auto depthStart = std::chrono::steady_clock::now();
+        // Auto on a deadline: a depth field still unfinished at the budget (another process
+        // taking the core, a page fault storm) is abandoned for the quadratic, so no field is
+        // late for it.
+        const bool mayAbandon = model == WarpModel::Auto && options_.autoDepthBudget > 0.0;
+        const auto giveUpAt =
+            mayAbandon ? depthStart + std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                          std::chrono::duration<double>(options_.autoDepthBudget))
+                       : std::chrono::steady_clock::time_point::max();
         if (options_.depthReference) {
             const WarpInfo fitted = out.warp;
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
@@ -200,34 +208,40 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         } else {
             const DepthWarpResult r = depthWarp_.apply(
                 frame, sourcePixels(frame), poseAtField, geometry, quadraticOf(out.warp), view,
-                gainQ8, options_.agc, options_.depthKernel, options_.depthMethod);
-            out.edgeSamples = r.edgeSamples;
-            out.holeSamples = r.holes;
-            lumaSum = r.lumaSum;
-            if (options_.edgeFill != EdgeFill::Repeat && r.edgeSamples > 0) {
-                // Beyond the rendered frame as the quadratic: through the points it sampled.
-                OutsideFill fill =
-                    OutsideFill::of(options_.sky, frame.intrinsics, geometry, poseAtField);
-                fill.hazeBelow = options_.edgeFill == EdgeFill::SkyHaze;
-                ApplyResult applied{r.edgeSamples, r.lumaSum};
-                fillOutside({sourcePixels(frame), frame.width(), frame.height()},
-                            depthWarp_.pointsX(), depthWarp_.pointsY(),
-                            static_cast<std::size_t>(out.width), view, gainQ8, options_.agc, fill,
-                            applied);
-                lumaSum = applied.lumaSum;
-            }
-            if (ids) {
-                warpIdsPoints(idSource, depthWarp_.pointsX(), depthWarp_.pointsY(),
-                              static_cast<std::size_t>(out.width), idView);
+                gainQ8, options_.agc, options_.depthKernel, options_.depthMethod, giveUpAt);
+            if (r.abandoned) {
+                useDepth = false;
+                out.warp.depthAbandoned = true;
+            } else {
+                out.edgeSamples = r.edgeSamples;
+                out.holeSamples = r.holes;
+                lumaSum = r.lumaSum;
+                if (options_.edgeFill != EdgeFill::Repeat && r.edgeSamples > 0) {
+                    // Beyond the rendered frame as the quadratic: through the points it sampled.
+                    OutsideFill fill =
+                        OutsideFill::of(options_.sky, frame.intrinsics, geometry, poseAtField);
+                    fill.hazeBelow = options_.edgeFill == EdgeFill::SkyHaze;
+                    ApplyResult applied{r.edgeSamples, r.lumaSum};
+                    fillOutside({sourcePixels(frame), frame.width(), frame.height()},
+                                depthWarp_.pointsX(), depthWarp_.pointsY(),
+                                static_cast<std::size_t>(out.width), view, gainQ8, options_.agc,
+                                fill, applied);
+                    lumaSum = applied.lumaSum;
+                }
+                if (ids) {
+                    warpIdsPoints(idSource, depthWarp_.pointsX(), depthWarp_.pointsY(),
+                                  static_cast<std::size_t>(out.width), idView);
+                }
             }
         }
-        out.warp.model = WarpModel::Depth;
+        if (useDepth) out.warp.model = WarpModel::Depth;
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - depthStart).count();
         depthSeconds_ = depthFields_ == 0 ? s : 0.75 * depthSeconds_ + 0.25 * s;
         ++depthFields_;
         lastDepthField_ = fieldIndex;
-    } else {
+    }
+    if (!useDepth) {
         if (depthModel) out.warp.model = model == WarpModel::Auto ? WarpModel::Poly : model;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
         ApplyResult r =

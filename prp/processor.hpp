@@ -37,7 +37,8 @@ struct PrpOptions {
     // ... unless the depth model's recent fields took longer than this (seconds; 0: no limit,
     // as offline): then the quadratic, and the depth model again once in kDepthRetryFields
     // fields to measure it anew. The real-time pipeline sets it (flythrough: 10 ms, 60 % of an
-    // NTSC field, the rest for the output and the loop).
+    // NTSC field, the rest for the output and the loop). A depth field still unfinished at the
+    // budget is abandoned for the quadratic (WarpInfo::depthAbandoned).
     double autoDepthBudget = 0.0;
     // Depth model: the projection kernel (DepthKernel::Auto: AVX2 where available), or the
     // double-precision per-pixel reference (tests and comparisons: tens of times slower).

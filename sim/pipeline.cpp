@@ -904,7 +904,8 @@ PipelineResult Pipeline::run() {
         }
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
                          field.frameSequence, field.warp.model, field.warp.depthOverBudget,
-                         rightWarpMs, rightFallback, rightModel, disparity, firstDisparity});
+                         field.warp.depthAbandoned, rightWarpMs, rightFallback, rightModel,
+                         disparity, firstDisparity});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {

@@ -57,7 +57,13 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             jitter.push_back(std::abs(interval - prp::kFieldPeriod) * 1e3);
         }
         lateness.push_back((r.handoff - r.deadline) * 1e3);
-        if (r.handoff > r.deadline + prp::kFieldPeriod) ++s.missedDeadlines;
+        if (r.handoff > r.deadline + prp::kFieldPeriod) {
+            ++s.missedDeadlines;
+            if (s.missed.size() < StatsSummary::kMaxMissedListed) {
+                s.missed.push_back(MissedField{i, r.deadline - records_.front().deadline,
+                                               (r.handoff - r.deadline) * 1e3, r.warpMs, r.model});
+            }
+        }
         ages.push_back(r.frameAge * 1e3);
         warps.push_back(r.warpMs);
         if (r.fallback != prp::Fallback::None) {
@@ -66,6 +72,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
         ++s.fallbacksByKind[static_cast<std::size_t>(r.fallback)];
         ++s.fieldsByModel[static_cast<std::size_t>(r.model)];
         s.depthOverBudget += r.depthOverBudget;
+        s.depthAbandoned += r.depthAbandoned;
         if (r.rightWarpMs >= 0.0) {
             s.stereo = true;
             rightWarps.push_back(r.rightWarpMs);
@@ -125,6 +132,22 @@ static nlohmann::json modelsJson(const std::array<std::uint64_t, 6>& counts) {
     return byModel;
 }
 
+namespace {
+
+nlohmann::json missedJson(const std::vector<MissedField>& missed) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const MissedField& m : missed) {
+        out.push_back({{"field", m.index},
+                       {"slot_s", m.slot},
+                       {"lateness_ms", m.latenessMs},
+                       {"warp_ms", m.warpMs},
+                       {"warp", std::string(prp::warpModelName(m.model))}});
+    }
+    return out;
+}
+
+}  // namespace
+
 nlohmann::json toJson(const StatsSummary& s) {
     nlohmann::json byKind = nlohmann::json::object();
     for (prp::Fallback f : {prp::Fallback::Affine, prp::Fallback::Rotation, prp::Fallback::Hold}) {
@@ -134,7 +157,9 @@ nlohmann::json toJson(const StatsSummary& s) {
         {"fields", s.fields},
         {"fields_by_warp", modelsJson(s.fieldsByModel)},
         {"fields_depth_over_budget", s.depthOverBudget},
+        {"fields_depth_abandoned", s.depthAbandoned},
         {"missed_deadlines", s.missedDeadlines},
+        {"missed_fields", missedJson(s.missed)},
         {"field_interval_ms", toJson(s.fieldIntervalMs)},
         {"field_jitter_ms", toJson(s.jitterMs)},
         {"field_lateness_ms", toJson(s.latenessMs)},
@@ -195,6 +220,10 @@ std::string formatSummary(const StatsSummary& s) {
         if (s.depthOverBudget > 0) {
             text += " (auto: " + std::to_string(s.depthOverBudget) +
                     " by the quadratic, the depth model over its time budget)";
+        }
+        if (s.depthAbandoned > 0) {
+            text += " (auto: " + std::to_string(s.depthAbandoned) +
+                    " depth fields abandoned at the budget for the quadratic)";
         }
         text += "\n";
     }

@@ -32,6 +32,7 @@ struct FieldRecord {
     std::uint64_t frameSequence = 0;
     prp::WarpModel model = prp::WarpModel::Poly;  // the warp the field used (auto: its choice)
     bool depthOverBudget = false;  // auto: the quadratic, the depth model being over budget
+    bool depthAbandoned = false;   // auto: the quadratic, the depth model unfinished at its budget
     // Stereo (the fields above are the left eye's): the right eye's warp time (-1: mono),
     // fallback and model, and the vertical disparity of the two quadratic fits in output rows
     // (-1: not measured).
@@ -59,15 +60,28 @@ struct RendererRestart {
     std::uint64_t fieldsHeld = 0;          // fields of the gap past the hold horizon
 };
 
+// A field handed over after its slot ended: when, how late, and what its warp cost.
+struct MissedField {
+    std::uint64_t index = 0;  // the field's number in the run
+    double slot = 0.0;        // clock seconds from the run's first slot to this field's
+    double latenessMs = 0.0;  // hand-off - slot start
+    double warpMs = 0.0;
+    prp::WarpModel model = prp::WarpModel::Poly;
+};
+
 struct StatsSummary {
     std::uint64_t fields = 0;
     std::uint64_t missedDeadlines = 0;  // fields handed over after their slot ended
+    // The first kMaxMissedListed of them.
+    static constexpr std::size_t kMaxMissedListed = 100;
+    std::vector<MissedField> missed;
     std::uint64_t framesRendered = 0;
     std::uint64_t framesShown = 0;                   // distinct frames the fields came from
     std::uint64_t fallbacks = 0;                     // fields whose warp fell back
     std::array<std::uint64_t, 4> fallbacksByKind{};  // indexed by prp::Fallback
     std::array<std::uint64_t, 6> fieldsByModel{};    // indexed by prp::WarpModel
     std::uint64_t depthOverBudget = 0;  // auto: fields the quadratic took for the depth model
+    std::uint64_t depthAbandoned = 0;   // auto: of the depth model's, abandoned at its budget
     // Stereo: the right eye's, and the vertical disparity of the two fits (output rows).
     bool stereo = false;
     Percentiles rightWarpMs;

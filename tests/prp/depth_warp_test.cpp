@@ -267,8 +267,10 @@ TEST(DepthWarp, EdgeFillBeyondTheFrameAsTheQuadratic) {
 
 // Auto on a deadline: once the depth model's fields take longer than the budget, the fields that
 // want it get the quadratic (marked), with the same image as the quadratic's; one field in
-// kDepthRetryFields measures the depth model again. Without a budget (offline), auto always takes
-// it.
+// kDepthRetryFields measures the depth model again, and a depth field still unfinished at the
+// budget is abandoned for the quadratic (marked), so under a budget no machine meets every field
+// is the quadratic's. Without a budget (offline), auto always takes the depth model; under one
+// it never needs to abandon, the image is the unlimited one's.
 TEST(DepthWarp, AutoOverItsTimeBudgetTakesTheQuadratic) {
     const ig::Pose pose = test::lookingDown(-10.0, 300.0);
     const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
@@ -279,34 +281,54 @@ TEST(DepthWarp, AutoOverItsTimeBudgetTakesTheQuadratic) {
     o.autoThresholdPx = 1e-9;  // every field wants the depth model
     o.autoDepthBudget = 1e-9;  // which no machine warps a field in
     PostRenderingProcessor budgeted(o);
+    o.autoDepthBudget = 3600.0;  // which every machine does
+    PostRenderingProcessor generous(o);
     o.autoDepthBudget = 0.0;
     PostRenderingProcessor unlimited(o);
     PostRenderingProcessor poly(options(WarpModel::Poly));
-    Field f, g, q;
-    std::uint64_t depth = 0, over = 0;
+    Field f, g, q, r;
+    std::uint64_t abandoned = 0, over = 0;
     for (std::uint64_t n = 1; n <= 2 * kDepthRetryFields + 1; ++n) {
         budgeted.process(frame, at, 0.0, n, f);
         unlimited.process(frame, at, 0.0, n, g);
+        generous.process(frame, at, 0.0, n, r);
+        poly.process(frame, at, 0.0, n, q);
         EXPECT_EQ(g.warp.model, WarpModel::Depth);
-        EXPECT_FALSE(g.warp.depthOverBudget);
-        if (f.warp.model == WarpModel::Depth) {
-            ++depth;
-            EXPECT_FALSE(f.warp.depthOverBudget);
-        } else {
-            ++over;
-            ASSERT_EQ(f.warp.model, WarpModel::Poly);
-            EXPECT_TRUE(f.warp.depthOverBudget);
-            if (over == 1) {
-                poly.process(frame, at, 0.0, n, q);
-                EXPECT_EQ(f.pixels, q.pixels) << "the quadratic's own field";
-            }
-        }
+        EXPECT_FALSE(g.warp.depthOverBudget || g.warp.depthAbandoned);
+        EXPECT_EQ(r.warp.model, WarpModel::Depth);
+        EXPECT_FALSE(r.warp.depthOverBudget || r.warp.depthAbandoned);
+        EXPECT_EQ(r.pixels, g.pixels) << "a deadline not reached changes nothing";
+        ASSERT_EQ(f.warp.model, WarpModel::Poly) << "field " << n;
+        EXPECT_NE(f.warp.depthOverBudget, f.warp.depthAbandoned) << "field " << n;
+        abandoned += f.warp.depthAbandoned;
+        over += f.warp.depthOverBudget;
+        EXPECT_EQ(f.pixels, q.pixels) << "the quadratic's own field, field " << n;
     }
-    // The first field measures it; the retries at kDepthRetryFields and twice that.
-    EXPECT_EQ(depth, 3u);
+    // The first field tries it; the retries at kDepthRetryFields and twice that.
+    EXPECT_EQ(abandoned, 3u);
     EXPECT_EQ(over, 2 * kDepthRetryFields - 2);
     o.autoDepthBudget = -1.0;
     EXPECT_THROW(PostRenderingProcessor{o}, ig::InputError);
+}
+
+// The gather method abandons the same way (its lines and splatted tiles look at the clock).
+TEST(DepthWarp, TheGatherIsAbandonedAtItsDeadlineToo) {
+    const ig::Pose pose = test::lookingDown(-10.0, 300.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn);
+    ig::Pose at = pose;
+    at.yaw += 0.05;
+    PrpOptions o = options(WarpModel::Auto);
+    o.autoThresholdPx = 1e-9;
+    o.autoDepthBudget = 1e-9;
+    o.depthMethod = DepthMethod::Gather;
+    PostRenderingProcessor budgeted(o);
+    PostRenderingProcessor poly(options(WarpModel::Poly));
+    Field f, q;
+    budgeted.process(frame, at, 0.0, 1, f);
+    poly.process(frame, at, 0.0, 1, q);
+    EXPECT_TRUE(f.warp.depthAbandoned);
+    EXPECT_EQ(f.warp.model, WarpModel::Poly);
+    EXPECT_EQ(f.pixels, q.pixels);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <random>
+#include <string>
 
 namespace {
 
@@ -63,6 +64,16 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
     }
     EXPECT_EQ(j["fields"].get<int>(), n);
     EXPECT_EQ(j["missed_deadlines"].get<int>(), n / 50);
+    // Each missed field listed: which, when, how late.
+    ASSERT_EQ(j["missed_fields"].size(), static_cast<std::size_t>(n / 50));
+    for (std::size_t k = 0; k < j["missed_fields"].size(); ++k) {
+        const nlohmann::json& m = j["missed_fields"][k];
+        EXPECT_EQ(m["field"].get<int>(), 50 * static_cast<int>(k) + 49);
+        EXPECT_NEAR(m["slot_s"].get<double>(), (50 * static_cast<double>(k) + 49) * T, 1e-9);
+        EXPECT_NEAR(m["lateness_ms"].get<double>(), 1.5 * T * 1e3, 1e-9);
+        EXPECT_EQ(m["warp_ms"].get<double>(), 2.0);
+        EXPECT_EQ(m["warp"].get<std::string>(), "poly");
+    }
     for (const char* key : {"p50", "p99", "p99.9", "max"})
         EXPECT_TRUE(j["field_interval_ms"].contains(key));
     EXPECT_TRUE(j["renderer_restarts"].is_array());
