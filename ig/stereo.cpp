@@ -938,7 +938,6 @@ class ColumnCaster {
             }
             const bool fromPrev = havePrev && coherent(prev, g, maxSlope);
             double t0, t1, t = -1.0, tEnd = 0.0;
-            const TerrainMap* hitMap = &map_;
             std::uint16_t hitPart = 0;
             if (clipToMapBox(map_, ray, t0, t1)) {
                 double tStart = t0;
@@ -959,22 +958,10 @@ class ColumnCaster {
                 haveSkyRef = true;
                 skyRef = g;
             }
-            for (std::size_t k = 0; k < insets_.size(); ++k) {
-                const TerrainMap& m = *insets_[k].map;
-                const TerrainRay local(m, eye - glm::dvec3{insets_[k].placement->origin, 0.0},
-                                       ray.dir);
-                double a0, a1;
-                if (!clipToMapBox(m, local, a0, a1)) continue;
-                const double end = t >= 0.0 ? std::min(a1, t) : a1;
-                const double from = fromPrev ? std::max(a0, prevDist / g.horiz) : a0;
-                if (from > end) continue;
-                const double ti = marchRay(m, local, from, end, counters.steps);
-                if (ti >= 0.0 && (t < 0.0 || ti <= t)) {
-                    t = ti;
-                    hitMap = &m;
-                    hitPart = static_cast<std::uint16_t>(k + 1);
-                }
-                tEnd = std::max(tEnd, a1);
+            if (nested) {
+                tEnd = std::max(
+                    tEnd, nearestInsetHit(eye, ray.dir, fromPrev ? prevDist / g.horiz : 0.0, t,
+                                          hitPart, counters.steps));
             }
             if (nested && t < 0.0 && eyeOverAll_ && ray.dir.z >= 0.0) {
                 haveSkyRef = true;
@@ -986,12 +973,7 @@ class ColumnCaster {
             if (part_) part_[idx] = hitPart;
             if (t >= 0.0) {
                 const glm::dvec3 p = ray.at(t);
-                if (hitPart == 0) {
-                    right.color[idx] = terrainColor(map_, sky_, p.x, p.y, t);
-                } else {
-                    const glm::dvec2 o = insets_[hitPart - 1].placement->origin;
-                    right.color[idx] = terrainColor(*hitMap, sky_, p.x - o.x, p.y - o.y, t);
-                }
+                right.color[idx] = hitColor(p, t, hitPart);
                 right.depth[idx] = static_cast<float>(t);
             } else {
                 right.color[idx] = skyColor(sky_, ray.dir.z);
@@ -1017,32 +999,47 @@ class ColumnCaster {
                 const float depth = right.depth[idx];
                 double t = std::isfinite(depth) ? static_cast<double>(depth) : -1.0;
                 std::uint16_t hitPart = 0;
-                for (std::size_t k = 0; k < insets_.size(); ++k) {
-                    const TerrainMap& m = *insets_[k].map;
-                    const TerrainRay local(m, eye - glm::dvec3{insets_[k].placement->origin, 0.0},
-                                           ray.dir);
-                    double a0, a1;
-                    if (!clipToMapBox(m, local, a0, a1)) continue;
-                    const double end = t >= 0.0 ? std::min(a1, t) : a1;
-                    if (a0 > end) continue;
-                    const double ti = marchRay(m, local, a0, end, counters.steps);
-                    if (ti >= 0.0 && (t < 0.0 || ti <= t)) {
-                        t = ti;
-                        hitPart = static_cast<std::uint16_t>(k + 1);
-                    }
-                }
+                nearestInsetHit(eye, ray.dir, 0.0, t, hitPart, counters.steps);
                 part_[idx] = hitPart;
                 if (hitPart == 0) continue;
-                const glm::dvec3 p = ray.at(t);
-                const glm::dvec2 o = insets_[hitPart - 1].placement->origin;
-                right.color[idx] =
-                    terrainColor(*insets_[hitPart - 1].map, sky_, p.x - o.x, p.y - o.y, t);
+                right.color[idx] = hitColor(ray.at(t), t, hitPart);
                 right.depth[idx] = static_cast<float>(t);
             }
         }
     }
 
   private:
+    // Marches the ray from `eye` along unit `dir` over every inset from ray parameter `from`
+    // (or the inset's entry) short of the hit `t` so far (-1: none), keeping the nearest: `t`
+    // and `hitPart` (k + 1 for inset k) updated. Returns the farthest inset box exit (0: none).
+    double nearestInsetHit(const glm::dvec3& eye, const glm::dvec3& dir, double from, double& t,
+                           std::uint16_t& hitPart, std::uint64_t& steps) const {
+        double exit = 0.0;
+        for (std::size_t k = 0; k < insets_.size(); ++k) {
+            const TerrainMap& m = *insets_[k].map;
+            const TerrainRay local(m, eye - glm::dvec3{insets_[k].placement->origin, 0.0}, dir);
+            double a0, a1;
+            if (!clipToMapBox(m, local, a0, a1)) continue;
+            exit = std::max(exit, a1);
+            const double end = t >= 0.0 ? std::min(a1, t) : a1;
+            const double start = std::max(a0, from);
+            if (start > end) continue;
+            const double ti = marchRay(m, local, start, end, steps);
+            if (ti >= 0.0 && (t < 0.0 || ti <= t)) {
+                t = ti;
+                hitPart = static_cast<std::uint16_t>(k + 1);
+            }
+        }
+        return exit;
+    }
+    // The colour at world point `p` (ray distance t) of the map `hitPart` names.
+    Rgb8 hitColor(const glm::dvec3& p, double t, std::uint16_t hitPart) const {
+        if (hitPart == 0) return terrainColor(map_, sky_, p.x, p.y, t);
+        const NestedMaps::Part& in = insets_[hitPart - 1];
+        const glm::dvec2 o = in.placement->origin;
+        return terrainColor(*in.map, sky_, p.x - o.x, p.y - o.y, t);
+    }
+
     const TerrainMap& map_;
     const std::vector<NestedMaps::Part>& insets_;
     const Camera& camera_;
