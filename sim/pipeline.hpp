@@ -131,6 +131,18 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                 std::shared_ptr<PagingLog> log = nullptr, PagedScene objects = {},
                                 double stereoSeparation = 0.0);
 
+// Stereo pairs with a scene's objects: the left eye's terrain by the fast caster, the right eye
+// reprojected from it (gaps cast by the same caster), then the objects (the moving ones and
+// the host's extras stamped at the frame's instant) drawn over both eyes by the footprint pass,
+// as over a mono frame (ig::drawStereoObjects): each eye carries its object ids. Over insets
+// (`nested`), both eyes' terrain on the nested surface, where the moving objects stand.
+// The map (or `nested`), scene and motion must outlive the renderer.
+FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                      double separation, const ig::RenderOptions& options,
+                                      const ig::Scene& scene, const SceneMotion& motion,
+                                      ExtraObjects extra = {},
+                                      const ig::NestedTerrain* nested = nullptr);
+
 // A caster over `map` drawing `scene`'s objects: the static layer as loaded, and the moving
 // objects stamped at each frame's instant into a layer of their own, which is all that changes
 // from frame to frame (the caster is built once). Renders one frame at a time. The map, scene

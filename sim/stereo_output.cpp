@@ -108,6 +108,60 @@ FrameRenderer makeStereoRenderer(const ig::NestedTerrain& terrain, const RenderG
     };
 }
 
+FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                      double separation, const ig::RenderOptions& options,
+                                      const ig::Scene& scene, const SceneMotion& motion,
+                                      ExtraObjects extra, const ig::NestedTerrain* nested) {
+    ig::StereoOptions stereo;
+    stereo.eyeSeparation = separation;
+    ig::validateStereoOptions(stereo);
+    std::shared_ptr<const ig::NestedGround> ground;
+    if (nested) ground = std::make_shared<const ig::NestedGround>(nested->maps());
+    // The moving layer is replaced before each render; the options hold its address.
+    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime(), ground.get()));
+    ig::RenderOptions withObjects = options;
+    withObjects.objects = {scene.staticLayer.get(), moving.get()};
+    ig::RenderOptions terrainOnly = options;
+    terrainOnly.objects.clear();
+    std::shared_ptr<const ig::Caster> caster =
+        nested ? ig::makeNestedCaster(ig::CasterKind::Fast, *nested, terrainOnly)
+               : ig::makeCaster(ig::CasterKind::Fast, map, terrainOnly);
+    // Each inset's passes over the right eye's cast pixels (made once).
+    std::shared_ptr<const std::vector<ig::RenderOptions>> insetPasses;
+    if (nested) {
+        insetPasses = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
+            nested->maps(), std::vector<ig::RenderOptions>(nested->insets().size(), terrainOnly)));
+    }
+    auto objects = std::make_shared<std::vector<ExtraObject>>();
+    return [caster, moving, objects, extra, &map, &motion, geometry, stereo, terrainOnly,
+            withObjects, nested, ground,
+            insetPasses](const ig::Pose& pose, double time, std::uint64_t sequence) {
+        if (extra) extra(time, *objects);
+        *moving = motion.stamp(time, *objects, ground.get());
+        const sim::RenderGeometry g = viewed(geometry, requestView());
+        ig::Pose level = pose;
+        level.roll = 0.0;  // the PRP applies roll
+        const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
+        const ig::Intrinsics intr = renderIntrinsics(g, pose);
+        ig::RenderedFrame frame =
+            nested ? ig::renderNestedFrame(*caster, *nested, left, intr, time, sequence)
+                   : ig::renderFrame(*caster, map, left, intr, time, sequence);
+        std::vector<ig::RightPixelSource> source;
+        ig::StereoStats stats;
+        auto right = std::make_shared<ig::RenderedFrame>(
+            nested ? ig::reprojectRightEye(nested->maps(), *insetPasses, frame, stereo, terrainOnly,
+                                           source, stats, ig::nestedGlobalCaster(*caster))
+                   : ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats,
+                                           caster.get()));
+        const double objectsMs = ig::drawStereoObjects(withObjects, frame, *right);
+        right->sequence = sequence;
+        right->time = time;
+        frame.stats.renderMs += stats.rightMs + objectsMs;
+        frame.right = std::move(right);
+        return frame;
+    };
+}
+
 namespace {
 
 // Output row at which `warp` shows world point `world` in the eye at `eye`: its true output

@@ -52,66 +52,6 @@
 
 namespace {
 
-// Stereo pairs with a scene's objects: the left eye's terrain by the fast caster, the right eye
-// reprojected from it (gaps cast by the same caster), then the objects (the moving ones and
-// the host's extras stamped at the frame's instant) drawn over both eyes by the footprint pass,
-// as over a mono frame (ig::drawStereoObjects): each eye carries its object ids. Over insets
-// (`nested`), both eyes' terrain on the nested surface, where the moving objects stand.
-sim::FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map,
-                                           const sim::RenderGeometry& geometry, double separation,
-                                           const ig::RenderOptions& options, const ig::Scene& scene,
-                                           const sim::SceneMotion& motion, sim::ExtraObjects extra,
-                                           const ig::NestedTerrain* nested) {
-    ig::StereoOptions stereo;
-    stereo.eyeSeparation = separation;
-    ig::validateStereoOptions(stereo);
-    std::shared_ptr<const ig::NestedGround> ground;
-    if (nested) ground = std::make_shared<const ig::NestedGround>(nested->maps());
-    // The moving layer is replaced before each render; the options hold its address.
-    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime(), ground.get()));
-    ig::RenderOptions withObjects = options;
-    withObjects.objects = {scene.staticLayer.get(), moving.get()};
-    ig::RenderOptions terrainOnly = options;
-    terrainOnly.objects.clear();
-    std::shared_ptr<const ig::Caster> caster =
-        nested ? ig::makeNestedCaster(ig::CasterKind::Fast, *nested, terrainOnly)
-               : ig::makeCaster(ig::CasterKind::Fast, map, terrainOnly);
-    // Each inset's passes over the right eye's cast pixels (made once).
-    std::shared_ptr<const std::vector<ig::RenderOptions>> insetPasses;
-    if (nested) {
-        insetPasses = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
-            nested->maps(), std::vector<ig::RenderOptions>(nested->insets().size(), terrainOnly)));
-    }
-    auto objects = std::make_shared<std::vector<sim::ExtraObject>>();
-    return [caster, moving, objects, extra, &map, &motion, geometry, stereo, terrainOnly,
-            withObjects, nested, ground,
-            insetPasses](const ig::Pose& pose, double time, std::uint64_t sequence) {
-        if (extra) extra(time, *objects);
-        *moving = motion.stamp(time, *objects, ground.get());
-        const sim::RenderGeometry g = sim::viewed(geometry, sim::requestView());
-        ig::Pose level = pose;
-        level.roll = 0.0;  // the PRP applies roll
-        const ig::Pose left = sim::eyePoses(level, stereo.eyeSeparation).left;
-        const ig::Intrinsics intr = sim::renderIntrinsics(g, pose);
-        ig::RenderedFrame frame =
-            nested ? ig::renderNestedFrame(*caster, *nested, left, intr, time, sequence)
-                   : ig::renderFrame(*caster, map, left, intr, time, sequence);
-        std::vector<ig::RightPixelSource> source;
-        ig::StereoStats stats;
-        auto right = std::make_shared<ig::RenderedFrame>(
-            nested ? ig::reprojectRightEye(nested->maps(), *insetPasses, frame, stereo, terrainOnly,
-                                           source, stats, ig::nestedGlobalCaster(*caster))
-                   : ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats,
-                                           caster.get()));
-        const double objectsMs = ig::drawStereoObjects(withObjects, frame, *right);
-        right->sequence = sequence;
-        right->time = time;
-        frame.stats.renderMs += stats.rightMs + objectsMs;
-        frame.right = std::move(right);
-        return frame;
-    };
-}
-
 constexpr const char* kDefaultOut = "y4m:out/flythrough.y4m";
 constexpr const char* kDefaultContact = "out/flythrough_contact.png";
 
@@ -1149,9 +1089,9 @@ int main(int argc, char** argv) {
                       renderOptions, pagingLog,
                       scene ? sim::PagedScene{&*scene, &*motion, hostObjects} : sim::PagedScene{},
                       stereo ? stereo->separation : 0.0)
-            : stereo && scene
-                ? makeStereoSceneRenderer(map, geometry, stereo->separation, renderOptions, *scene,
-                                          *motion, hostObjects, nested ? &*nested : nullptr)
+            : stereo && scene ? sim::makeStereoSceneRenderer(
+                                    map, geometry, stereo->separation, renderOptions, *scene,
+                                    *motion, hostObjects, nested ? &*nested : nullptr)
             : stereo && nested
                 ? sim::makeStereoRenderer(*nested, geometry, stereo->separation, renderOptions)
             : stereo ? sim::makeStereoRenderer(map, geometry, stereo->separation, renderOptions)

@@ -228,4 +228,65 @@ TEST(PagedRenderer, StereoPairsAsOverTheMapInMemory) {
     EXPECT_GE(exact, 10u);
 }
 
+// Stereo pairs with a scene over the paged map: both eyes' terrain reprojected, then the
+// objects drawn over each; a pair whose tiles were all resident is the in-memory stereo scene
+// renderer's, both eyes and their object ids to the bit.
+TEST(PagedRenderer, StereoPairsWithASceneAsOverTheMapInMemory) {
+    const Database d;
+    const ig::TerrainDb db = ig::TerrainDb::open(d.path);
+    const std::string dir =
+        vig_test::testTmpPath("paged_renderer", "stereo_scene_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
+    const std::string json = R"({"cell_m": 2.5,
+        "models": {"box": {"vox": "box.vox"}},
+        "scatter": [{"model": "box", "count": 40, "area": [1900, 2150, 2100, 2450], "seed": 3,
+                     "first_id": 100, "scale": 2}]})";
+    const ig::Scene whole = ig::parseScene(json, dir + "/scene.json", d.map);
+    ig::PagedTerrain::Options small;
+    small.cache.budgetBytes = std::size_t{1} << 20;
+    ig::PagedTerrain loadMap(db, small);
+    const ig::PlacingGround placing(loadMap);
+    const ig::Scene paged = ig::parseScene(json, dir + "/scene.json", loadMap.map(), true,
+                                           ig::kMaxSceneCellVisits, &placing);
+    const sim::SceneMotion wholeMotion(whole), pagedMotion(paged);
+    const Viewing setup;
+    const double separation = 4.0;
+    auto log = std::make_shared<sim::PagingLog>();
+    sim::FrameRenderer inMemory = sim::makeStereoSceneRenderer(d.map, setup.geometry, separation,
+                                                               setup.options, whole, wholeMotion);
+    sim::FrameRenderer pagedRenderer = sim::makePagedRenderer(
+        db, setup.paging, setup.geometry, ig::CasterKind::Fast, setup.options, log,
+        sim::PagedScene{&paged, &pagedMotion, {}}, separation);
+    std::size_t exact = 0, objectPixels[2] = {0, 0};
+    for (int i = 0; i < 30; ++i) {
+        const double t = i / 10.0;
+        ig::Pose pose;
+        pose.position = {2000.0, 2050.0 + 8.0 * i, 0.0};
+        pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 40.0;
+        pose.pitch = -0.2;
+        const ig::RenderedFrame a = pagedRenderer(pose, t, static_cast<std::uint64_t>(i));
+        ASSERT_TRUE(a.right) << "a pair";
+        if (log->frames.back().substituted != 0) continue;
+        const ig::RenderedFrame b = inMemory(pose, t, static_cast<std::uint64_t>(i));
+        ASSERT_TRUE(b.right);
+        EXPECT_TRUE(sameFrame(a, b) && a.objectId == b.objectId) << "left eye, frame " << i;
+        EXPECT_TRUE(sameFrame(*a.right, *b.right) && a.right->objectId == b.right->objectId)
+            << "right eye, frame " << i;
+        ++exact;
+        for (const std::uint16_t id : a.objectId)
+            objectPixels[0] += id != 0;
+        for (const std::uint16_t id : a.right->objectId)
+            objectPixels[1] += id != 0;
+    }
+    std::printf(
+        "stereo scene: %zu of 30 pairs with every tile resident, %zu and %zu object "
+        "pixels\n",
+        exact, objectPixels[0], objectPixels[1]);
+    EXPECT_GE(exact, 10u);
+    EXPECT_GT(objectPixels[0], 500u) << "the objects are in view";
+    EXPECT_GT(objectPixels[1], 500u) << "the objects are in the right eye too";
+    std::filesystem::remove_all(dir);
+}
+
 }  // namespace
