@@ -119,19 +119,48 @@ TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
     }
 }
 
+// A scene of boxes (`json`, its box model and `drive.csv` written to a folder of the test's own)
+// loaded over the map in memory and over the paged map: the grid of a paged map with nothing
+// placed, the heights from a ground that places the tile under each point it is asked about.
+struct SceneTwins {
+    static std::string writeFiles(const std::string& name) {
+        const std::string dir =
+            vig_test::testTmpPath("paged_renderer", name + "_" + std::to_string(::getpid()));
+        std::filesystem::create_directories(dir);
+        vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
+        std::ofstream(dir + "/drive.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
+                                             "0,2100,2250,0,0,0,0\n"
+                                             "10,2100,2450,0,0,0,0\n";
+        return dir;
+    }
+    static ig::PagedTerrain::Options small() {
+        ig::PagedTerrain::Options o;
+        o.cache.budgetBytes = std::size_t{1} << 20;
+        return o;
+    }
+    SceneTwins(const Database& d, const ig::TerrainDb& db, const std::string& name,
+               const std::string& json)
+        : dir(writeFiles(name)),
+          whole(ig::parseScene(json, dir + "/scene.json", d.map)),
+          loadMap(db, small()),
+          placing(loadMap),
+          paged(ig::parseScene(json, dir + "/scene.json", loadMap.map(), true,
+                               ig::kMaxSceneCellVisits, &placing)) {}
+    ~SceneTwins() { std::filesystem::remove_all(dir); }
+
+    std::string dir;
+    ig::Scene whole;
+    ig::PagedTerrain loadMap;
+    ig::PlacingGround placing;
+    ig::Scene paged;
+};
+
 // A scene over the paged map: its placements stand on the database's ground (read tile by tile
 // at load), the moving box on the renderer's own ground that follows the eye; frames with every
 // tile resident equal the in-memory scene renderer's, object ids included.
 TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
     const Database d;
     const ig::TerrainDb db = ig::TerrainDb::open(d.path);
-    const std::string dir =
-        vig_test::testTmpPath("paged_renderer", "scene_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
-    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
-    std::ofstream(dir + "/drive.csv") << "t,x,y,z,yaw_deg,pitch_deg,roll_deg\n"
-                                         "0,2100,2250,0,0,0,0\n"
-                                         "10,2100,2450,0,0,0,0\n";
     const std::string json = R"({"cell_m": 2.5,
         "models": {"box": {"vox": "box.vox"}},
         "objects": [{"id": 1, "model": "box", "x": 1985, "y": 2200, "heading": 20, "scale": 4},
@@ -139,15 +168,9 @@ TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
                     {"id": 5, "model": "box", "trajectory": "drive.csv", "scale": 4}],
         "scatter": [{"model": "box", "count": 30, "area": [1900, 2150, 2050, 2450], "seed": 3,
                      "first_id": 100, "scale": 2}]})";
-    const ig::Scene whole = ig::parseScene(json, dir + "/scene.json", d.map);
-    // The paged scene: the grid of a paged map with nothing placed, the heights from a ground
-    // that places the tile under each point it is asked about.
-    ig::PagedTerrain::Options small;
-    small.cache.budgetBytes = std::size_t{1} << 20;
-    ig::PagedTerrain loadMap(db, small);
-    const ig::PlacingGround placing(loadMap);
-    const ig::Scene paged = ig::parseScene(json, dir + "/scene.json", loadMap.map(), true,
-                                           ig::kMaxSceneCellVisits, &placing);
+    const SceneTwins twins(d, db, "scene", json);
+    const ig::Scene& whole = twins.whole;
+    const ig::Scene& paged = twins.paged;
     ASSERT_EQ(paged.staticLayer->objects().size(), whole.staticLayer->objects().size());
     for (std::size_t i = 0; i < whole.staticLayer->objects().size(); ++i) {
         const ig::PlacedObject& a = whole.staticLayer->objects()[i];
@@ -190,7 +213,6 @@ TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
                 objectPixels);
     EXPECT_GE(exact, 20u);
     EXPECT_GT(objectPixels, 1000u) << "the objects are in view";
-    std::filesystem::remove_all(dir);
 }
 
 // Stereo pairs over the paged map: the left eye cast, the right reprojected from it with its
@@ -234,30 +256,20 @@ TEST(PagedRenderer, StereoPairsAsOverTheMapInMemory) {
 TEST(PagedRenderer, StereoPairsWithASceneAsOverTheMapInMemory) {
     const Database d;
     const ig::TerrainDb db = ig::TerrainDb::open(d.path);
-    const std::string dir =
-        vig_test::testTmpPath("paged_renderer", "stereo_scene_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
-    vig_test::writeBoxVox(dir + "/box.vox", 4, 2, 3);
     const std::string json = R"({"cell_m": 2.5,
         "models": {"box": {"vox": "box.vox"}},
         "scatter": [{"model": "box", "count": 40, "area": [1900, 2150, 2100, 2450], "seed": 3,
                      "first_id": 100, "scale": 2}]})";
-    const ig::Scene whole = ig::parseScene(json, dir + "/scene.json", d.map);
-    ig::PagedTerrain::Options small;
-    small.cache.budgetBytes = std::size_t{1} << 20;
-    ig::PagedTerrain loadMap(db, small);
-    const ig::PlacingGround placing(loadMap);
-    const ig::Scene paged = ig::parseScene(json, dir + "/scene.json", loadMap.map(), true,
-                                           ig::kMaxSceneCellVisits, &placing);
-    const sim::SceneMotion wholeMotion(whole), pagedMotion(paged);
+    const SceneTwins twins(d, db, "stereo_scene", json);
+    const sim::SceneMotion wholeMotion(twins.whole), pagedMotion(twins.paged);
     const Viewing setup;
     const double separation = 4.0;
     auto log = std::make_shared<sim::PagingLog>();
-    sim::FrameRenderer inMemory = sim::makeStereoSceneRenderer(d.map, setup.geometry, separation,
-                                                               setup.options, whole, wholeMotion);
+    sim::FrameRenderer inMemory = sim::makeStereoSceneRenderer(
+        d.map, setup.geometry, separation, setup.options, twins.whole, wholeMotion);
     sim::FrameRenderer pagedRenderer = sim::makePagedRenderer(
         db, setup.paging, setup.geometry, ig::CasterKind::Fast, setup.options, log,
-        sim::PagedScene{&paged, &pagedMotion, {}}, separation);
+        sim::PagedScene{&twins.paged, &pagedMotion, {}}, separation);
     std::size_t exact = 0, objectPixels[2] = {0, 0};
     for (int i = 0; i < 30; ++i) {
         const double t = i / 10.0;
@@ -286,7 +298,6 @@ TEST(PagedRenderer, StereoPairsWithASceneAsOverTheMapInMemory) {
     EXPECT_GE(exact, 10u);
     EXPECT_GT(objectPixels[0], 500u) << "the objects are in view";
     EXPECT_GT(objectPixels[1], 500u) << "the objects are in the right eye too";
-    std::filesystem::remove_all(dir);
 }
 
 }  // namespace
