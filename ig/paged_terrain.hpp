@@ -75,6 +75,8 @@ class PagedTerrain {
 
     // The map the casters read (level 0 of the database, resident where a frame needed it).
     const TerrainMap& map() const { return map_; }
+    // The database's tile size, samples a side.
+    int tileSize() const { return db_.layout().tileSize(); }
     // The fast caster's pyramid over map() and the database's slope bounds (null unless
     // Options::pyramid): for RenderOptions::pyramid and ::slopes.
     std::shared_ptr<const TerrainPyramid> pyramid() const { return pyramid_; }

@@ -51,115 +51,96 @@ EyePoses eyePoses(const ig::Pose& head, double separation) {
     return e;
 }
 
-FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
-                                 double separation, const ig::RenderOptions& options) {
-    ig::StereoOptions stereo;
-    stereo.eyeSeparation = separation;
-    ig::validateStereoOptions(stereo);
-    std::shared_ptr<const ig::Caster> caster = ig::makeCaster(ig::CasterKind::Fast, map, options);
-    return [caster, &map, geometry, stereo, options](const ig::Pose& pose, double time,
-                                                     std::uint64_t sequence) {
-        const RenderGeometry g = viewed(geometry, requestView());
-        ig::Pose level = pose;
-        level.roll = 0.0;  // the PRP applies roll
-        const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
-        ig::RenderedFrame frame =
-            ig::renderFrame(*caster, map, left, renderIntrinsics(g, pose), time, sequence);
-        std::vector<ig::RightPixelSource> source;
-        ig::StereoStats stats;
-        auto right = std::make_shared<ig::RenderedFrame>(
-            ig::reprojectRightEye(map, frame, stereo, options, source, stats, caster.get()));
-        right->sequence = sequence;
-        right->time = time;
-        frame.stats.renderMs += stats.rightMs;
-        frame.right = std::move(right);
-        return frame;
-    };
-}
+namespace {
 
-FrameRenderer makeStereoRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
-                                 double separation, const ig::RenderOptions& options) {
+// The stereo renderers' one body: the left eye by the fast caster over `map` (or the nested
+// caster over `nested`), the right eye reprojected from it with its gaps cast; with `scene`,
+// the terrain alone is cast and reprojected and the objects (the moving ones and `extra`'s
+// stamped at the frame's instant, standing on the nested surface over insets) are drawn over
+// both eyes afterwards.
+FrameRenderer stereoRenderer(const ig::TerrainMap& map, const ig::NestedTerrain* nested,
+                             const RenderGeometry& geometry, double separation,
+                             const ig::RenderOptions& options, const ig::Scene* scene,
+                             const SceneMotion* motion, ExtraObjects extra) {
     ig::StereoOptions stereo;
     stereo.eyeSeparation = separation;
     ig::validateStereoOptions(stereo);
-    std::shared_ptr<const ig::Caster> caster =
-        ig::makeNestedCaster(ig::CasterKind::Fast, terrain, options);
-    // Each inset's passes over the right eye's cast pixels (its normals made once).
-    auto insetOptions = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
-        terrain.maps(), std::vector<ig::RenderOptions>(terrain.insets().size(), options)));
-    return [caster, insetOptions, &terrain, geometry, stereo, options](
-               const ig::Pose& pose, double time, std::uint64_t sequence) {
-        const RenderGeometry g = viewed(geometry, requestView());
-        ig::Pose level = pose;
-        level.roll = 0.0;  // the PRP applies roll
-        const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
-        ig::RenderedFrame frame = ig::renderNestedFrame(*caster, terrain, left,
-                                                        renderIntrinsics(g, pose), time, sequence);
-        std::vector<ig::RightPixelSource> source;
-        ig::StereoStats stats;
-        auto right = std::make_shared<ig::RenderedFrame>(
-            ig::reprojectRightEye(terrain.maps(), *insetOptions, frame, stereo, options, source,
-                                  stats, ig::nestedGlobalCaster(*caster)));
-        right->sequence = sequence;
-        right->time = time;
-        frame.stats.renderMs += stats.rightMs;
-        frame.right = std::move(right);
-        return frame;
-    };
-}
-
-FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
-                                      double separation, const ig::RenderOptions& options,
-                                      const ig::Scene& scene, const SceneMotion& motion,
-                                      ExtraObjects extra, const ig::NestedTerrain* nested) {
-    ig::StereoOptions stereo;
-    stereo.eyeSeparation = separation;
-    ig::validateStereoOptions(stereo);
+    // Over insets: their maps, the ground the moving objects stand on, and each inset's passes
+    // over the right eye's cast pixels (made once).
+    std::shared_ptr<const ig::NestedMaps> maps;
     std::shared_ptr<const ig::NestedGround> ground;
-    if (nested) ground = std::make_shared<const ig::NestedGround>(nested->maps());
-    // The moving layer is replaced before each render; the options hold its address.
-    auto moving = std::make_shared<ig::ObjectLayer>(motion.stamp(motion.startTime(), ground.get()));
-    ig::RenderOptions withObjects = options;
-    withObjects.objects = {scene.staticLayer.get(), moving.get()};
     ig::RenderOptions terrainOnly = options;
-    terrainOnly.objects.clear();
+    if (scene) terrainOnly.objects.clear();
+    std::shared_ptr<const std::vector<ig::RenderOptions>> insetPasses;
+    if (nested) {
+        maps = std::make_shared<const ig::NestedMaps>(nested->maps());
+        ground = std::make_shared<const ig::NestedGround>(*maps);
+        insetPasses = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
+            *maps, std::vector<ig::RenderOptions>(maps->insets.size(), terrainOnly)));
+    }
+    // The moving layer is replaced before each render; the options hold its address.
+    std::shared_ptr<ig::ObjectLayer> moving;
+    ig::RenderOptions withObjects;
+    if (scene) {
+        moving =
+            std::make_shared<ig::ObjectLayer>(motion->stamp(motion->startTime(), ground.get()));
+        withObjects = options;
+        withObjects.objects = {scene->staticLayer.get(), moving.get()};
+    }
     std::shared_ptr<const ig::Caster> caster =
         nested ? ig::makeNestedCaster(ig::CasterKind::Fast, *nested, terrainOnly)
                : ig::makeCaster(ig::CasterKind::Fast, map, terrainOnly);
-    // Each inset's passes over the right eye's cast pixels (made once).
-    std::shared_ptr<const std::vector<ig::RenderOptions>> insetPasses;
-    if (nested) {
-        insetPasses = std::make_shared<const std::vector<ig::RenderOptions>>(ig::insetPassOptions(
-            nested->maps(), std::vector<ig::RenderOptions>(nested->insets().size(), terrainOnly)));
-    }
     auto objects = std::make_shared<std::vector<ExtraObject>>();
-    return [caster, moving, objects, extra, &map, &motion, geometry, stereo, terrainOnly,
-            withObjects, nested, ground,
+    return [caster, moving, objects, extra, &map, motion, geometry, stereo, terrainOnly,
+            withObjects, maps, ground,
             insetPasses](const ig::Pose& pose, double time, std::uint64_t sequence) {
-        if (extra) extra(time, *objects);
-        *moving = motion.stamp(time, *objects, ground.get());
-        const sim::RenderGeometry g = viewed(geometry, requestView());
+        if (moving) {
+            if (extra) extra(time, *objects);
+            *moving = motion->stamp(time, *objects, ground.get());
+        }
+        const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
         const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
         const ig::Intrinsics intr = renderIntrinsics(g, pose);
         ig::RenderedFrame frame =
-            nested ? ig::renderNestedFrame(*caster, *nested, left, intr, time, sequence)
-                   : ig::renderFrame(*caster, map, left, intr, time, sequence);
+            maps ? ig::renderNestedFrame(*caster, *maps, left, intr, time, sequence)
+                 : ig::renderFrame(*caster, map, left, intr, time, sequence);
         std::vector<ig::RightPixelSource> source;
         ig::StereoStats stats;
         auto right = std::make_shared<ig::RenderedFrame>(
-            nested ? ig::reprojectRightEye(nested->maps(), *insetPasses, frame, stereo, terrainOnly,
-                                           source, stats, ig::nestedGlobalCaster(*caster))
-                   : ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats,
-                                           caster.get()));
-        const double objectsMs = ig::drawStereoObjects(withObjects, frame, *right);
+            maps ? ig::reprojectRightEye(*maps, *insetPasses, frame, stereo, terrainOnly, source,
+                                         stats, ig::nestedGlobalCaster(*caster))
+                 : ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats,
+                                         caster.get()));
+        const double objectsMs = moving ? ig::drawStereoObjects(withObjects, frame, *right) : 0.0;
         right->sequence = sequence;
         right->time = time;
         frame.stats.renderMs += stats.rightMs + objectsMs;
         frame.right = std::move(right);
         return frame;
     };
+}
+
+}  // namespace
+
+FrameRenderer makeStereoRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                 double separation, const ig::RenderOptions& options) {
+    return stereoRenderer(map, nullptr, geometry, separation, options, nullptr, nullptr, {});
+}
+
+FrameRenderer makeStereoRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
+                                 double separation, const ig::RenderOptions& options) {
+    return stereoRenderer(terrain.global(), &terrain, geometry, separation, options, nullptr,
+                          nullptr, {});
+}
+
+FrameRenderer makeStereoSceneRenderer(const ig::TerrainMap& map, const RenderGeometry& geometry,
+                                      double separation, const ig::RenderOptions& options,
+                                      const ig::Scene& scene, const SceneMotion& motion,
+                                      ExtraObjects extra, const ig::NestedTerrain* nested) {
+    return stereoRenderer(map, nested, geometry, separation, options, &scene, &motion,
+                          std::move(extra));
 }
 
 namespace {

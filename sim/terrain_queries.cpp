@@ -98,11 +98,10 @@ PagedTerrainQueries::PagedTerrainQueries(const ig::TerrainDb& db, const Options&
         return std::max<std::size_t>(1, share / 2 / tileBytes);
     };
     maxTilesPerBatch_.push_back(perPlacement(n > 0 ? options.budgetBytes / 2 : options.budgetBytes,
-                                             db.layout().tileSize()));
-    for (std::size_t k = 0; k < n; ++k) {
+                                             paged_.global().tileSize()));
+    for (std::size_t k = 0; k < n; ++k)
         maxTilesPerBatch_.push_back(
-            perPlacement(options.budgetBytes / 2 / n, db.openInset(k).layout().tileSize()));
-    }
+            perPlacement(options.budgetBytes / 2 / n, paged_.inset(k).tileSize()));
     const std::size_t outstanding = std::max<std::size_t>(options.maxOutstanding, 1);
     options_.maxOutstanding = outstanding;
     asked_.reserve(outstanding);
