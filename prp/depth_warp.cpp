@@ -72,10 +72,29 @@ DepthProjection DepthProjection::of(const ig::RenderedFrame& frame, const ig::Po
     const double k = geometry.zoom();
     p.kx = static_cast<float>(fieldFocal * sx);
     p.ky = static_cast<float>(fieldFocal * sy);
-    p.invSx = static_cast<float>(k / sx);
-    p.invSy = static_cast<float>(k / sy);
+    p.j[0] = static_cast<float>(k / sx);
+    p.j[3] = static_cast<float>(k / sy);
     p.outWidth = geometry.width;
     p.outHeight = geometry.height;
+    return p;
+}
+
+DepthProjection DepthProjection::withJacobian(const Quadratic& q) const {
+    // Q(X, Y) = c0 + c1 X + c2 Y + c3 X Y + c4 X^2 + c5 Y^2, at the output's centre.
+    const double x = 0.5 * outWidth, y = 0.5 * outHeight;
+    const auto dX = [&](const std::array<double, 6>& c) {
+        return c[1] + c[3] * y + 2.0 * c[4] * x;
+    };
+    const auto dY = [&](const std::array<double, 6>& c) {
+        return c[2] + c[3] * x + 2.0 * c[5] * y;
+    };
+    const double m[4] = {dX(q.a), dY(q.a), dX(q.b), dY(q.b)};
+    DepthProjection p = *this;
+    for (const double v : m) {
+        if (!(std::abs(v) <= kMaxJacobian)) return p;
+    }
+    for (int i = 0; i < 4; ++i)
+        p.j[i] = static_cast<float>(m[i]);
     return p;
 }
 
@@ -119,8 +138,11 @@ void projectRowScalar(const DepthProjection& p, const float* depth, int begin, i
         const std::int32_t iy = inside ? static_cast<std::int32_t>(line) : 0;
         out.index[x] = inside ? iy * p.outWidth + ix : -1;
         out.zInv[x] = terrain ? zInv : kSkyInverseDepth;
-        out.sx[x] = (static_cast<float>(x) + 0.5f) + (static_cast<float>(ix) + 0.5f - qx) * p.invSx;
-        out.sy[x] = yc + (static_cast<float>(2 * iy + firstLine) + 0.5f - qy) * p.invSy;
+        // From the landing point to its output pixel's centre, taken back to the frame.
+        const float dx = static_cast<float>(ix) + 0.5f - qx;
+        const float dy = static_cast<float>(2 * iy + firstLine) + 0.5f - qy;
+        out.sx[x] = (static_cast<float>(x) + 0.5f) + (p.j[0] * dx + p.j[1] * dy);
+        out.sy[x] = yc + (p.j[2] * dx + p.j[3] * dy);
     }
 }
 
@@ -312,10 +334,12 @@ void DepthWarp::splatRows(const DepthProjection& proj, const ig::RenderedFrame& 
 std::uint64_t DepthWarp::fillHoles(const DepthProjection& proj, const Quadratic& holeWarp,
                                    const FieldView& field, int l0, int l1, int c0, int c1) {
     // Holes: the farther of the line's two neighbours that has a point of its own (background
-    // first) shifted by one output pixel, else the quadratic's point. Filled in place: a hole's
-    // neighbours are read only where the z-buffer says they have their own point.
+    // first) moved by one output pixel (taken back to the frame by the Jacobian), else the
+    // quadratic's point. Filled in place: a hole's neighbours are read only where the z-buffer
+    // says they have their own point.
     std::uint64_t holes = 0;
-    const std::int32_t shift = static_cast<std::int32_t>(static_cast<double>(proj.invSx) * 0x1p16);
+    const std::int32_t shiftX = static_cast<std::int32_t>(static_cast<double>(proj.j[0]) * 0x1p16);
+    const std::int32_t shiftY = static_cast<std::int32_t>(static_cast<double>(proj.j[2]) * 0x1p16);
     // The quadratic's 32.32 points (bounded by kMaxSourceCoordinate = 2^20) to 16.16: the
     // same 8-bit weights; beyond 16.16's range they are outside the frame either way.
     constexpr std::int64_t kPointLimit = std::int64_t{1} << 46;
@@ -339,11 +363,11 @@ std::uint64_t DepthWarp::fillHoles(const DepthProjection& proj, const Quadratic&
             const float left = k > c0 ? z[k - 1] : kNoPoint;
             const float right = k + 1 < c1 ? z[k + 1] : kNoPoint;
             if (left != kNoPoint && (right == kNoPoint || left <= right)) {
-                lx[k] = lx[k - 1] + shift;
-                ly[k] = ly[k - 1];
+                lx[k] = lx[k - 1] + shiftX;
+                ly[k] = ly[k - 1] + shiftY;
             } else if (right != kNoPoint) {
-                lx[k] = lx[k + 1] - shift;
-                ly[k] = ly[k + 1];
+                lx[k] = lx[k + 1] - shiftX;
+                ly[k] = ly[k + 1] - shiftY;
             } else {
                 lx[k] = toPoint(q.x);
                 ly[k] = toPoint(q.y);
@@ -456,7 +480,8 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
         rowSx_.resize(rowIndex_.size());
         rowSy_.resize(rowIndex_.size());
     }
-    const DepthProjection proj = DepthProjection::of(frame, fieldPose, geometry);
+    const DepthProjection proj =
+        DepthProjection::of(frame, fieldPose, geometry).withJacobian(holeWarp);
     const bool avx2 = useAvx2(kernel);
     DepthWarpResult result;
     const bool deadline = giveUpAt != std::chrono::steady_clock::time_point::max();

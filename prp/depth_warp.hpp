@@ -41,11 +41,20 @@ struct DepthProjection {
     float m[9]{};  // row-major: rows are the field camera's right, up, forward in source axes
     float t[3]{};  // source eye minus field eye, in the field camera's axes
     float ox = 0, oy = 0, kx = 0, ky = 0;
-    float invSx = 1, invSy = 1;  // rendered pixels per output pixel (zoom included)
+    // Rendered pixels per output pixel as a matrix (d source / d output, row-major: jxx, jxy,
+    // jyx, jyy), taking a landing point's offset from its output pixel's centre back to the
+    // frame: the output scaling, zoom included (of()), or the quadratic's Jacobian (withJacobian():
+    // the field's rotation, roll and magnification too).
+    float j[4]{1, 0, 0, 1};
     int outWidth = 0, outHeight = 0;
 
     static DepthProjection of(const ig::RenderedFrame& frame, const ig::Pose& fieldPose,
                               const OutputGeometry& geometry);
+    // The same with j the Jacobian of `q` (output pixels to rendered pixels, as the quadratic
+    // warp maps them) at the output's centre; unchanged where that is not finite or beyond
+    // kMaxJacobian.
+    DepthProjection withJacobian(const Quadratic& q) const;
+    static constexpr double kMaxJacobian = 64.0;
 };
 
 // Depth of sky splats in the double-precision reference: behind every terrain point.
@@ -123,7 +132,9 @@ int gatherLineAvx2(const DepthProjection& p, const GatherLine& line, const float
 struct DepthWarpResult {
     std::uint64_t edgeSamples = 0;  // samples outside the rendered frame (edge repeated)
     std::uint64_t lumaSum = 0;
-    std::uint64_t holes = 0;        // output pixels no rendered pixel landed on (quadratic used)
+    // Output pixels no rendered pixel landed on (a line neighbour's point moved by a pixel, else
+    // the quadratic's).
+    std::uint64_t holes = 0;
     std::uint64_t unsettled = 0;    // gather: pixels whose steps did not settle
     std::uint64_t splatPixels = 0;  // output pixels made by the splat (tiles, or the whole field)
     // The clock passed apply()'s `giveUpAt` first: nothing of the field is written (the points
@@ -137,11 +148,12 @@ class DepthWarp {
     // Splat: every rendered pixel of `frame` (colour `color`, which may be a filtered copy) is
     // projected into the lines of `field` by the field pose (roll included), nearest output
     // pixel, nearer points winning; each output pixel then samples bilinearly at the source
-    // point that lands on its centre, and an output pixel no source pixel reached samples at
-    // `holeWarp`'s point. Gather: each output pixel's source point by gather steps from
-    // `holeWarp`'s point; tiles of kGatherTileWidth x kGatherTileLines with a pixel that did not
-    // settle are splatted (only the rendered pixels near theirs), the whole field when more than
-    // kGatherMaxSplatShare of the tiles have one. The clock is looked at every kCheckRows
+    // point that lands on its centre (to first order, by `holeWarp`'s Jacobian), and an output
+    // pixel no source pixel reached at the farther of its line neighbours' points moved by a
+    // pixel, else at `holeWarp`'s point. Gather: each output pixel's source point by gather steps
+    // from `holeWarp`'s point; tiles of kGatherTileWidth x kGatherTileLines with a pixel that did
+    // not settle are splatted (only the rendered pixels near theirs), the whole field when more
+    // than kGatherMaxSplatShare of the tiles have one. The clock is looked at every kCheckRows
     // rendered rows (or field lines) before the field is written: past `giveUpAt` the warp is
     // abandoned (DepthWarpResult::abandoned), the field left as it was.
     DepthWarpResult apply(const ig::RenderedFrame& frame, const ig::Rgb8* color,

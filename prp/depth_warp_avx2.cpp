@@ -41,7 +41,8 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
     const __m256 sky = _mm256_set1_ps(kSkyInverseDepth), far = _mm256_set1_ps(1e6f);
     const __m256 ox = _mm256_set1_ps(p.ox), oy = _mm256_set1_ps(p.oy), kx = _mm256_set1_ps(p.kx),
                  ky = _mm256_set1_ps(p.ky);
-    const __m256 invSx = _mm256_set1_ps(p.invSx), invSy = _mm256_set1_ps(p.invSy);
+    const __m256 j0 = _mm256_set1_ps(p.j[0]), j1 = _mm256_set1_ps(p.j[1]),
+                 j2 = _mm256_set1_ps(p.j[2]), j3 = _mm256_set1_ps(p.j[3]);
     const __m256 ow = _mm256_set1_ps(static_cast<float>(p.outWidth));
     const __m256i vOutW = _mm256_set1_epi32(p.outWidth);
     const __m256i vParity = _mm256_set1_epi32(firstLine);
@@ -89,13 +90,13 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
         _mm256_storeu_ps(out.zInv + x, _mm256_blendv_ps(sky, zInv, terrain));
         const __m256 fx = _mm256_cvtepi32_ps(ix);
         const __m256 fy = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_slli_epi32(iy, 1), vParity));
+        const __m256 dx = _mm256_sub_ps(_mm256_add_ps(fx, half), qx);
+        const __m256 dy = _mm256_sub_ps(_mm256_add_ps(fy, half), qy);
         _mm256_storeu_ps(
-            out.sx + x,
-            _mm256_add_ps(_mm256_add_ps(xf, half),
-                          _mm256_mul_ps(_mm256_sub_ps(_mm256_add_ps(fx, half), qx), invSx)));
-        _mm256_storeu_ps(
-            out.sy + x,
-            _mm256_add_ps(vYc, _mm256_mul_ps(_mm256_sub_ps(_mm256_add_ps(fy, half), qy), invSy)));
+            out.sx + x, _mm256_add_ps(_mm256_add_ps(xf, half),
+                                      _mm256_add_ps(_mm256_mul_ps(j0, dx), _mm256_mul_ps(j1, dy))));
+        _mm256_storeu_ps(out.sy + x, _mm256_add_ps(vYc, _mm256_add_ps(_mm256_mul_ps(j2, dx),
+                                                                      _mm256_mul_ps(j3, dy))));
     }
     // The last (end - begin) % 8 pixels: the scalar code.
     projectRowScalar(p, depth, x, end, y, firstLine, out);

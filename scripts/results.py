@@ -735,7 +735,8 @@ def depth_warp(p):
     q = [x * 1e9 for x in gbench_runs(doc, poly, "ns_per_px")]
     load = p.loads.get("depth_warp_bench")
     p.row("Depth warp of one 720×243 field (float splat of the 816×582 frame with a z-test, "
-          "AVX2 projection, holes from the quadratic; fit included), UYVY, 1 thread",
+          "AVX2 projection, points moved to their pixel centres by the quadratic's Jacobian; "
+          "fit included), UYVY, 1 thread",
           "≤ 10 ns/px", f"{spread(d, 1, ' ns/px')}; the quadratic with its fit "
           f"{spread(q, 2, ' ns/px')} ({spread(ratios(d, q), 1, '×')})",
           status(statistics.median(d) <= 10.0), cmd)
