@@ -100,12 +100,25 @@ DepthProjection DepthProjection::withJacobian(const Quadratic& q) const {
 
 namespace detail {
 
-// The operations and their order are the AVX2 kernel's, lane for lane (this file and that one
+// The operations and their order are the AVX2 kernels', lane for lane (this file and that one
 // are compiled without floating-point contraction).
-void projectRowScalar(const DepthProjection& p, const float* depth, int begin, int end, int y,
-                      int firstLine, const ProjectedRow& out) {
+void scaleDepthRowScalar(const DepthProjection& p, const float* depth, int begin, int end, int y,
+                         float* scaled) {
     const float b = p.cy - (static_cast<float>(y) + 0.5f);
     const float bbff = b * b + p.f * p.f;
+    const float aOff = 0.5f - p.cx;
+    for (int x = begin; x < end; ++x) {
+        const float d = depth[x];
+        const float a = static_cast<float>(x) + aOff;
+        const float len = std::sqrt(a * a + bbff);
+        const bool terrain = d < kInf && d > -kInf;
+        scaled[x] = (terrain ? d : 1.0f) / len;
+    }
+}
+
+void projectRowScalar(const DepthProjection& p, const float* depth, const float* scaled, int begin,
+                      int end, int y, int firstLine, const ProjectedRow& out) {
+    const float b = p.cy - (static_cast<float>(y) + 0.5f);
     const float rowR = p.m[1] * b + p.m[2] * p.f;
     const float rowU = p.m[4] * b + p.m[5] * p.f;
     const float rowW = p.m[7] * b + p.m[8] * p.f;
@@ -117,19 +130,18 @@ void projectRowScalar(const DepthProjection& p, const float* depth, int begin, i
     for (int x = begin; x < end; ++x) {
         const float d = depth[x];
         const float a = static_cast<float>(x) + aOff;
-        const float len = std::sqrt(a * a + bbff);
         const bool terrain = d < kInf && d > -kInf;
         const bool sky = d == kInf;
-        // The point is (d / len) (a, b, f) in the source camera (a direction for sky); scaled
-        // by len / d it needs one division for both coordinates and, times len, the depth.
-        const float dd = terrain ? d : 1.0f;
-        const float r = dd * (p.m[0] * a + rowR) + (terrain ? p.t[0] * len : 0.0f);
-        const float u = dd * (p.m[3] * a + rowU) + (terrain ? p.t[1] * len : 0.0f);
-        const float wl = dd * (p.m[6] * a + rowW) + (terrain ? p.t[2] * len : 0.0f);
-        const float inv = 1.0f / wl;
-        const float zInv = len * inv;  // 1 / depth along the field camera's axis
-        const float qx = p.ox + p.kx * (r * inv);
-        const float qy = p.oy - p.ky * (u * inv);
+        // The point is s (a, b, f) in the source camera (sky: the unit direction); in the field
+        // camera M s (a, b, f) + t (no translation for a direction): one division gives both
+        // coordinates and the inverse depth along the field camera's axis.
+        const float sc = scaled[x];
+        const float r = sc * (p.m[0] * a + rowR) + (terrain ? p.t[0] : 0.0f);
+        const float u = sc * (p.m[3] * a + rowU) + (terrain ? p.t[1] : 0.0f);
+        const float w = sc * (p.m[6] * a + rowW) + (terrain ? p.t[2] : 0.0f);
+        const float zInv = 1.0f / w;
+        const float qx = p.ox + p.kx * (r * zInv);
+        const float qy = p.oy - p.ky * (u * zInv);
         // The field line whose centre is nearest: each line stands for two output rows.
         const float line = (qy - lineOff) * 0.5f;
         const bool inside = (terrain || sky) && zInv > 0.0f && zInv < 1e6f && qx >= 0.0f &&
@@ -269,6 +281,9 @@ void DepthWarp::reserve(int frameWidth, int frameHeight, std::size_t fieldPixels
     rowZInv_.resize(rowLength);
     rowSx_.resize(rowLength);
     rowSy_.resize(rowLength);
+    // The scaled depths of a frame as wide and as tall as this one's diagonal, and room for
+    // frames widened further for roll (up to sqrt(2) times that diagonal) without allocating.
+    if (row * row > scaled_.capacity()) scaled_.reserve(2 * row * row);
     if (depth_.size() < fieldPixels) {
         depth_.resize(fieldPixels);
         pointX_.resize(fieldPixels);
@@ -292,6 +307,37 @@ bool DepthWarp::useAvx2(DepthKernel kernel) const {
 #endif
 }
 
+const float* DepthWarp::scaledDepth(const ig::RenderedFrame& frame, const DepthProjection& p,
+                                    bool avx2) {
+    const int w = frame.width(), h = frame.height();
+    if (scaledFrom_ == frame.depth.data() && scaledSequence_ == frame.sequence &&
+        scaledWidth_ == w && scaledHeight_ == h && scaledCx_ == p.cx && scaledCy_ == p.cy &&
+        scaledF_ == p.f) {
+        return scaled_.data();
+    }
+    scaled_.resize(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    for (int y = 0; y < h; ++y) {
+        const std::size_t at = static_cast<std::size_t>(y) * w;
+#if VIG_PRP_HAVE_AVX2
+        if (avx2) {
+            scaleDepthRowAvx2(p, frame.depth.data() + at, 0, w, y, scaled_.data() + at);
+            continue;
+        }
+#else
+        (void)avx2;
+#endif
+        scaleDepthRowScalar(p, frame.depth.data() + at, 0, w, y, scaled_.data() + at);
+    }
+    scaledFrom_ = frame.depth.data();
+    scaledSequence_ = frame.sequence;
+    scaledWidth_ = w;
+    scaledHeight_ = h;
+    scaledCx_ = p.cx;
+    scaledCy_ = p.cy;
+    scaledF_ = p.f;
+    return scaled_.data();
+}
+
 void DepthWarp::splatRows(const DepthProjection& proj, const ig::RenderedFrame& frame,
                           int firstLine, int fieldWidth, int y0, int y1, int x0, int x1, bool clip,
                           int l0, int l1, int c0, int c1, bool avx2) {
@@ -300,17 +346,19 @@ void DepthWarp::splatRows(const DepthProjection& proj, const ig::RenderedFrame& 
     float* __restrict zBuf = depth_.data();
     std::int32_t* __restrict px = pointX_.data();
     std::int32_t* __restrict py = pointY_.data();
+    const float* scaled = scaledDepth(frame, proj, avx2);
     for (int y = y0; y < y1; ++y) {
-        const float* d = frame.depth.data() + static_cast<std::size_t>(y) * w;
+        const std::size_t at = static_cast<std::size_t>(y) * w;
+        const float* d = frame.depth.data() + at;
 #if VIG_PRP_HAVE_AVX2
         if (avx2) {
-            projectRowAvx2(proj, d, x0, x1, y, firstLine, row);
+            projectRowAvx2(proj, d, scaled + at, x0, x1, y, firstLine, row);
         } else {
-            projectRowScalar(proj, d, x0, x1, y, firstLine, row);
+            projectRowScalar(proj, d, scaled + at, x0, x1, y, firstLine, row);
         }
 #else
         (void)avx2;
-        projectRowScalar(proj, d, x0, x1, y, firstLine, row);
+        projectRowScalar(proj, d, scaled + at, x0, x1, y, firstLine, row);
 #endif
         // The z-test on inverse depths, in scan order (a tie keeps the first). Points become
         // the given points' 16.16 fixed point minus half a pixel (scaling a float by 2^16 is

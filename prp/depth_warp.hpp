@@ -102,9 +102,17 @@ inline constexpr float kGatherFar = 1e30f;
 float gatherParallaxScale(const DepthProjection& p);
 
 namespace detail {
-// Pixels [begin, end) of rendered row y (`depth` and `out` indexed from the row's start).
-void projectRowScalar(const DepthProjection& p, const float* depth, int begin, int end, int y,
-                      int firstLine, const ProjectedRow& out);
+// Rendered row y's depths as the projection takes them, once per frame (they depend on the frame
+// alone, not the field): per pixel the scale s of its point s (a, b, f) along the unnormalised
+// ray, d / l for terrain (l = |(a, b, f)|, d the depth: a finite value), 1 / l for anything else
+// (sky: the unit direction). Pixels [begin, end); `depth` and `scaled` indexed from the row's
+// start.
+void scaleDepthRowScalar(const DepthProjection& p, const float* depth, int begin, int end, int y,
+                         float* scaled);
+// Pixels [begin, end) of rendered row y (`depth`, its scaleDepthRow values `scaled` and `out`
+// indexed from the row's start).
+void projectRowScalar(const DepthProjection& p, const float* depth, const float* scaled, int begin,
+                      int end, int y, int firstLine, const ProjectedRow& out);
 // Output pixels [begin, end) of one field line: from the quadratic's point, kGatherSteps times
 // x <- x + dQ (q - P(x, 1 / depth at x)) (P: the projection above; the inverse depth bilinear
 // between the four rendered pixel centres around x, clamped to the frame, sky 0). Writes the
@@ -119,9 +127,11 @@ int gatherLineScalar(const DepthProjection& p, const GatherLine& line, const flo
                      int width, int height, int begin, int end, std::int32_t* px, std::int32_t* py,
                      std::uint8_t* unsettled, float* dist);
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-// The same eight pixels at a time; needs AVX2.
-void projectRowAvx2(const DepthProjection& p, const float* depth, int begin, int end, int y,
-                    int firstLine, const ProjectedRow& out);
+// The same eight pixels at a time; need AVX2.
+void scaleDepthRowAvx2(const DepthProjection& p, const float* depth, int begin, int end, int y,
+                       float* scaled);
+void projectRowAvx2(const DepthProjection& p, const float* depth, const float* scaled, int begin,
+                    int end, int y, int firstLine, const ProjectedRow& out);
 // The gather eight pixels at a time (hardware gathers of the depth); the scalar one's bits.
 int gatherLineAvx2(const DepthProjection& p, const GatherLine& line, const float* depth, int width,
                    int height, int begin, int end, std::int32_t* px, std::int32_t* py,
@@ -206,6 +216,14 @@ class DepthWarp {
     std::vector<std::uint16_t> tileUnsettled_;   // one field: unsettled pixels per tile
     std::vector<std::int32_t> rowIndex_;         // one rendered row
     std::vector<float> rowZInv_, rowSx_, rowSy_;
+    // The last frame's scaleDepthRow values, and what they were made from.
+    std::vector<float> scaled_;
+    const float* scaledFrom_ = nullptr;
+    std::uint64_t scaledSequence_ = 0;
+    int scaledWidth_ = 0, scaledHeight_ = 0;
+    float scaledCx_ = 0, scaledCy_ = 0, scaledF_ = 0;
+    // The frame's scaled depths (made once per frame and kept).
+    const float* scaledDepth(const ig::RenderedFrame& frame, const DepthProjection& p, bool avx2);
 };
 
 }  // namespace prp

@@ -15,18 +15,39 @@
 
 namespace prp::detail {
 
-__attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, const float* depth,
-                                                    int begin, int end, int y, int firstLine,
-                                                    const ProjectedRow& out) {
+__attribute__((target("avx2"))) void scaleDepthRowAvx2(const DepthProjection& p, const float* depth,
+                                                       int begin, int end, int y, float* scaled) {
     const float b = p.cy - (static_cast<float>(y) + 0.5f);
-    const float bbff = b * b + p.f * p.f;
+    const __m256 vBbff = _mm256_set1_ps(b * b + p.f * p.f);
+    const __m256 vAOff = _mm256_set1_ps(0.5f - p.cx);
+    const __m256 one = _mm256_set1_ps(1.0f);
+    const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+    const __m256 ninf = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    int x = begin;
+    for (; x + 8 <= end; x += 8) {
+        const __m256 d = _mm256_loadu_ps(depth + x);
+        const __m256 xf = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane));
+        const __m256 a = _mm256_add_ps(xf, vAOff);
+        const __m256 len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(a, a), vBbff));
+        const __m256 terrain =
+            _mm256_and_ps(_mm256_cmp_ps(d, inf, _CMP_LT_OQ), _mm256_cmp_ps(d, ninf, _CMP_GT_OQ));
+        _mm256_storeu_ps(scaled + x, _mm256_div_ps(_mm256_blendv_ps(one, d, terrain), len));
+    }
+    // The last (end - begin) % 8 pixels: the scalar code.
+    scaleDepthRowScalar(p, depth, x, end, y, scaled);
+}
+
+__attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, const float* depth,
+                                                    const float* scaled, int begin, int end, int y,
+                                                    int firstLine, const ProjectedRow& out) {
+    const float b = p.cy - (static_cast<float>(y) + 0.5f);
     const float rowR = p.m[1] * b + p.m[2] * p.f;
     const float rowU = p.m[4] * b + p.m[5] * p.f;
     const float rowW = p.m[7] * b + p.m[8] * p.f;
     const float aOff = 0.5f - p.cx;
     const float yc = static_cast<float>(y) + 0.5f;
 
-    const __m256 vBbff = _mm256_set1_ps(bbff);
     const __m256 vRowR = _mm256_set1_ps(rowR), vRowU = _mm256_set1_ps(rowU),
                  vRowW = _mm256_set1_ps(rowW);
     const __m256 m0 = _mm256_set1_ps(p.m[0]), m3 = _mm256_set1_ps(p.m[3]),
@@ -53,26 +74,24 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
     int x = begin;
     for (; x + 8 <= end; x += 8) {
         const __m256 d = _mm256_loadu_ps(depth + x);
+        const __m256 sc = _mm256_loadu_ps(scaled + x);
         const __m256 xf = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane));
         const __m256 a = _mm256_add_ps(xf, vAOff);
-        const __m256 len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(a, a), vBbff));
         const __m256 terrain =
             _mm256_and_ps(_mm256_cmp_ps(d, inf, _CMP_LT_OQ), _mm256_cmp_ps(d, ninf, _CMP_GT_OQ));
         const __m256 isSky = _mm256_cmp_ps(d, inf, _CMP_EQ_OQ);
-        const __m256 dd = _mm256_blendv_ps(one, d, terrain);
         const __m256 r =
-            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m0, a), vRowR)),
-                          _mm256_and_ps(_mm256_mul_ps(t0, len), terrain));
+            _mm256_add_ps(_mm256_mul_ps(sc, _mm256_add_ps(_mm256_mul_ps(m0, a), vRowR)),
+                          _mm256_and_ps(t0, terrain));
         const __m256 u =
-            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m3, a), vRowU)),
-                          _mm256_and_ps(_mm256_mul_ps(t1, len), terrain));
-        const __m256 wl =
-            _mm256_add_ps(_mm256_mul_ps(dd, _mm256_add_ps(_mm256_mul_ps(m6, a), vRowW)),
-                          _mm256_and_ps(_mm256_mul_ps(t2, len), terrain));
-        const __m256 inv = _mm256_div_ps(one, wl);
-        const __m256 zInv = _mm256_mul_ps(len, inv);
-        const __m256 qx = _mm256_add_ps(ox, _mm256_mul_ps(kx, _mm256_mul_ps(r, inv)));
-        const __m256 qy = _mm256_sub_ps(oy, _mm256_mul_ps(ky, _mm256_mul_ps(u, inv)));
+            _mm256_add_ps(_mm256_mul_ps(sc, _mm256_add_ps(_mm256_mul_ps(m3, a), vRowU)),
+                          _mm256_and_ps(t1, terrain));
+        const __m256 w =
+            _mm256_add_ps(_mm256_mul_ps(sc, _mm256_add_ps(_mm256_mul_ps(m6, a), vRowW)),
+                          _mm256_and_ps(t2, terrain));
+        const __m256 zInv = _mm256_div_ps(one, w);
+        const __m256 qx = _mm256_add_ps(ox, _mm256_mul_ps(kx, _mm256_mul_ps(r, zInv)));
+        const __m256 qy = _mm256_sub_ps(oy, _mm256_mul_ps(ky, _mm256_mul_ps(u, zInv)));
         const __m256 line = _mm256_mul_ps(_mm256_sub_ps(qy, lineOff), half);
         __m256 inside = _mm256_and_ps(_mm256_or_ps(terrain, isSky),
                                       _mm256_and_ps(_mm256_cmp_ps(zInv, zero, _CMP_GT_OQ),
@@ -99,7 +118,7 @@ __attribute__((target("avx2"))) void projectRowAvx2(const DepthProjection& p, co
                                                                       _mm256_mul_ps(j3, dy))));
     }
     // The last (end - begin) % 8 pixels: the scalar code.
-    projectRowScalar(p, depth, x, end, y, firstLine, out);
+    projectRowScalar(p, depth, scaled, x, end, y, firstLine, out);
 }
 
 namespace {

@@ -143,7 +143,7 @@ if wanted warp; then
     # The whole processor on a field of a frame with depth: the depth warp against the quadratic.
     run depth_warp_bench "$bin/bench-warp" \
         --benchmark_filter='BM_Prp[DP][eo][pl]' \
-        --benchmark_repetitions=5 --benchmark_enable_random_interleaving=true \
+        --benchmark_repetitions=10 --benchmark_enable_random_interleaving=true \
         --benchmark_out="$data/depth_warp_bench.json" --benchmark_out_format=json
 fi
 

@@ -98,7 +98,7 @@ void BM_PrpWarpRgbFieldScalar(benchmark::State& state) {
 // 20 degrees down, warped to a pose 8 fields on at 200 m/s (rolled, turning). `model` Depth
 // (the gather or the splat, `method`, with `kernel`), Poly or Auto; the time includes the fit.
 void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel kernel,
-                prp::DepthMethod method = prp::DepthMethod::Splat) {
+                prp::DepthMethod method = prp::DepthMethod::Splat, bool newFrames = false) {
     if (!prp::depthKernelSupported(kernel)) {
         state.SkipWithError("kernel not supported by this processor");
         return;
@@ -141,6 +141,8 @@ void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel 
     prp::Field field;
     std::uint64_t index = 1;
     for (auto _ : state) {
+        // A new frame every field: what is made once per frame is made every time.
+        if (newFrames) ++frame.sequence;
         prp.process(frame, at, 0.0, index, field);
         index += 2;  // the same parity every time
         benchmark::DoNotOptimize(field.pixels.data());
@@ -167,6 +169,11 @@ void prpProcess(benchmark::State& state, prp::WarpModel model, prp::DepthKernel 
 void BM_PrpDepthUyvyField(benchmark::State& state) {
     prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Auto);
 }
+// Every field from a new frame (a renderer as fast as the fields): the per-frame work (the
+// scaled depths, the anti-twitter filter) in every field instead of once for a frame's fields.
+void BM_PrpDepthUyvyFieldNewFrames(benchmark::State& state) {
+    prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Auto, prp::DepthMethod::Splat, true);
+}
 void BM_PrpDepthUyvyFieldScalar(benchmark::State& state) {
     prpProcess(state, prp::WarpModel::Depth, prp::DepthKernel::Scalar);
 }
@@ -182,6 +189,7 @@ void BM_PrpPolyUyvyFieldWithFit(benchmark::State& state) {
     prpProcess(state, prp::WarpModel::Poly, prp::DepthKernel::Auto);
 }
 BENCHMARK(BM_PrpDepthUyvyField)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpDepthUyvyFieldNewFrames)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpDepthUyvyFieldScalar)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpDepthUyvyFieldGather)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpDepthUyvyFieldGatherScalar)->Unit(benchmark::kMicrosecond);

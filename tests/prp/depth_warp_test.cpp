@@ -54,9 +54,9 @@ ig::Pose moved(const ig::Pose& p, int k) {
     return at;
 }
 
-// The AVX2 projection gives the scalar one's bits: every index, and inverse depth and source point
-// of every pixel that lands, over random poses, depths (sky, NaN, negative, zero, huge, behind the
-// eye) and row widths that leave partial groups of eight.
+// The AVX2 projection gives the scalar one's bits: every scaled depth, every index, and inverse
+// depth and source point of every pixel that lands, over random poses, depths (sky, NaN,
+// negative, zero, huge, behind the eye) and row widths that leave partial groups of eight.
 TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
     if (!depthKernelSupported(DepthKernel::Avx2)) GTEST_SKIP() << "no AVX2 on this processor";
     std::mt19937 rng(7);
@@ -95,12 +95,17 @@ TEST(DepthWarp, VectorProjectionEqualsScalarBitForBit) {
             }
             const int n = in.width;
             std::vector<std::int32_t> i0(n), i1(n);
-            std::vector<float> z0(n), z1(n), x0(n), x1(n), y0(n), y1(n);
+            std::vector<float> z0(n), z1(n), x0(n), x1(n), y0(n), y1(n), s0(n), s1(n);
             for (int y : {0, 7, 39}) {
+                // The per-frame scaled depths, from either kernel, then the projection.
+                detail::scaleDepthRowScalar(p, depth.data(), 0, n, y, s0.data());
+                detail::scaleDepthRowAvx2(p, depth.data(), 0, n, y, s1.data());
+                ASSERT_EQ(std::memcmp(s0.data(), s1.data(), s0.size() * sizeof(float)), 0)
+                    << "width " << width << " row " << y;
                 for (int parity : {0, 1}) {
-                    detail::projectRowScalar(p, depth.data(), 0, n, y, parity,
+                    detail::projectRowScalar(p, depth.data(), s0.data(), 0, n, y, parity,
                                              {i0.data(), z0.data(), x0.data(), y0.data()});
-                    detail::projectRowAvx2(p, depth.data(), 0, n, y, parity,
+                    detail::projectRowAvx2(p, depth.data(), s0.data(), 0, n, y, parity,
                                            {i1.data(), z1.data(), x1.data(), y1.data()});
                     for (int x = 0; x < n; ++x) {
                         ASSERT_EQ(i0[x], i1[x]) << "width " << width << " x " << x;
@@ -134,6 +139,30 @@ TEST(DepthWarp, FieldsAreTheSameWithEitherKernel) {
             EXPECT_EQ(a.holeSamples, b.holeSamples);
             EXPECT_EQ(a.edgeSamples, b.edgeSamples);
         }
+    }
+}
+
+// The depth warp keeps each frame's scaled depths for the frame's later fields: a processor that
+// warped another frame first gives a new frame's field the same bytes as a fresh processor (a
+// new sequence, or another buffer under the same sequence, is a new frame).
+TEST(DepthWarp, EachFramesScaledDepthsAreMadeForIt) {
+    const ig::Pose pose = test::lookingDown(-25.0, 120.0);
+    const ig::RenderedFrame a = test::renderPlane(pose, kIn, 0.0, 1);
+    ig::Pose higher = pose;
+    higher.position.z += 60.0;
+    const ig::RenderedFrame b2 = test::renderPlane(higher, kIn, 0.0, 2);
+    ig::RenderedFrame copy = b2;
+    copy.sequence = 1;  // another frame under the first one's sequence
+    const ig::RenderedFrame& b1 = copy;
+    for (const ig::RenderedFrame* b : {&b2, &b1}) {
+        PostRenderingProcessor used(options(WarpModel::Depth));
+        Field first, second, fresh;
+        used.process(a, moved(pose, 2), 0.0, 1, first);
+        used.process(*b, moved(higher, 2), 0.0, 1, second);
+        PostRenderingProcessor(options(WarpModel::Depth))
+            .process(*b, moved(higher, 2), 0.0, 1, fresh);
+        EXPECT_EQ(second.pixels, fresh.pixels) << "sequence " << b->sequence;
+        EXPECT_NE(second.pixels, first.pixels);
     }
 }
 
