@@ -338,6 +338,17 @@ const float* DepthWarp::scaledDepth(const ig::RenderedFrame& frame, const DepthP
     return scaled_.data();
 }
 
+void DepthWarp::prepareFrame(const ig::RenderedFrame& frame, DepthKernel kernel) {
+    if (frame.depth.size() != static_cast<std::size_t>(frame.width()) * frame.height()) return;
+    // What scaleDepthRow reads of the projection: the frame's own centre and focal length, as
+    // DepthProjection::of sets them.
+    DepthProjection p;
+    p.cx = static_cast<float>(frame.intrinsics.cx());
+    p.cy = static_cast<float>(frame.intrinsics.cy());
+    p.f = static_cast<float>(frame.intrinsics.focal);
+    scaledDepth(frame, p, useAvx2(kernel));
+}
+
 void DepthWarp::splatRows(const DepthProjection& proj, const ig::RenderedFrame& frame,
                           int firstLine, int fieldWidth, int y0, int y1, int x0, int x1, bool clip,
                           int l0, int l1, int c0, int c1, bool avx2) {

@@ -183,6 +183,10 @@ class DepthWarp {
     // so a field that takes the depth warp first later allocates nothing.
     void reserve(int frameWidth, int frameHeight, std::size_t fieldPixels);
 
+    // Makes `frame`'s per-frame data now (its scaled depths; kept for its fields), so that the
+    // first field warped from it does not: before a field clock starts, for its first frame.
+    void prepareFrame(const ig::RenderedFrame& frame, DepthKernel kernel = DepthKernel::Auto);
+
     // The points the last apply() sampled (field line L's pixel x at [L * field width + x];
     // 16.16 fixed point, as applyPoints takes them).
     const std::int32_t* pointsX() const { return pointX_.data(); }

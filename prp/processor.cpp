@@ -88,6 +88,18 @@ void PostRenderingProcessor::reset() {
     filteredFrom_ = nullptr;
 }
 
+void PostRenderingProcessor::warmUp(const ig::RenderedFrame& frame) {
+    const bool depthModel = options_.model == WarpModel::Depth || options_.model == WarpModel::Auto;
+    checkFrame(frame, depthModel);  // as the first field would (an InputError for a bad one)
+    if (depthModel && !options_.depthReference) {
+        depthWarp_.reserve(frame.width(), frame.height(),
+                           static_cast<std::size_t>(options_.outWidth) *
+                               static_cast<std::size_t>((options_.outHeight + 1) / 2));
+        depthWarp_.prepareFrame(frame, options_.depthKernel);
+    }
+    sourcePixels(frame);
+}
+
 const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& frame) {
     if (!options_.antiTwitter) return frame.color.data();
     if (filteredFrom_ == frame.color.data() && filteredSequence_ == frame.sequence &&

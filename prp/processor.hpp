@@ -62,6 +62,11 @@ class PostRenderingProcessor {
     // odd width for UYVY, AGC target or rate out of range, auto threshold not positive).
     explicit PostRenderingProcessor(const PrpOptions& options);
 
+    // Sizes the scratch buffers for `frame` and makes its per-frame data (the depth model's
+    // scaled depths), as the first field from it would: before a field clock starts, so that
+    // its first fields do not pay for them.
+    void warmUp(const ig::RenderedFrame& frame);
+
     // Warps `frame` (rendered at frame.pose with roll 0, with margins) to `poseAtField` (roll
     // included), writing only the lines of fieldParity(fieldIndex) into `out`. Allocates only
     // when `out` or a scratch buffer is first sized. Throws ig::InputError for a frame whose

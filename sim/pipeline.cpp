@@ -779,6 +779,9 @@ PipelineResult Pipeline::run() {
     frames_.fetch();
     renderEstimate_ = clock_.now() - before;
     stats_.addFrame(renderEstimate_ * 1e3);  // frame 0 counts among the frames rendered
+    // The processors' buffers and frame 0's per-frame data, before the field clock starts.
+    processor.warmUp(frames_.front());
+    if (stereo && frames_.front().right) rightProcessor->warmUp(*frames_.front().right);
     c0_ = clock_.now() + (simulated ? 0.0 : options_.startDelay);
     nextRenderStart_ = t0_;
     renderStartClock_ = before;

@@ -166,6 +166,28 @@ TEST(DepthWarp, EachFramesScaledDepthsAreMadeForIt) {
     }
 }
 
+// Warming a processor up on a frame (before a field clock starts) changes none of its fields,
+// and a frame its fields would refuse is refused there too.
+TEST(DepthWarp, AWarmedUpProcessorGivesTheSameFields) {
+    const ig::Pose pose = test::lookingDown(-25.0, 120.0);
+    const ig::RenderedFrame frame = test::renderPlane(pose, kIn, 0.0, 3);
+    for (const WarpModel m : {WarpModel::Depth, WarpModel::Auto, WarpModel::Poly}) {
+        PrpOptions o = options(m);
+        o.antiTwitter = true;
+        PostRenderingProcessor warmed(o), cold(o);
+        warmed.warmUp(frame);
+        for (int k = 1; k <= 3; ++k) {
+            Field a, b;
+            warmed.process(frame, moved(pose, k), 0.0, k, a);
+            cold.process(frame, moved(pose, k), 0.0, k, b);
+            EXPECT_EQ(a.pixels, b.pixels) << warpModelName(m) << " k " << k;
+        }
+    }
+    ig::RenderedFrame broken = frame;
+    broken.depth.pop_back();
+    EXPECT_THROW(PostRenderingProcessor(options(WarpModel::Depth)).warmUp(broken), ig::InputError);
+}
+
 // Nothing lands where there is no depth: every pixel is a hole and samples the quadratic, so
 // the field is the polynomial model's, byte for byte.
 TEST(DepthWarp, HolesTakeThePolynomialWarp) {
