@@ -88,13 +88,17 @@ void PostRenderingProcessor::reset() {
     filteredFrom_ = nullptr;
 }
 
+void PostRenderingProcessor::reserveDepthWarp(const ig::RenderedFrame& frame) {
+    depthWarp_.reserve(frame.width(), frame.height(),
+                       static_cast<std::size_t>(options_.outWidth) *
+                           static_cast<std::size_t>((options_.outHeight + 1) / 2));
+}
+
 void PostRenderingProcessor::warmUp(const ig::RenderedFrame& frame) {
     const bool depthModel = options_.model == WarpModel::Depth || options_.model == WarpModel::Auto;
     checkFrame(frame, depthModel);  // as the first field would (an InputError for a bad one)
     if (depthModel && !options_.depthReference) {
-        depthWarp_.reserve(frame.width(), frame.height(),
-                           static_cast<std::size_t>(options_.outWidth) *
-                               static_cast<std::size_t>((options_.outHeight + 1) / 2));
+        reserveDepthWarp(frame);
         depthWarp_.prepareFrame(frame, options_.depthKernel);
     }
     sourcePixels(frame);
@@ -138,11 +142,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
     const bool depthModel = model == WarpModel::Depth || model == WarpModel::Auto;
     checkFrame(frame, chosen == WarpModel::Depth || chosen == WarpModel::Auto);
     // The depth warp's buffers from the first field that may take it, not the first that does.
-    if (depthModel && !options_.depthReference) {
-        depthWarp_.reserve(frame.width(), frame.height(),
-                           static_cast<std::size_t>(options_.outWidth) *
-                               static_cast<std::size_t>((options_.outHeight + 1) / 2));
-    }
+    if (depthModel && !options_.depthReference) reserveDepthWarp(frame);
 
     out.index = fieldIndex;
     out.parity = fieldParity(fieldIndex);

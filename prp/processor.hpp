@@ -94,6 +94,8 @@ class PostRenderingProcessor {
     void warpDepth(const ig::RenderedFrame& frame, const ig::Pose& poseAtField,
                    const OutputGeometry& geometry, Field& out, int gainQ8, std::uint64_t& lumaSum);
     const ig::Rgb8* sourcePixels(const ig::RenderedFrame& frame);
+    // The depth warp's buffers for frames like `frame` and fields of this output.
+    void reserveDepthWarp(const ig::RenderedFrame& frame);
 
     PrpOptions options_;
     WarpInfo previous_;
