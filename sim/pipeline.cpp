@@ -590,6 +590,12 @@ double Pipeline::startTimeout() const {
     return options_.startTimeout > 0.0 ? options_.startTimeout : 10.0 * renderTimeout();
 }
 
+double Pipeline::firstStartTimeout() const {
+    return options_.startTimeout > 0.0
+               ? options_.startTimeout
+               : std::max(PipelineOptions::kFirstStartSeconds, startTimeout());
+}
+
 double Pipeline::silenceAllowed() const {
     return processFresh_.load(std::memory_order_acquire) ? startTimeout() : renderTimeout();
 }
@@ -768,8 +774,8 @@ PipelineResult Pipeline::run() {
         std::string why;
         ig::RenderedFrame& first = frames_.back();
         // The first frame also pays for the renderer's start.
-        if (awaitFrame(first, startTimeout(), why) != Await::Frame) {
-            throw std::runtime_error("the renderer process gave no first frame: it " + why);
+        if (awaitFrame(first, firstStartTimeout(), why) != Await::Frame) {
+            throw std::runtime_error("the renderer process gave no first frame (" + why + ")");
         }
         frames_.publish();
         renderSeconds_.store(first.stats.renderMs * 1e-3, std::memory_order_relaxed);

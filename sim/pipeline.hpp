@@ -214,8 +214,11 @@ struct PipelineOptions {
     double renderTimeout = 0.0;
     // Process: the seconds a renderer just started (or restarted) may take for its first frame
     // (its start, and over a paged database the tiles of its first view, read waiting); 0: ten
-    // render timeouts.
+    // render timeouts for a restart, and at least kFirstStartSeconds for the run's first start,
+    // which no field waits on (the field clock starts after it), so a loaded host is not taken
+    // for a hung renderer.
     double startTimeout = 0.0;
+    static constexpr double kFirstStartSeconds = 30.0;
     // Process, simulated clock: the seconds a restart is modelled as taking.
     double simulatedRestart = 0.25;
     // Process: a fault the renderer injects into itself once (tests, demonstrations).
@@ -259,6 +262,8 @@ class Pipeline {
     void restartProcess(const std::string& cause);
     double renderTimeout() const;
     double startTimeout() const;
+    // The seconds the run's first renderer may take for frame 0, before the field clock starts.
+    double firstStartTimeout() const;
     // The silence allowed the running renderer now: startTimeout() until its first frame.
     double silenceAllowed() const;
     // Field thread: gap accounting when a frame newer than the last one shown arrives.

@@ -240,12 +240,20 @@ std::string formatSummary(const StatsSummary& s) {
         text += buf;
     }
     for (const RendererRestart& r : s.restarts) {
-        std::snprintf(buf, sizeof buf,
-                      "renderer restart at %.3f s: %s; gap %.1f ms (%.1f ms after it was "
-                      "noticed), %llu fields extrapolated, %llu held\n",
-                      r.detected, r.cause.c_str(), r.gapSeconds * 1e3, r.recoverySeconds * 1e3,
-                      static_cast<unsigned long long>(r.fieldsExtrapolated),
-                      static_cast<unsigned long long>(r.fieldsHeld));
+        // A renderer that showed no frame (restarted again, or the run ended first) has no gap.
+        if (r.gapSeconds < 0.0) {
+            std::snprintf(buf, sizeof buf,
+                          "renderer restart at %.3f s: %s; no frame of the restarted renderer "
+                          "was shown\n",
+                          r.detected, r.cause.c_str());
+        } else {
+            std::snprintf(buf, sizeof buf,
+                          "renderer restart at %.3f s: %s; gap %.1f ms (%.1f ms after it was "
+                          "noticed), %llu fields extrapolated, %llu held\n",
+                          r.detected, r.cause.c_str(), r.gapSeconds * 1e3, r.recoverySeconds * 1e3,
+                          static_cast<unsigned long long>(r.fieldsExtrapolated),
+                          static_cast<unsigned long long>(r.fieldsHeld));
+        }
         text += buf;
     }
     return text;

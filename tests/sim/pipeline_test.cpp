@@ -469,6 +469,24 @@ TEST(RendererProcess, FieldsGoOnThroughEveryFault) {
     }
 }
 
+// The run's first renderer may take longer than a restart's allowance for frame 0 (a loaded
+// host, a cold start): no field waits on it yet, so it is awaited, not taken for a hang.
+TEST(RendererProcess, TheRunsFirstStartIsAwaitedPastARestartsAllowance) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    const sim::FrameRenderer slowFrameZero = [inner](const ig::Pose& pose, double time,
+                                                     std::uint64_t sequence) {
+        if (sequence == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+        return inner(pose, time, sequence);
+    };
+    sim::PipelineOptions o = processOptions(1.0);
+    o.renderTimeout = 0.1;  // a restart's allowance: ten of them, 1 s
+    const PipelineRun run = runPipeline(world, o, kGentleScript, &slowFrameZero);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    ASSERT_FALSE(run.frameTimes.empty());
+    EXPECT_EQ(run.frameTimes.front(), world.start.time);
+}
+
 // A renderer whose first frame in each process is slow (a paged map reads its first view's
 // tiles, waiting) is given its start allowance after a restart too, not the render timeout:
 // one restart, not one per timeout until a start happens to be quick enough.

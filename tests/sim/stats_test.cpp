@@ -82,4 +82,34 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
     EXPECT_FALSE(sim::formatSummary(s).empty());
 }
 
+// A restart is reported with its gap; one whose renderer showed no frame (restarted again, or
+// the run ended first) says so, with no gap made of the "none" sentinel.
+TEST(Stats, RestartsAreReportedWithTheirGapOrItsAbsence) {
+    sim::StatsSummary s;
+    sim::RendererRestart shown;
+    shown.detected = 1.0;
+    shown.cause = "killed by signal 9 (Killed)";
+    shown.gapSeconds = 0.4;
+    shown.recoverySeconds = 0.3;
+    shown.fieldsExtrapolated = 20;
+    sim::RendererRestart none;
+    none.detected = 2.0;
+    none.cause = "silent for 512 ms";
+    s.restarts = {shown, none};
+    const std::string text = sim::formatSummary(s);
+    EXPECT_NE(text.find("renderer restart at 1.000 s: killed by signal 9 (Killed); gap 400.0 ms "
+                        "(300.0 ms after it was noticed), 20 fields extrapolated, 0 held"),
+              std::string::npos)
+        << text;
+    EXPECT_NE(text.find("renderer restart at 2.000 s: silent for 512 ms; no frame of the "
+                        "restarted renderer was shown"),
+              std::string::npos)
+        << text;
+    EXPECT_EQ(text.find("-1000"), std::string::npos) << text;
+    const nlohmann::json j = sim::toJson(s);
+    ASSERT_EQ(j["renderer_restarts"].size(), 2u);
+    EXPECT_EQ(j["renderer_restarts"][0]["gap_ms"].get<double>(), 400.0);
+    EXPECT_TRUE(j["renderer_restarts"][1]["gap_ms"].is_null());
+}
+
 }  // namespace
