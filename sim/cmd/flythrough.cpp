@@ -740,6 +740,16 @@ int main(int argc, char** argv) {
             ground->waitAround(x, y);
             return ground;
         };
+        // The flight model's ground over a paged map, placed around (x, y): fieldGround, and
+        // over the database's insets nestedFloor on it, whose surface it returns.
+        const auto pagedFloorAt = [&](double x, double y) -> const ig::Ground* {
+            fieldGround = pagedGroundAt(x, y);
+            if (!pagedInsets) return fieldGround.get();
+            nestedFloor =
+                std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb, groundOptions);
+            nestedFloor->waitAround(x, y);
+            return nestedFloor.get();
+        };
         // Where the default scenario (or --start) begins; over a paged map the ground there is
         // placed first.
         const auto scenarioStart = [&](const sim::Scenario& scenario) {
@@ -805,22 +815,15 @@ int main(int argc, char** argv) {
             if (pagedGround) {
                 // The ownship and the host's entities stand on a ground that follows the view;
                 // HAT/HOT and lines of sight are answered on a thread of their own.
-                fieldGround = pagedGroundAt(start.position.x, start.position.y);
+                // Over the database's insets, their surface (the queries' thread reads their
+                // tiles too).
+                cigiOptions.ground = pagedFloorAt(start.position.x, start.position.y);
                 sim::PagedTerrainQueries::Options qo;
                 qo.budgetBytes =
                     static_cast<std::size_t>(std::min(terrain.cacheMb, 64.0) * 1048576.0);
                 qo.maxOutstanding = cigiOptions.maxPendingRequests + 256;
                 terrainQueries = std::make_unique<sim::PagedTerrainQueries>(*pagedDb, qo);
-                cigiOptions.ground = fieldGround.get();
                 cigiOptions.terrainQueries = terrainQueries.get();
-                if (pagedInsets) {
-                    // Over the database's insets, their surface (the queries' thread reads
-                    // their tiles too).
-                    nestedFloor = std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb,
-                                                                          groundOptions);
-                    nestedFloor->waitAround(start.position.x, start.position.y);
-                    cigiOptions.ground = nestedFloor.get();
-                }
             } else if (nested) {
                 // Over insets the ownship, the entities and the host's queries meet the nested
                 // surface.
@@ -911,16 +914,7 @@ int main(int argc, char** argv) {
             const sim::FlightState start = scenarioStart(scenario);
             flightSeconds = scenario.duration;
             const ig::Ground* floor = &map;
-            if (pagedGround) {
-                fieldGround = pagedGroundAt(start.position.x, start.position.y);
-                floor = fieldGround.get();
-                if (pagedInsets) {
-                    nestedFloor = std::make_unique<ig::PagedNestedGround>(*fieldGround, *pagedDb,
-                                                                          groundOptions);
-                    nestedFloor->waitAround(start.position.x, start.position.y);
-                    floor = nestedFloor.get();
-                }
-            }
+            if (pagedGround) floor = pagedFloorAt(start.position.x, start.position.y);
             poses =
                 std::make_unique<sim::StickFlight>(std::move(stick), start, scenario.limits, floor);
         }
