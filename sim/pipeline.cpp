@@ -583,7 +583,11 @@ void Pipeline::renderSimulatedUntil(double t) {
 
 double Pipeline::renderTimeout() const {
     if (options_.renderTimeout > 0.0) return options_.renderTimeout;
-    return std::max(0.5, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
+    // On the simulated clock no field waits on the renderer: a longer floor keeps a loaded host
+    // from being taken for a hang, which would cost a modelled restart and change the run.
+    const double floor =
+        options_.clock == ClockMode::Simulated ? PipelineOptions::kSimulatedRenderTimeout : 0.5;
+    return std::max(floor, 8.0 * renderSeconds_.load(std::memory_order_relaxed));
 }
 
 double Pipeline::startTimeout() const {

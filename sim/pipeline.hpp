@@ -210,8 +210,10 @@ struct PipelineOptions {
     std::function<std::span<const prp::ObjectMotion>(double frameTime, double fieldTime)>
         objectMotion;
     // Process: a renderer that publishes nothing for this many seconds (wall clock) is killed and
-    // restarted; 0: 0.5 s or eight times the running render time, whichever is longer.
+    // restarted; 0: 0.5 s (on the simulated clock kSimulatedRenderTimeout) or eight times the
+    // running render time, whichever is longer.
     double renderTimeout = 0.0;
+    static constexpr double kSimulatedRenderTimeout = 5.0;
     // Process: the seconds a renderer just started (or restarted) may take for its first frame
     // (its start, and over a paged database the tiles of its first view, read waiting); 0: ten
     // render timeouts for a restart, and at least kFirstStartSeconds for the run's first start,

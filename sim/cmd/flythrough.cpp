@@ -403,8 +403,9 @@ int main(int argc, char** argv) {
                    "tiles (1..16)")
         ->capture_default_str();
     app.add_option("--render-timeout-ms", renderTimeoutMs,
-                   "Renderer process silent this long is killed and restarted (0: 500 ms or "
-                   "eight renders, whichever is longer; a restarted renderer gets ten times that "
+                   "Renderer process silent this long is killed and restarted (0: 500 ms, on "
+                   "the simulated clock 5 s, or eight renders, whichever is longer; a restarted "
+                   "renderer gets ten times that "
                    "for its first frame, the first renderer of the run at least 30 s, over a "
                    "paged --db 60 s)")
         ->capture_default_str();

@@ -487,6 +487,24 @@ TEST(RendererProcess, TheRunsFirstStartIsAwaitedPastARestartsAllowance) {
     EXPECT_EQ(run.frameTimes.front(), world.start.time);
 }
 
+// On the simulated clock no field waits on a render: one slowed by a loaded host (here 1 s,
+// twice the wall clock's 500 ms floor) is awaited with the default timeout, not taken for a
+// hang that would cost a modelled restart and change the run's fields.
+TEST(RendererProcess, ASlowRenderOnTheSimulatedClockIsNotARestart) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    const sim::FrameRenderer slowFrame = [inner](const ig::Pose& pose, double time,
+                                                 std::uint64_t sequence) {
+        if (sequence == 3) std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+        return inner(pose, time, sequence);
+    };
+    const sim::PipelineOptions o = processOptions(1.0);
+    ASSERT_EQ(o.renderTimeout, 0.0);  // the default
+    const PipelineRun run = runPipeline(world, o, kGentleScript, &slowFrame);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    EXPECT_TRUE(run.result.stats.restarts.empty()) << run.result.stats.restarts[0].cause;
+}
+
 // A renderer whose first frame in each process is slow (a paged map reads its first view's
 // tiles, waiting) is given its start allowance after a restart too, not the render timeout:
 // one restart, not one per timeout until a start happens to be quick enough.
