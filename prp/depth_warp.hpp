@@ -178,9 +178,10 @@ class DepthWarp {
     static constexpr int kGatherTileWidth = 64;
     static constexpr int kGatherTileLines = 8;
     static constexpr double kGatherMaxSplatShare = 0.5;
-    // Sizes the scratch buffers for frames like `frameWidth` x `frameHeight` (rows as long as
-    // its diagonal: any roll the renderer widens the frame for) and fields of `fieldPixels`,
-    // so a field that takes the depth warp first later allocates nothing.
+    // Sizes the scratch buffers for frames like `frameWidth` x `frameHeight` and the frames of
+    // the same window the renderer widens for any roll (rows up to twice its diagonal, twice its
+    // diagonal squared of scaled depths), and fields of `fieldPixels`, so a field that takes the
+    // depth warp first later allocates nothing; grown when a frame needs more.
     void reserve(int frameWidth, int frameHeight, std::size_t fieldPixels);
 
     // Makes `frame`'s per-frame data now (its scaled depths; kept for its fields), so that the
