@@ -273,15 +273,17 @@ GatherLine GatherLine::of(const Quadratic& q, double row) {
     return l;
 }
 
+std::size_t rolledFrameDiagonal(int width, int height) {
+    return static_cast<std::size_t>(
+        std::ceil(std::hypot(static_cast<double>(width), static_cast<double>(height))));
+}
+
 void DepthWarp::reserve(int frameWidth, int frameHeight, std::size_t fieldPixels) {
-    const std::size_t row = static_cast<std::size_t>(
-        std::ceil(std::hypot(static_cast<double>(frameWidth), static_cast<double>(frameHeight))));
-    // Room from the first frame on for the frames of the same window widened for any roll: their
-    // diagonal stays under twice this frame's and their pixels under twice its square (a margin
-    // grows by at most half the window's diagonal less its shorter side), so a banking flight
-    // allocates nothing on the field thread. Grown only when a frame needs more than there is:
-    // growing on a frame's diagonal instead reallocated (and copied) the scaled depths on the
-    // field thread at 48 degrees of bank, 11 ms of a 16.7 ms field.
+    const std::size_t row = rolledFrameDiagonal(frameWidth, frameHeight);
+    // Room from the first frame on for the frames widened for any roll (rolledFrameRoomPixels),
+    // grown only when a frame needs more than there is: growing on a frame's diagonal instead
+    // reallocated (and copied) the scaled depths on the field thread at 48 degrees of bank, 11 ms
+    // of a 16.7 ms field.
     if (rowIndex_.size() < row + 2) {
         const std::size_t rowLength = 2 * row + 2;
         rowIndex_.resize(rowLength);
@@ -291,7 +293,9 @@ void DepthWarp::reserve(int frameWidth, int frameHeight, std::size_t fieldPixels
     }
     const std::size_t pixels =
         static_cast<std::size_t>(frameWidth) * static_cast<std::size_t>(frameHeight);
-    if (pixels > scaled_.capacity()) scaled_.reserve(std::max(pixels, 2 * row * row));
+    if (pixels > scaled_.capacity()) {
+        scaled_.reserve(std::max(pixels, rolledFrameRoomPixels(frameWidth, frameHeight)));
+    }
     if (depth_.size() < fieldPixels) {
         depth_.resize(fieldPixels);
         pointX_.resize(fieldPixels);
@@ -355,10 +359,7 @@ void DepthWarp::prepareFrame(const ig::RenderedFrame& frame, DepthKernel kernel)
     p.cy = static_cast<float>(frame.intrinsics.cy());
     p.f = static_cast<float>(frame.intrinsics.focal);
     scaledDepth(frame, p, useAvx2(kernel));
-    // Its room for wider frames touched too (what lies past the frame's depths is never read).
-    const std::size_t n = scaled_.size();
-    scaled_.resize(scaled_.capacity());
-    scaled_.resize(n);
+    touchRoom(scaled_);  // what lies past the frame's depths is never read
 }
 
 void DepthWarp::splatRows(const DepthProjection& proj, const ig::RenderedFrame& frame,

@@ -9,6 +9,7 @@
 #include "prp/warp_fit.hpp"
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -151,6 +152,26 @@ struct DepthWarpResult {
     // are incomplete), the other fields are not set.
     bool abandoned = false;
 };
+
+// Per-frame buffers' room for a `width` x `height` frame and the frames of the same window the
+// renderer widens for any roll: their diagonal stays under twice this frame's and their pixels
+// under twice its diagonal squared (a margin grows by at most half the window's diagonal less
+// half its shorter side). Sized so from the level frame, a banking flight allocates nothing on
+// the field thread.
+std::size_t rolledFrameDiagonal(int width, int height);  // this frame's, rounded up
+inline std::size_t rolledFrameRoomPixels(int width, int height) {
+    const std::size_t d = rolledFrameDiagonal(width, height);
+    return 2 * d * d;
+}
+
+// Writes `v`'s room past its size once (before a field clock starts), so that frames growing
+// into it later fault no pages in; its first size() elements are kept.
+template <typename T>
+void touchRoom(std::vector<T>& v) {
+    const std::size_t n = v.size();
+    v.resize(v.capacity());
+    v.resize(n);
+}
 
 // The depth model's fast path, with its scratch buffers (sized on first use, then reused).
 class DepthWarp {

@@ -102,10 +102,7 @@ void PostRenderingProcessor::warmUp(const ig::RenderedFrame& frame) {
         depthWarp_.prepareFrame(frame, options_.depthKernel);
     }
     sourcePixels(frame);
-    // The filter's room for wider frames touched too, so their first field faults no pages in.
-    const std::size_t n = filtered_.size();
-    filtered_.resize(filtered_.capacity());
-    filtered_.resize(n);
+    touchRoom(filtered_);  // the filter's room for wider frames
 }
 
 const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& frame) {
@@ -116,13 +113,10 @@ const ig::Rgb8* PostRenderingProcessor::sourcePixels(const ig::RenderedFrame& fr
     }
     // Vertical [1 2 1] / 4 on the rendered frame, once per frame: the warp is close to a
     // translation, so this is the output's vertical filter without computing the other field.
-    // Room for the frames of the same window widened for any roll (fewer pixels than twice the
-    // square of this frame's diagonal; DepthWarp::reserve), so banking allocates nothing here.
+    // Room for the frames of the same window widened for any roll, so banking allocates nothing.
     if (frame.color.size() > filtered_.capacity()) {
-        const double diagonal =
-            std::hypot(static_cast<double>(frame.width()), static_cast<double>(frame.height()));
         filtered_.reserve(
-            std::max(frame.color.size(), static_cast<std::size_t>(2.0 * diagonal * diagonal) + 1));
+            std::max(frame.color.size(), rolledFrameRoomPixels(frame.width(), frame.height())));
     }
     filtered_.resize(frame.color.size());
     const int w = frame.width(), h = frame.height();

@@ -405,9 +405,8 @@ int main(int argc, char** argv) {
     app.add_option("--render-timeout-ms", renderTimeoutMs,
                    "Renderer process silent this long is killed and restarted (0: 500 ms, on "
                    "the simulated clock 5 s, or eight renders, whichever is longer; a restarted "
-                   "renderer gets ten times that "
-                   "for its first frame, the first renderer of the run at least 30 s, over a "
-                   "paged --db 60 s)")
+                   "renderer gets ten times that for its first frame, the first renderer of the "
+                   "run at least 30 s, over a paged --db 60 s)")
         ->capture_default_str();
     app.add_option("--hold-after-ms", holdAfterMs,
                    "Fields extrapolate a frame's motion up to this age, then hold it (0: never)")
