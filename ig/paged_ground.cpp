@@ -4,6 +4,8 @@
 // reader never drops the last reference to a snapshot (which would free it on the field thread).
 #include "ig/paged_ground.hpp"
 
+#include "base/fork_gate.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -29,7 +31,7 @@ PagedGround::PagedGround(const TerrainDb& db, const Options& options)
     highest_ = std::max(info.minRaw * info.heightScale + info.heightOffset,
                         info.maxRaw * info.heightScale + info.heightOffset);
     options_.radiusTiles = std::clamp(options_.radiusTiles, 0, 64);
-    thread_ = std::thread([this] { loop(); });
+    thread_ = base::ForkGate::startThread([this] { loop(); });
 }
 
 PagedGround::~PagedGround() {
@@ -216,7 +218,10 @@ void PagedGround::loop() {
         pt = now;
         previous = true;
         lock.unlock();
-        update(x, y, vx, vy, false);
+        {
+            const base::ForkGate::Working working;
+            update(x, y, vx, vy, false);
+        }
         lock.lock();
     }
 }

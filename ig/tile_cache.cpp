@@ -8,6 +8,7 @@
 #include "ig/tile_cache.hpp"
 
 #include "base/check.hpp"
+#include "base/fork_gate.hpp"
 #include "ig/error.hpp"
 
 #include <algorithm>
@@ -88,7 +89,7 @@ TileCache::TileCache(const TerrainDb& db, const Options& options) : db_(db), opt
         }
     }
     for (int i = 0; i < std::max(options.loaderThreads, 1); ++i)
-        loaders_.emplace_back([this] { loaderLoop(); });
+        loaders_.push_back(base::ForkGate::startThread([this] { loaderLoop(); }));
 }
 
 TileCache::~TileCache() {
@@ -150,6 +151,13 @@ void TileCache::loaderLoop() {
     for (;;) {
         work_.wait(lock, [&] { return stop_ || !urgent_.empty() || !background_.empty(); });
         if (stop_) return;
+        // One tile's work is one piece of work for a fork to wait on (base/fork_gate.hpp),
+        // entered with the lock released: the gate may wait.
+        lock.unlock();
+        const base::ForkGate::Working working;
+        lock.lock();
+        if (stop_) return;
+        if (urgent_.empty() && background_.empty()) continue;
         std::deque<TileKey>& q = !urgent_.empty() ? urgent_ : background_;
         const TileKey key = q.front();
         q.pop_front();

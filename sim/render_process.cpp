@@ -1,6 +1,7 @@
 #include "sim/render_process.hpp"
 
 #include "base/error.hpp"
+#include "base/fork_gate.hpp"
 #include "base/text.hpp"
 #include "io/field_clock.hpp"
 
@@ -131,23 +132,31 @@ void RendererProcess::start() {
     if (pid_ > 0) kill();
     ring_.clearError();
     ring_.resetWriter();
-    // The scheduler's worker threads do not survive a fork: end them first, so the child
-    // starts a whole scheduler of its own. The field process renders nothing itself.
-    {
-        tbb::task_scheduler_handle handle{tbb::attach{}};
-        (void)tbb::finalize(handle, std::nothrow);
-    }
     // A new renderer answers requests posted from now on only: the one its predecessor died
     // on is stale by the time it could answer it.
     skipGeneration_ = ring_.latestRequest().generation;
     const pid_t parent = getpid();
-    const pid_t pid = fork();
-    if (pid < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
-    if (pid == 0) {
-        prctl(PR_SET_PDEATHSIG, SIGKILL);
-        if (getppid() != parent) _exit(1);
-        childMain();
+    pid_t pid = -1;
+    {
+        // No background thread of this process is in the middle of its work (holding the
+        // allocator's or its own locks, which the child would find held for ever) while it
+        // forks: base/fork_gate.hpp.
+        const base::ForkGate::Closed quiet;
+        // The scheduler's worker threads do not survive a fork: end them first, so the child
+        // starts a whole scheduler of its own. The field process renders nothing itself.
+        {
+            tbb::task_scheduler_handle handle{tbb::attach{}};
+            (void)tbb::finalize(handle, std::nothrow);
+        }
+        pid = fork();
+        if (pid == 0) {
+            base::ForkGate::resetInChild();
+            prctl(PR_SET_PDEATHSIG, SIGKILL);
+            if (getppid() != parent) _exit(1);
+            childMain();
+        }
     }
+    if (pid < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
     pid_ = pid;
 }
 

@@ -1,5 +1,6 @@
 #include "sim/terrain_queries.hpp"
 
+#include "base/fork_gate.hpp"
 #include "ig/surface_hit.hpp"
 #include "io/field_clock.hpp"
 
@@ -108,7 +109,7 @@ PagedTerrainQueries::PagedTerrainQueries(const ig::TerrainDb& db, const Options&
     done_.reserve(outstanding);
     work_.reserve(outstanding);
     answers_.reserve(outstanding);
-    thread_ = std::thread([this] { loop(); });
+    thread_ = base::ForkGate::startThread([this] { loop(); });
 }
 
 PagedTerrainQueries::~PagedTerrainQueries() {
@@ -170,6 +171,13 @@ void PagedTerrainQueries::loop() {
     while (true) {
         wake_.wait(lock, [&] { return stop_ || !asked_.empty(); });
         if (stop_) return;
+        // One batch is one piece of work for a fork to wait on (base/fork_gate.hpp), entered
+        // with the lock released: the gate may wait.
+        lock.unlock();
+        const base::ForkGate::Working working;
+        lock.lock();
+        if (stop_) return;
+        if (asked_.empty()) continue;
         work_.swap(asked_);  // both keep their capacity
         working_ = work_.size();
         lock.unlock();

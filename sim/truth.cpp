@@ -1,6 +1,7 @@
 #include "sim/truth.hpp"
 
 #include "base/check.hpp"
+#include "base/fork_gate.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -12,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace sim {
 
@@ -832,7 +834,7 @@ TruthWriter::TruthWriter(const TruthScene& scene, const TruthCamera& camera, std
     }
     // About a minute of fields at 59.94 Hz: lost fields are a few words each.
     lostQueue_.resize(4096);
-    thread_ = std::thread([this] { loop(); });
+    thread_ = base::ForkGate::startThread([this] { loop(); });
 }
 
 TruthWriter::~TruthWriter() {
@@ -886,9 +888,13 @@ bool TruthWriter::writeLine(const std::string& line) {
 }
 
 void TruthWriter::loop() {
+    // The computer's tables are made, and freed at the end, as pieces of work for a fork to wait
+    // on (base/fork_gate.hpp); `setUp` outlives them.
+    std::optional<base::ForkGate::Working> setUp(std::in_place);
     TruthComputer computer;
     FieldTruth truth;
     std::vector<TruthObject> extra;
+    setUp.reset();
     for (;;) {
         // The lost queue is read before the slots: a field published to it comes after every
         // slot published before it, so the merge below keeps the field order.
@@ -900,11 +906,14 @@ void TruthWriter::loop() {
             if (stop_.load(std::memory_order_acquire) &&
                 tail == head_.load(std::memory_order_acquire) &&
                 lostTail == lostHead_.load(std::memory_order_acquire)) {
+                setUp.emplace();
                 return;
             }
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
             continue;
         }
+        // One field's truth is one piece of work for a fork to wait on (base/fork_gate.hpp).
+        const base::ForkGate::Working working;
         const Slot& s = slots_[tail % slots_.size()];
         if (lostTail != lostHead &&
             (tail == head || lostQueue_[lostTail % lostQueue_.size()].index < s.index)) {

@@ -1,5 +1,7 @@
 #include "sim/pipeline.hpp"
 
+#include "base/fork_gate.hpp"
+
 #include "ig/error.hpp"
 #include "ig/synthetic.hpp"
 #include "io/field_clock.hpp"
@@ -16,6 +18,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -537,6 +540,53 @@ TEST(RendererProcess, ARestartedRendererGetsItsStartAllowance) {
     } catch (const std::runtime_error& e) {
         EXPECT_NE(std::string(e.what()).find("gave no first frame"), std::string::npos) << e.what();
     }
+}
+
+// The renderer process is forked while the field process's background threads work (tile
+// loaders, the ground's pager, the truth writer): none is in the middle of its work at the fork,
+// so the child never finds a lock of theirs held (base/fork_gate.hpp). Here a background thread
+// holds, for nearly all of its time, a lock the renderer also takes, and allocates as a tile
+// loader does: a child forked while it worked would wait on that lock for ever.
+TEST(RendererProcess, IsNeverForkedWhileABackgroundThreadWorks) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    auto shared = std::make_shared<std::mutex>();
+    // Stopped and joined on every way out of the test.
+    struct Busy {
+        std::atomic<bool> stop{false};
+        std::atomic<int> pieces{0};
+        std::thread thread;
+        ~Busy() {
+            stop = true;
+            if (thread.joinable()) thread.join();
+        }
+    } busy;
+    busy.thread = std::thread([&busy, shared] {
+        while (!busy.stop.load()) {
+            const base::ForkGate::Working working;
+            const std::lock_guard lock(*shared);
+            std::vector<unsigned char> tile(7493, 1);
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+            busy.pieces.fetch_add(tile[0]);
+        }
+    });
+    const sim::FrameRenderer locking = [inner, shared](const ig::Pose& pose, double time,
+                                                       std::uint64_t sequence) {
+        { const std::lock_guard lock(*shared); }
+        return inner(pose, time, sequence);
+    };
+    sim::PipelineOptions o = processOptions(1.0);
+    o.fault = sim::parseRendererFault("crash@0.5", "--inject-renderer-fault");
+    o.renderTimeout = 0.3;
+    o.startTimeout = 3.0;
+    for (int run = 0; run < 4; ++run) {  // eight forks
+        const PipelineRun r = runPipeline(world, o, kGentleScript, &locking);
+        ASSERT_TRUE(r.result.ok()) << "run " << run << ": " << r.result.error;
+        ASSERT_EQ(r.result.stats.restarts.size(), 1u)
+            << "run " << run << ": " << r.result.stats.restarts.back().cause;
+        EXPECT_EQ(r.result.stats.missedDeadlines, 0u);
+    }
+    EXPECT_GT(busy.pieces.load(), 0);
 }
 
 TEST(RendererProcess, FaultSpecificationsAreCheckedAndDescribed) {
