@@ -15,7 +15,9 @@
 #include "ig/error.hpp"
 #include "ig/grid_march.hpp"
 #include "ig/haze_pass.hpp"
+#include "ig/near_clip.hpp"
 #include "ig/object_pass.hpp"
+#include "ig/object_trace.hpp"
 #include "ig/shading.hpp"
 #include "ig/surface_hit.hpp"
 
@@ -66,6 +68,9 @@ void validateStereoOptions(const StereoOptions& options) {
     }
     if (!std::isfinite(options.gapThreshold) || options.gapThreshold < 0.0) {
         throw InputError("--gap-threshold: must be a finite number of pixels >= 0");
+    }
+    if (!std::isfinite(options.nearM) || options.nearM < 0.0) {
+        throw InputError("--near: must be a finite distance of 0 (none) or more metres");
     }
 }
 
@@ -1056,6 +1061,70 @@ namespace {
 
 // reprojectRightEye over the global map alone (maps.insets empty) or a nested terrain, whose
 // inset passes take `insetOptions` (insetPassOptions'; one per inset).
+// Whether pixel (x, y) at range `depth` lies nearer than the plane `nearM` ahead of the eye
+// (focal length f, principal point cx, cy).
+inline bool nearerThanPlane(double depth, int x, int y, const Intrinsics& in, double nearM) {
+    const double dx = x + 0.5 - in.cx(), dy = y + 0.5 - in.cy();
+    return depth * in.focal < nearM * std::sqrt(in.focal * in.focal + dx * dx + dy * dy);
+}
+
+// The right eye's pixels whose surface lies nearer than frame.nearM, redrawn as the casters'
+// near pass redraws theirs (clipNearer): the terrain where the ray enters it beyond the plane,
+// over the map, or over a nested surface the nearest map's (ties to an inset), by the reference
+// caster's shading; each is then a cast pixel (`source`, and `part` its map) for the finishing
+// passes. Objects are drawn over both eyes afterwards (drawStereoObjects), which clips them.
+void clipRightNearer(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
+                     const RenderOptions& options, const Camera& camera, RenderedFrame& frame,
+                     RightPixelSource* source, std::uint16_t* part) {
+    const double nearM = frame.nearM;
+    const Intrinsics& in = camera.intrinsics();
+    const int w = in.width, h = in.height;
+    // No pixel farther than nearM times the widest ratio of range to distance ahead is nearer.
+    const double farthest = nearM * std::hypot(in.focal, std::hypot(0.5 * w, 0.5 * h)) / in.focal;
+    const glm::dvec3 eye = camera.pose().position;
+    const double none = std::numeric_limits<double>::infinity();
+    runWithThreads(options.threads, [&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+            ObjectTraceScratch scratch;
+            ObjectShading shading;
+            for (int y = rows.begin(); y < rows.end(); ++y) {
+                for (int x = 0; x < w; ++x) {
+                    const std::size_t i = static_cast<std::size_t>(y) * w + x;
+                    const double d = frame.depth[i];
+                    if (!(d < farthest) || !nearerThanPlane(d, x, y, in, nearM)) continue;
+                    const TerrainRay global(*maps.global, eye,
+                                            camera.rayDirection(x + 0.5, y + 0.5));
+                    const double tNear = nearPlaneRange(camera, global.dir, nearM);
+                    double best = entryBeyond(*maps.global, global, tNear, none);
+                    std::size_t which = 0;  // 0: the global map; k + 1: inset k
+                    for (std::size_t k = 0; k < maps.insets.size(); ++k) {
+                        const NestedMaps::Part& p = maps.insets[k];
+                        const TerrainRay local(*p.map, eye - glm::dvec3{p.placement->origin, 0.0},
+                                               global.dir);
+                        const double t = entryBeyond(*p.map, local, tNear, none);
+                        if (t >= 0.0 && (best < 0.0 || t <= best)) {
+                            best = t;
+                            which = k + 1;
+                        }
+                    }
+                    if (which == 0) {
+                        shadeReferencePixel(*maps.global, options, global, best, tNear, false,
+                                            frame, i, scratch, shading);
+                    } else {
+                        const NestedMaps::Part& p = maps.insets[which - 1];
+                        const TerrainRay local(*p.map, eye - glm::dvec3{p.placement->origin, 0.0},
+                                               global.dir);
+                        shadeReferencePixel(*p.map, insetOptions[which - 1], local, best, tNear,
+                                            false, frame, i, scratch, shading);
+                    }
+                    source[i] = RightPixelSource::RayCast;
+                    if (part != nullptr) part[i] = static_cast<std::uint16_t>(which);
+                }
+            }
+        });
+    });
+}
+
 RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
                             const RenderedFrame& left, const StereoOptions& options,
                             const RenderOptions& renderOptions,
@@ -1198,6 +1267,14 @@ RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOpti
             },
             tbb::simple_partitioner());
     });
+    // The near plane (a host's View Definition) is the same plane for both eyes (they are
+    // apart across the view axis): what the left eye shows lies beyond it, and so does what is
+    // reprojected from it; a cast pixel may not.
+    right.nearM = left.nearM;
+    if (right.nearM > 0.0) {
+        clipRightNearer(maps, insetOptions, renderOptions, camera, right, source.data(),
+                        nested ? part.data() : nullptr);
+    }
     if (finishPassesOn(renderOptions)) {
         // The reprojected pixels carry the left eye's light (and height-dependent haze); the
         // cast ones get theirs as the caster finishes a frame (its levels), through a copy.
@@ -1281,9 +1358,49 @@ double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, Rend
     const auto draw = [&](RenderedFrame& frame) {
         const auto start = Clock::now();
         const Camera camera(frame.pose, frame.intrinsics);
+        // With a near plane, the finished terrain under the objects (see below).
+        std::vector<Rgb8> bareColor;
+        std::vector<float> bareDepth;
+        if (frame.nearM > 0.0) {
+            bareColor = frame.color;
+            bareDepth = frame.depth;
+        }
         runWithThreads(options.threads, [&] {
             drawObjectsOverTerrain(options.objects, options.sky, camera, frame);
         });
+        if (frame.nearM > 0.0 && frame.objectId.size() == frame.depth.size()) {
+            // The plane cuts the objects as the casters' near pass does: an object pixel nearer
+            // than it shows the terrain it covered (already clipped and finished) under the
+            // voxels its ray enters beyond the plane (traceObjects from there).
+            const Intrinsics& in = frame.intrinsics;
+            const glm::dvec3 eye = frame.pose.position;
+            runWithThreads(options.threads, [&] {
+                tbb::parallel_for(
+                    tbb::blocked_range<int>(0, in.height),
+                    [&](const tbb::blocked_range<int>& rows) {
+                        ObjectTraceScratch scratch;
+                        ObjectShading shading;
+                        for (int y = rows.begin(); y < rows.end(); ++y) {
+                            for (int x = 0; x < in.width; ++x) {
+                                const std::size_t i = static_cast<std::size_t>(y) * in.width + x;
+                                if (frame.objectId[i] == 0 ||
+                                    !nearerThanPlane(frame.depth[i], x, y, in, frame.nearM)) {
+                                    continue;
+                                }
+                                const glm::dvec3 dir =
+                                    glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
+                                traceObjects(options.objects, eye, dir, bareDepth[i], options.sky,
+                                             scratch, shading,
+                                             nearPlaneRange(camera, dir, frame.nearM));
+                                frame.color[i] = composeOver(shading, bareColor[i]);
+                                frame.objectId[i] = shading.id;
+                                frame.depth[i] = shading.id != 0 ? static_cast<float>(shading.depth)
+                                                                 : bareDepth[i];
+                            }
+                        }
+                    });
+            });
+        }
         // The terrain is finished (lit, hazed); the casters draw objects before the finishing
         // passes, whose light leaves object pixels as they are but whose height haze does
         // not: the object pixels take theirs through a copy.
@@ -1354,7 +1471,7 @@ StereoFrame renderStereo(const TerrainMap& map, const Pose& pose, const Intrinsi
         pose, options, renderOptions,
         [&](const RenderOptions& o, const Pose& at) {
             if (!caster) caster = makeCaster(CasterKind::Fast, map, o);
-            return renderFrame(*caster, map, at, intrinsics, time);
+            return renderFrame(*caster, map, at, intrinsics, time, 0, options.nearM);
         },
         [&](const RenderOptions& o, const RenderedFrame& left,
             std::vector<RightPixelSource>& source, StereoStats& stats) {
@@ -1371,7 +1488,7 @@ StereoFrame renderStereo(const NestedMaps& maps, const std::vector<RenderOptions
         pose, options, renderOptions,
         [&](const RenderOptions& o, const Pose& at) {
             if (!caster) caster = makeNestedCaster(CasterKind::Fast, maps, o, insetOptions);
-            return renderNestedFrame(*caster, maps, at, intrinsics, time);
+            return renderNestedFrame(*caster, maps, at, intrinsics, time, 0, options.nearM);
         },
         [&](const RenderOptions& o, const RenderedFrame& left,
             std::vector<RightPixelSource>& source, StereoStats& stats) {

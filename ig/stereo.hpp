@@ -34,6 +34,10 @@ struct StereoOptions {
     // instead of straight to the row. The same image to the bit, slower; the twin the tests
     // compare against.
     bool referenceSweep = false;
+    // The near clipping plane of both eyes, metres ahead along the view axis (0: none): the left
+    // eye is rendered with it (renderFrame's nearM) and the right takes it from the left
+    // (reprojectRightEye). renderStereo only.
+    double nearM = 0.0;
 };
 
 // Throws InputError for a negative or non-finite separation or gap threshold.
@@ -107,7 +111,9 @@ StereoFrame renderStereo(const NestedMaps& maps, const std::vector<RenderOptions
 // Fills `source` (per right pixel) and the right-eye fields of `stats`. With `caster` (over
 // `map`; the fast caster's units are columns), groups of columns at least a quarter to be cast
 // (the strip at the right edge that only the right eye sees) are cast whole by it, and their
-// marked pixels taken from that; the other marked pixels are cast one by one.
+// marked pixels taken from that; the other marked pixels are cast one by one. The right eye
+// takes the left's near plane (left.nearM, the same plane: the eyes are apart across the view
+// axis): a pixel whose surface lies nearer is redrawn from beyond it, as the casters do.
 RenderedFrame reprojectRightEye(const TerrainMap& map, const RenderedFrame& left,
                                 const StereoOptions& options, const RenderOptions& renderOptions,
                                 std::vector<RightPixelSource>& source, StereoStats& stats,
@@ -129,8 +135,10 @@ RenderedFrame reprojectRightEye(const NestedMaps& maps,
 
 // Draws options.objects over both eyes of a pair that holds terrain alone (the right eye
 // reprojected from the left's terrain) by the objects' footprint pass, as over a mono frame
-// (ig/object_pass.hpp): each eye gets its object ids. Adds each eye's pass time to its
-// stats.renderMs and returns the right eye's, milliseconds.
+// (ig/object_pass.hpp): each eye gets its object ids. With a near plane (frame.nearM), nothing
+// of an object nearer than it is drawn: an object pixel nearer shows the voxels its ray enters
+// beyond the plane over the eye's terrain, as the casters' near pass. Adds each eye's pass time to
+// its stats.renderMs and returns the right eye's, milliseconds.
 double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, RenderedFrame& right);
 
 // Composite images, RGB8 rows top first.

@@ -299,10 +299,10 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             // Over insets, both eyes on the nested surface.
             const bool nested = s.nested->insetCount() > 0;
             ig::RenderedFrame frame =
-                nested
-                    ? ig::renderNestedFrame(*s.caster, s.nested->maps(), eyes.left, intr, time,
-                                            sequence)
-                    : ig::renderFrame(*s.caster, s.paged->map(), eyes.left, intr, time, sequence);
+                nested ? ig::renderNestedFrame(*s.caster, s.nested->maps(), eyes.left, intr, time,
+                                               sequence, g.nearM)
+                       : ig::renderFrame(*s.caster, s.paged->map(), eyes.left, intr, time, sequence,
+                                         g.nearM);
             std::vector<ig::RightPixelSource> source;
             ig::StereoStats stats;
             auto right = std::make_shared<ig::RenderedFrame>(
@@ -314,6 +314,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             // A scene's objects over both eyes, as over a mono frame.
             const double objectsMs =
                 objects.scene ? ig::drawStereoObjects(s.withObjects, frame, *right) : 0.0;
+            // The view's draw distance, both eyes.
+            clipBeyondFar(frame, g.farM, sky);
+            clipBeyondFar(*right, g.farM, sky);
             right->sequence = sequence;
             right->time = time;
             frame.stats.renderMs += stats.rightMs + objectsMs;

@@ -103,9 +103,10 @@ FrameRenderer stereoRenderer(const ig::TerrainMap& map, const ig::NestedTerrain*
         level.roll = 0.0;  // the PRP applies roll
         const ig::Pose left = eyePoses(level, stereo.eyeSeparation).left;
         const ig::Intrinsics intr = renderIntrinsics(g, pose);
+        // The view's near plane, both eyes (the right takes the left's).
         ig::RenderedFrame frame =
-            maps ? ig::renderNestedFrame(*caster, *maps, left, intr, time, sequence)
-                 : ig::renderFrame(*caster, map, left, intr, time, sequence);
+            maps ? ig::renderNestedFrame(*caster, *maps, left, intr, time, sequence, g.nearM)
+                 : ig::renderFrame(*caster, map, left, intr, time, sequence, g.nearM);
         std::vector<ig::RightPixelSource> source;
         ig::StereoStats stats;
         auto right = std::make_shared<ig::RenderedFrame>(
@@ -114,6 +115,9 @@ FrameRenderer stereoRenderer(const ig::TerrainMap& map, const ig::NestedTerrain*
                  : ig::reprojectRightEye(map, frame, stereo, terrainOnly, source, stats,
                                          caster.get()));
         const double objectsMs = moving ? ig::drawStereoObjects(withObjects, frame, *right) : 0.0;
+        // The view's draw distance, both eyes.
+        clipBeyondFar(frame, g.farM, terrainOnly.sky);
+        clipBeyondFar(*right, g.farM, terrainOnly.sky);
         right->sequence = sequence;
         right->time = time;
         frame.stats.renderMs += stats.rightMs + objectsMs;

@@ -78,6 +78,7 @@ struct StereoFlags {
     double gapThreshold = 2.0;
     std::string outLeft, outRight, outSbs, outAnaglyph, outMask;
     std::string idsLeft, idsRight;  // object-id PNGs (with --scene)
+    double nearM = 0.0;             // --near: both eyes
 
     bool enabled() const { return separation.has_value(); }
 };
@@ -157,6 +158,8 @@ void runStereo(const StereoFlags& s, const ig::TerrainMap& map, const StereoInse
     }
     so.abuffer = !s.noAbuffer;
     so.gapThreshold = s.gapThreshold;
+    so.nearM = s.nearM;
+    if (s.nearM > 0.0) j["near_m"] = s.nearM;
     const ig::StereoFrame f =
         insets ? ig::renderStereo(insets->maps, insets->options, pose, intr, so, options, time)
                : ig::renderStereo(map, pose, intr, so, options, time);
@@ -711,8 +714,7 @@ int main(int argc, char** argv) {
         if (outPath.empty()) outPath = batchMode ? "frame_####.png" : "frame.png";
         if (!(batch.nearM >= 0.0) || !std::isfinite(batch.nearM))
             throw ig::InputError("--near: must be a finite distance of 0 (none) or more metres");
-        if (batch.nearM > 0.0 && stereo.enabled())
-            throw ig::InputError("--near: not with --stereo (the right eye is reprojected)");
+        stereo.nearM = batch.nearM;
         if (batchMode) {
             if (stereo.enabled()) throw ig::InputError("--poses: not with --stereo");
             if (!poseText.empty())

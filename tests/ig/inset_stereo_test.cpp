@@ -122,6 +122,60 @@ TEST(InsetStereo, CastPixelsAreLitByTheirOwnMap) {
     checkPairs(options, "lit");
 }
 
+// A near plane over the nested surface: the right eye shows nothing nearer than the plane, and
+// the pixels it redraws from beyond it (over the inset's surface or the global map's, whichever
+// the ray enters first) are those of the right eye fully cast by the nested caster with it.
+TEST(InsetStereo, TheNearPlaneClipsTheRightEyeAsTheNestedFullCast) {
+    const NestedTerrain& t = shared();
+    const NestedMaps& maps = t.maps();
+    const Intrinsics intr = Intrinsics::fromFov(200, 140, degToRad(55));
+    const RenderOptions options;
+    const auto caster = makeNestedCaster(CasterKind::Fast, t, options);
+    const std::vector<RenderOptions> passes =
+        insetPassOptions(maps, std::vector<RenderOptions>(maps.insets.size(), options));
+    StereoOptions so;
+    so.eyeSeparation = 4.0;
+    // 40 m over the ground, 120 m short of the inset's centre, looking down at it.
+    const Pose pose = lookingAtTheInset(0, -30, 120, 40);
+    const double nearM = 90.0;
+    std::vector<RightPixelSource> source, openSource;
+    StereoStats stats;
+    const RenderedFrame left = renderNestedFrame(*caster, t, pose, intr, 0.0, 0, nearM);
+    const RenderedFrame right = reprojectRightEye(maps, passes, left, so, options, source, stats,
+                                                  nestedGlobalCaster(*caster));
+    const RenderedFrame open =
+        reprojectRightEye(maps, passes, renderNestedFrame(*caster, t, pose, intr), so, options,
+                          openSource, stats, nestedGlobalCaster(*caster));
+    const RenderedFrame full = renderNestedFrame(*caster, t, right.pose, intr, 0.0, 0, nearM);
+    const Camera camera(right.pose, intr);
+    const auto ahead = [&](std::size_t i, float depth) {
+        const int x = static_cast<int>(i % static_cast<std::size_t>(intr.width));
+        const int y = static_cast<int>(i / static_cast<std::size_t>(intr.width));
+        return depth * glm::dot(glm::normalize(camera.rayDirection(x + 0.5, y + 0.5)),
+                                camera.basis().forward);
+    };
+    std::size_t redrawn = 0, same = 0, inside = 0;
+    for (std::size_t i = 0; i < right.depth.size(); ++i) {
+        if (std::isfinite(right.depth[i])) {
+            ASSERT_GE(ahead(i, right.depth[i]), nearM * (1.0 - 1e-6)) << "pixel " << i;
+        }
+        if (source[i] != RightPixelSource::RayCast || !std::isfinite(open.depth[i]) ||
+            ahead(i, open.depth[i]) >= nearM * (1.0 - 1e-6)) {
+            continue;
+        }
+        ++redrawn;
+        same += right.depth[i] == full.depth[i] && right.color[i] == full.color[i];
+        inside += showsTheInset(full, i, 4.0);
+    }
+    std::printf(
+        "near plane %g m: %zu right pixels redrawn beyond it (%zu over the inset), "
+        "%zu the full cast's\n",
+        nearM, redrawn, inside, same);
+    EXPECT_GT(redrawn, 100u);
+    EXPECT_GT(inside, 20u);
+    EXPECT_GE(same, redrawn - redrawn / 50);
+}
+
 // Without the inset the gaps over it would show the global map: the reprojected eye over the
 // nested terrain is much nearer its full cast than one over the global map alone.
 TEST(InsetStereo, TheGapsShowTheInsetNotTheGlobalMap) {

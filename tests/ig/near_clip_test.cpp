@@ -7,6 +7,7 @@
 #include "ig/caster.hpp"
 #include "ig/error.hpp"
 #include "ig/object_trace.hpp"
+#include "ig/stereo.hpp"
 #include "ig/sticks.hpp"
 #include "ig/surface_hit.hpp"
 #include "ig/synthetic.hpp"
@@ -23,6 +24,7 @@
 #include <numbers>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -245,6 +247,132 @@ TEST(NearClip, ObjectsNearerThanThePlaneAreCutAway) {
             EXPECT_EQ(cut.depth, bare.depth) << what;
         }
     }
+}
+
+// A stereo pair with a plane: the right eye (reprojected from the left, its gaps cast) shows
+// nothing nearer than the plane either, and the pixels it redraws from beyond the plane are
+// those of the right eye fully cast with the plane. (Few are: what the left eye shows lies
+// beyond the plane, and so does what is reprojected from it; 40 m up with 10 m between the
+// eyes, some sixty cast pixels of a 160 x 120 eye are nearer per view.)
+TEST(NearClip, StereoRightEyeShowsNothingNearerAndWhatItsFullCastShows) {
+    const TerrainMap& map = puget();
+    const Intrinsics in = Intrinsics::fromFov(160, 120, 70.0 * kDeg, 8);
+    RenderOptions options;
+    options.threads = 2;
+    const auto caster = makeCaster(CasterKind::Fast, map, options);
+    StereoOptions so;
+    so.eyeSeparation = 10.0;
+    std::size_t redrawn = 0, sameAsFull = 0;
+    for (const double pitch : {-10.0, -20.0, -35.0}) {
+        Pose pose;
+        pose.position = {0.5 * map.extentX(), 0.45 * map.extentY(), 0.0};
+        pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 40.0;
+        pose.yaw = 0.6;
+        pose.pitch = pitch * kDeg;
+        const double nearM = 300.0;
+        const std::string what = "pitch " + std::to_string(pitch);
+        std::vector<RightPixelSource> source, openSource;
+        StereoStats stats;
+        const RenderedFrame left = renderFrame(*caster, map, pose, in, 0.0, 0, nearM);
+        const RenderedFrame right =
+            reprojectRightEye(map, left, so, options, source, stats, caster.get());
+        const RenderedFrame open =
+            reprojectRightEye(map, renderFrame(*caster, map, pose, in, 0.0, 0, 0.0), so, options,
+                              openSource, stats, caster.get());
+        const RenderedFrame full =
+            renderFrame(*caster, map, rightEyePose(pose, so.eyeSeparation), in, 0.0, 0, nearM);
+        EXPECT_EQ(right.nearM, nearM) << what;
+        const Camera camera(right.pose, in);
+        for (int y = 0; y < in.height; ++y) {
+            for (int x = 0; x < in.width; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * in.width + x;
+                if (right.depth[i] != kSkyDepth) {
+                    ASSERT_GE(aheadOf(camera, x, y, right.depth[i]), nearM * (1.0 - 1e-6))
+                        << what << " at " << x << "," << y;
+                }
+                // Cast in the right eye without the plane, and nearer than it there.
+                if (source[i] == RightPixelSource::RayCast && open.depth[i] != kSkyDepth &&
+                    aheadOf(camera, x, y, open.depth[i]) < nearM * (1.0 - 1e-6)) {
+                    ++redrawn;
+                    sameAsFull +=
+                        right.depth[i] == full.depth[i] && right.color[i] == full.color[i];
+                }
+            }
+        }
+        {
+            std::size_t rc = 0, on = 0;
+            for (std::size_t i = 0; i < source.size(); ++i) {
+                rc += source[i] == RightPixelSource::RayCast;
+                on += openSource[i] == RightPixelSource::RayCast;
+            }
+            std::printf("DBG %s: rc %zu open rc %zu\n", what.c_str(), rc, on);
+        }
+        for (const ControlPoint& c : right.controlPoints) {
+            if (c.world.w == 0.0) continue;
+            const glm::dvec3 d = glm::dvec3(c.world) - right.pose.position;
+            EXPECT_GE(glm::dot(d, camera.basis().forward), nearM * (1.0 - 1e-9)) << what;
+        }
+    }
+    EXPECT_GT(redrawn, 100u);
+    EXPECT_GE(sameAsFull, redrawn - redrawn / 50);
+}
+
+// Objects drawn over a stereo pair (drawStereoObjects) are cut by the plane as in a mono frame:
+// none nearer than it in either eye, and one standing wholly nearer leaves both eyes as if it
+// were not there, to the bit.
+TEST(NearClip, StereoPairsCutObjectsAway) {
+    const TerrainMap& map = puget();
+    const Intrinsics in = Intrinsics::fromFov(128, 96, 60.0 * kDeg, 8);
+    Pose pose;
+    pose.position = {0.5 * map.extentX(), 0.5 * map.extentY(), 0.0};
+    pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 8.0;
+    pose.yaw = 0.3;
+    pose.pitch = -6.0 * kDeg;
+    const glm::dvec3 ahead =
+        pose.position + 40.0 * glm::dvec3{std::sin(pose.yaw), std::cos(pose.yaw), 0.0};
+    ObjectLayer layer(map, 0.25);
+    const ObjectModel& tree = vig_test::shippedModels()[0];
+    layer.place(tree, Placement{9, ahead.x, ahead.y, map.surfaceHeight(ahead.x, ahead.y), 0.0,
+                                12.0 / tree.grid.sizeZ});
+    layer.finish();
+    RenderOptions terrain;
+    terrain.threads = 2;
+    RenderOptions withTree = terrain;
+    withTree.objects = {&layer};
+    const auto caster = makeCaster(CasterKind::Fast, map, terrain);
+    StereoOptions so;
+    so.eyeSeparation = 1.0;
+    const auto pair = [&](double nearM, bool objects) {
+        std::vector<RightPixelSource> source;
+        StereoStats stats;
+        RenderedFrame left = renderFrame(*caster, map, pose, in, 0.0, 0, nearM);
+        RenderedFrame right =
+            reprojectRightEye(map, left, so, terrain, source, stats, caster.get());
+        if (objects) drawStereoObjects(withTree, left, right);
+        return std::pair<RenderedFrame, RenderedFrame>{std::move(left), std::move(right)};
+    };
+    const auto [left20, right20] = pair(20.0, true);
+    for (const RenderedFrame* eye : {&left20, &right20}) {
+        const Camera camera(eye->pose, in);
+        std::size_t shown = 0;
+        for (int y = 0; y < in.height; ++y) {
+            for (int x = 0; x < in.width; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * in.width + x;
+                if (eye->objectId[i] == 0) continue;
+                ++shown;
+                ASSERT_GE(aheadOf(camera, x, y, eye->depth[i]), 20.0 * (1.0 - 1e-6));
+            }
+        }
+        EXPECT_GT(shown, 100u);
+    }
+    const auto [left60, right60] = pair(60.0, true);
+    const auto [bareLeft, bareRight] = pair(60.0, false);
+    EXPECT_EQ(std::count(left60.objectId.begin(), left60.objectId.end(), std::uint16_t{9}), 0);
+    EXPECT_EQ(std::count(right60.objectId.begin(), right60.objectId.end(), std::uint16_t{9}), 0);
+    EXPECT_EQ(left60.color, bareLeft.color);
+    EXPECT_EQ(left60.depth, bareLeft.depth);
+    EXPECT_EQ(right60.color, bareRight.color);
+    EXPECT_EQ(right60.depth, bareRight.depth);
 }
 
 // Control points see what their pixels show: the surface beyond the plane along their ray, or

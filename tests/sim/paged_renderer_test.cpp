@@ -217,7 +217,8 @@ TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
 
 // Stereo pairs over the paged map: the left eye cast, the right reprojected from it with its
 // holes cast on the same paged map; both eyes' tiles placed, so a pair whose tiles were all
-// resident is the in-memory stereo renderer's, both eyes to the bit.
+// resident is the in-memory stereo renderer's, both eyes to the bit; every other pair with a
+// view's near and far planes (a host's View Definition), which both eyes take.
 TEST(PagedRenderer, StereoPairsAsOverTheMapInMemory) {
     const Database d;
     const ig::TerrainDb db = ig::TerrainDb::open(d.path);
@@ -237,11 +238,18 @@ TEST(PagedRenderer, StereoPairsAsOverTheMapInMemory) {
         pose.position = {2500.0 + 200.0 * t, 2500.0 + 150.0 * t, 0.0};
         pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 60.0;
         pose.pitch = -0.2;
+        sim::RenderView planes;
+        if (i % 2 == 1) {
+            planes.farM = 1500.0;
+            planes.nearM = 100.0;
+        }
+        sim::setRequestView(planes);
         const ig::RenderedFrame a = paged(pose, t, static_cast<std::uint64_t>(i));
-        ASSERT_TRUE(a.right) << "a pair";
-        if (log->frames.back().substituted != 0) continue;
         const ig::RenderedFrame b = inMemory(pose, t, static_cast<std::uint64_t>(i));
-        ASSERT_TRUE(b.right);
+        sim::setRequestView(sim::RenderView{});
+        ASSERT_TRUE(a.right && b.right) << "a pair";
+        EXPECT_EQ(a.right->nearM, i % 2 == 1 ? 100.0 : 0.0);
+        if (log->frames.back().substituted != 0) continue;
         EXPECT_TRUE(sameFrame(a, b)) << "left eye, frame " << i;
         EXPECT_TRUE(sameFrame(*a.right, *b.right)) << "right eye, frame " << i;
         ++exact;

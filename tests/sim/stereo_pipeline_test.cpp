@@ -17,6 +17,7 @@
 
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -305,3 +306,55 @@ TEST(StereoPipeline, EachEyeWithinMonoOfItsOwnTruth) {
 }
 
 }  // namespace
+
+// The view's planes (a CIGI host's View Definition, through sim::requestView) clip both eyes of
+// a pair as they clip a mono frame: nothing nearer than the near plane, the sky beyond the draw
+// distance; the right eye takes the left's plane.
+TEST(StereoPipeline, TheViewsPlanesClipBothEyes) {
+    const ig::TerrainMap& map = pugetSound();
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 160;
+    geometry.windowHeight = 120;
+    geometry.margin = 16;
+    geometry.coverRoll = false;
+    const sim::FrameRenderer stereo = sim::makeStereoRenderer(map, geometry, 2.0);
+    ig::Pose pose;
+    pose.position = {0.5 * map.extentX(), 0.45 * map.extentY(), 0.0};
+    pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 10.0;
+    pose.yaw = 0.6;
+    pose.pitch = -0.1;
+    const ig::RenderedFrame open = stereo(pose, 0.0, 1);
+    sim::RenderView view;
+    view.farM = 800.0;
+    view.nearM = 40.0;
+    sim::setRequestView(view);
+    const ig::RenderedFrame cut = stereo(pose, 0.0, 2);
+    sim::setRequestView(sim::RenderView{});
+    ASSERT_TRUE(open.right && cut.right);
+    const std::pair<const ig::RenderedFrame*, const ig::RenderedFrame*> eyes[] = {
+        {&open, &cut}, {open.right.get(), cut.right.get()}};
+    for (const auto& [before, after] : eyes) {
+        const char* eye = before == &open ? "left" : "right";
+        EXPECT_EQ(after->nearM, 40.0) << eye;
+        const ig::Camera camera(after->pose, after->intrinsics);
+        const int w = after->width();
+        std::size_t beyond = 0, nearer = 0;
+        for (std::size_t i = 0; i < after->depth.size(); ++i) {
+            const int x = static_cast<int>(i % static_cast<std::size_t>(w));
+            const int y = static_cast<int>(i / static_cast<std::size_t>(w));
+            const double forward = glm::dot(glm::normalize(camera.rayDirection(x + 0.5, y + 0.5)),
+                                            camera.basis().forward);
+            if (before->depth[i] != ig::kSkyDepth && before->depth[i] > 800.0) {
+                ++beyond;
+                EXPECT_EQ(after->depth[i], ig::kSkyDepth) << eye << " pixel " << i;
+            }
+            if (before->depth[i] * forward < 40.0 * (1.0 - 1e-6)) ++nearer;
+            if (after->depth[i] != ig::kSkyDepth) {
+                ASSERT_LE(after->depth[i], 800.0) << eye << " pixel " << i;
+                ASSERT_GE(after->depth[i] * forward, 40.0 * (1.0 - 1e-6)) << eye << " pixel " << i;
+            }
+        }
+        EXPECT_GT(beyond, 100u) << eye;
+        EXPECT_GT(nearer, 100u) << eye;
+    }
+}
