@@ -1277,8 +1277,18 @@ RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOpti
     }
     if (finishPassesOn(renderOptions)) {
         // The reprojected pixels carry the left eye's light (and height-dependent haze); the
-        // cast ones get theirs as the caster finishes a frame (its levels), through a copy.
-        RenderedFrame lit = right;
+        // cast ones get theirs as the caster finishes a frame (its levels), through a copy in
+        // which every other pixel is sky, so that the passes (per pixel, sky left as it is)
+        // light only them: a few per cent of the eye, not the whole of it again.
+        const auto castOnly = [&](std::uint16_t ofMap) {
+            RenderedFrame only = right;
+            for (std::size_t i = 0; i < n; ++i) {
+                if (source[i] != RightPixelSource::RayCast || (nested && part[i] != ofMap))
+                    only.depth[i] = kSkyDepth;
+            }
+            return only;
+        };
+        RenderedFrame lit = castOnly(0);
         if (caster != nullptr) {
             caster->finishFrame(camera, lit);
         } else {
@@ -1293,7 +1303,7 @@ RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOpti
         for (std::size_t k = 0; k < maps.insets.size(); ++k) {
             const auto id = static_cast<std::uint16_t>(k + 1);
             if (std::find(part.begin(), part.end(), id) == part.end()) continue;
-            RenderedFrame own = right;
+            RenderedFrame own = castOnly(id);
             own.pose.position -= glm::dvec3{maps.insets[k].placement->origin, 0.0};
             finishLighting(insetOptions[k], LevelBands{}, Camera(own.pose, own.intrinsics), own);
             for (std::size_t i = 0; i < n; ++i) {
