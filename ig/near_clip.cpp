@@ -25,12 +25,9 @@ void clipNearer(const TerrainMap& map, const RenderOptions& options, const Camer
     if (!(nearM > 0.0)) return;
     const Intrinsics& in = camera.intrinsics();
     const int w = in.width, h = in.height;
-    const double f = in.focal;
     // A point of range d along the ray through pixel offset (dx, dy) from the centre lies
-    // d f / sqrt(f^2 + dx^2 + dy^2) ahead: no pixel farther than nearM times the widest ratio
-    // can be nearer than the plane.
-    const double half = std::hypot(0.5 * w, 0.5 * h);
-    const double farthest = nearM * std::hypot(f, half) / f;
+    // d f / sqrt(f^2 + dx^2 + dy^2) ahead.
+    const NearerThanPlane nearer(in, nearM);
     const bool ids = !options.objects.empty() && frame.objectId.size() == frame.depth.size();
     runWithThreads(options.threads, [&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
@@ -39,10 +36,7 @@ void clipNearer(const TerrainMap& map, const RenderOptions& options, const Camer
             for (int y = rows.begin(); y < rows.end(); ++y) {
                 for (int x = 0; x < w; ++x) {
                     const std::size_t i = static_cast<std::size_t>(y) * w + x;
-                    const double d = frame.depth[i];
-                    if (!(d < farthest)) continue;  // sky, NaN, or surely beyond the plane
-                    const double dx = x + 0.5 - in.cx(), dy = y + 0.5 - in.cy();
-                    if (d * f >= nearM * std::sqrt(f * f + dx * dx + dy * dy)) continue;
+                    if (!nearer(frame.depth[i], x, y)) continue;
                     // The reference caster's pixel, from the plane on.
                     const TerrainRay ray(map, camera.pose().position,
                                          camera.rayDirection(x + 0.5, y + 0.5));

@@ -5,11 +5,36 @@
 #include "ig/caster.hpp"
 #include "ig/lighting_pass.hpp"
 
+#include <cmath>
+
 namespace ig {
 
 // Where the ray along unit direction `dir` from the camera's eye crosses the plane `nearM`
 // metres ahead along the view axis (+inf for a ray that never does).
 double nearPlaneRange(const Camera& camera, const glm::dvec3& dir, double nearM);
+
+// Whether pixel (x, y) of a frame, its surface at range `depth` along the pixel-centre ray, lies
+// nearer than the plane `nearM` ahead of the eye: a bound first (no pixel farther than nearM
+// times the widest ratio of range to distance ahead can be), then the pixel's own ratio. Sky
+// (+inf) and NaN are not nearer.
+class NearerThanPlane {
+  public:
+    NearerThanPlane(const Intrinsics& in, double nearM)
+        : f_(in.focal),
+          cx_(in.cx()),
+          cy_(in.cy()),
+          nearM_(nearM),
+          farthest_(nearM * std::hypot(in.focal, std::hypot(0.5 * in.width, 0.5 * in.height)) /
+                    in.focal) {}
+    bool operator()(double depth, int x, int y) const {
+        if (!(depth < farthest_)) return false;
+        const double dx = x + 0.5 - cx_, dy = y + 0.5 - cy_;
+        return depth * f_ < nearM_ * std::sqrt(f_ * f_ + dx * dx + dy * dy);
+    }
+
+  private:
+    double f_, cx_, cy_, nearM_, farthest_;
+};
 
 // Redraws, after the caster's pixels, each pixel of `frame` whose first surface lies nearer
 // than frame.nearM along the view axis: the terrain where the ray enters it beyond the plane

@@ -1061,13 +1061,6 @@ namespace {
 
 // reprojectRightEye over the global map alone (maps.insets empty) or a nested terrain, whose
 // inset passes take `insetOptions` (insetPassOptions'; one per inset).
-// Whether pixel (x, y) at range `depth` lies nearer than the plane `nearM` ahead of the eye
-// (focal length f, principal point cx, cy).
-inline bool nearerThanPlane(double depth, int x, int y, const Intrinsics& in, double nearM) {
-    const double dx = x + 0.5 - in.cx(), dy = y + 0.5 - in.cy();
-    return depth * in.focal < nearM * std::sqrt(in.focal * in.focal + dx * dx + dy * dy);
-}
-
 // The right eye's pixels whose surface lies nearer than frame.nearM, redrawn as the casters'
 // near pass redraws theirs (clipNearer): the terrain where the ray enters it beyond the plane,
 // over the map, or over a nested surface the nearest map's (ties to an inset), by the reference
@@ -1079,8 +1072,7 @@ void clipRightNearer(const NestedMaps& maps, const std::vector<RenderOptions>& i
     const double nearM = frame.nearM;
     const Intrinsics& in = camera.intrinsics();
     const int w = in.width, h = in.height;
-    // No pixel farther than nearM times the widest ratio of range to distance ahead is nearer.
-    const double farthest = nearM * std::hypot(in.focal, std::hypot(0.5 * w, 0.5 * h)) / in.focal;
+    const NearerThanPlane nearer(in, nearM);
     const glm::dvec3 eye = camera.pose().position;
     const double none = std::numeric_limits<double>::infinity();
     runWithThreads(options.threads, [&] {
@@ -1090,8 +1082,7 @@ void clipRightNearer(const NestedMaps& maps, const std::vector<RenderOptions>& i
             for (int y = rows.begin(); y < rows.end(); ++y) {
                 for (int x = 0; x < w; ++x) {
                     const std::size_t i = static_cast<std::size_t>(y) * w + x;
-                    const double d = frame.depth[i];
-                    if (!(d < farthest) || !nearerThanPlane(d, x, y, in, nearM)) continue;
+                    if (!nearer(frame.depth[i], x, y)) continue;
                     const TerrainRay global(*maps.global, eye,
                                             camera.rayDirection(x + 0.5, y + 0.5));
                     const double tNear = nearPlaneRange(camera, global.dir, nearM);
@@ -1384,6 +1375,7 @@ double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, Rend
             // voxels its ray enters beyond the plane (traceObjects from there).
             const Intrinsics& in = frame.intrinsics;
             const glm::dvec3 eye = frame.pose.position;
+            const NearerThanPlane nearer(in, frame.nearM);
             runWithThreads(options.threads, [&] {
                 tbb::parallel_for(
                     tbb::blocked_range<int>(0, in.height),
@@ -1393,10 +1385,8 @@ double drawStereoObjects(const RenderOptions& options, RenderedFrame& left, Rend
                         for (int y = rows.begin(); y < rows.end(); ++y) {
                             for (int x = 0; x < in.width; ++x) {
                                 const std::size_t i = static_cast<std::size_t>(y) * in.width + x;
-                                if (frame.objectId[i] == 0 ||
-                                    !nearerThanPlane(frame.depth[i], x, y, in, frame.nearM)) {
+                                if (frame.objectId[i] == 0 || !nearer(frame.depth[i], x, y))
                                     continue;
-                                }
                                 const glm::dvec3 dir =
                                     glm::normalize(camera.rayDirection(x + 0.5, y + 0.5));
                                 traceObjects(options.objects, eye, dir, bareDepth[i], options.sky,

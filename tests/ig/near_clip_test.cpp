@@ -201,26 +201,35 @@ TEST(NearClip, EveryCasterKeepsWhatLiesBeyondAndShowsNothingNearer) {
     }
 }
 
-// The plane cuts objects too: one standing wholly nearer than the plane leaves the frame as if
-// it were not there; one beyond the plane is drawn; no object pixel is nearer than the plane.
-TEST(NearClip, ObjectsNearerThanThePlaneAreCutAway) {
-    const TerrainMap& map = puget();
-    const Intrinsics in = Intrinsics::fromFov(128, 96, 60.0 * kDeg, 8);
+// 8 m over the middle of `map`, looking nearly level.
+Pose lowOverTheGround(const TerrainMap& map) {
     Pose pose;
     pose.position = {0.5 * map.extentX(), 0.5 * map.extentY(), 0.0};
     pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 8.0;
     pose.yaw = 0.3;
     pose.pitch = -6.0 * kDeg;
-    const Camera camera(pose, in);
-    // A conifer 12 m tall, 40 m ahead on the ground.
+    return pose;
+}
+
+// A conifer 12 m tall (object id 9), 40 m ahead of `pose` on the ground, into `layer`.
+void plantATreeAhead(ObjectLayer& layer, const TerrainMap& map, const Pose& pose) {
     const glm::dvec3 ahead =
         pose.position + 40.0 * glm::dvec3{std::sin(pose.yaw), std::cos(pose.yaw), 0.0};
-    ObjectLayer layer(map, 0.25);
     const ObjectModel& tree = vig_test::shippedModels()[0];
-    const double scale = 12.0 / tree.grid.sizeZ;
-    layer.place(tree,
-                Placement{9, ahead.x, ahead.y, map.surfaceHeight(ahead.x, ahead.y), 0.0, scale});
+    layer.place(tree, Placement{9, ahead.x, ahead.y, map.surfaceHeight(ahead.x, ahead.y), 0.0,
+                                12.0 / tree.grid.sizeZ});
     layer.finish();
+}
+
+// The plane cuts objects too: one standing wholly nearer than the plane leaves the frame as if
+// it were not there; one beyond the plane is drawn; no object pixel is nearer than the plane.
+TEST(NearClip, ObjectsNearerThanThePlaneAreCutAway) {
+    const TerrainMap& map = puget();
+    const Intrinsics in = Intrinsics::fromFov(128, 96, 60.0 * kDeg, 8);
+    const Pose pose = lowOverTheGround(map);
+    const Camera camera(pose, in);
+    ObjectLayer layer(map, 0.25);
+    plantATreeAhead(layer, map, pose);
     for (const CasterCase& c : kCasters) {
         const std::string what =
             std::string(casterName(c.kind)) + " levels " + std::to_string(c.levels);
@@ -323,18 +332,9 @@ TEST(NearClip, StereoRightEyeShowsNothingNearerAndWhatItsFullCastShows) {
 TEST(NearClip, StereoPairsCutObjectsAway) {
     const TerrainMap& map = puget();
     const Intrinsics in = Intrinsics::fromFov(128, 96, 60.0 * kDeg, 8);
-    Pose pose;
-    pose.position = {0.5 * map.extentX(), 0.5 * map.extentY(), 0.0};
-    pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 8.0;
-    pose.yaw = 0.3;
-    pose.pitch = -6.0 * kDeg;
-    const glm::dvec3 ahead =
-        pose.position + 40.0 * glm::dvec3{std::sin(pose.yaw), std::cos(pose.yaw), 0.0};
+    const Pose pose = lowOverTheGround(map);
     ObjectLayer layer(map, 0.25);
-    const ObjectModel& tree = vig_test::shippedModels()[0];
-    layer.place(tree, Placement{9, ahead.x, ahead.y, map.surfaceHeight(ahead.x, ahead.y), 0.0,
-                                12.0 / tree.grid.sizeZ});
-    layer.finish();
+    plantATreeAhead(layer, map, pose);
     RenderOptions terrain;
     terrain.threads = 2;
     RenderOptions withTree = terrain;

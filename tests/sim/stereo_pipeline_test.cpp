@@ -27,6 +27,16 @@ const ig::TerrainMap& pugetSound() {
     return map;
 }
 
+// 160 x 120 windows with 16 pixels of margin, not widened for roll.
+sim::RenderGeometry smallGeometry() {
+    sim::RenderGeometry geometry;
+    geometry.windowWidth = 160;
+    geometry.windowHeight = 120;
+    geometry.margin = 16;
+    geometry.coverRoll = false;
+    return geometry;
+}
+
 sim::Trajectory trajectory(const std::string& name) {
     return sim::Trajectory::loadCsv(std::string(VIG_DATA_DIR) + "/trajectories/" + name);
 }
@@ -251,11 +261,7 @@ double fieldMae(const prp::Field& field, const ig::RenderedFrame& truth) {
 // straight and level higher up, 2 m between the eyes, the default (auto) warp.
 TEST(StereoPipeline, EachEyeWithinMonoOfItsOwnTruth) {
     const ig::TerrainMap& map = pugetSound();
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 160;
-    geometry.windowHeight = 120;
-    geometry.margin = 16;
-    geometry.coverRoll = false;
+    const sim::RenderGeometry geometry = smallGeometry();
     constexpr double kSeparation = 2.0;
     const sim::FrameRenderer stereo = sim::makeStereoRenderer(map, geometry, kSeparation);
     const sim::FrameRenderer mono = sim::makeCasterRenderer(map, geometry);
@@ -312,12 +318,7 @@ TEST(StereoPipeline, EachEyeWithinMonoOfItsOwnTruth) {
 // distance; the right eye takes the left's plane.
 TEST(StereoPipeline, TheViewsPlanesClipBothEyes) {
     const ig::TerrainMap& map = pugetSound();
-    sim::RenderGeometry geometry;
-    geometry.windowWidth = 160;
-    geometry.windowHeight = 120;
-    geometry.margin = 16;
-    geometry.coverRoll = false;
-    const sim::FrameRenderer stereo = sim::makeStereoRenderer(map, geometry, 2.0);
+    const sim::FrameRenderer stereo = sim::makeStereoRenderer(map, smallGeometry(), 2.0);
     ig::Pose pose;
     pose.position = {0.5 * map.extentX(), 0.45 * map.extentY(), 0.0};
     pose.position.z = map.surfaceHeight(pose.position.x, pose.position.y) + 10.0;
