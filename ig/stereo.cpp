@@ -1059,8 +1059,6 @@ class ColumnCaster {
 
 namespace {
 
-// reprojectRightEye over the global map alone (maps.insets empty) or a nested terrain, whose
-// inset passes take `insetOptions` (insetPassOptions'; one per inset).
 // The right eye's pixels whose surface lies nearer than frame.nearM, redrawn as the casters'
 // near pass redraws theirs (clipNearer): the terrain where the ray enters it beyond the plane,
 // over the map, or over a nested surface the nearest map's (ties to an inset), by the reference
@@ -1116,6 +1114,8 @@ void clipRightNearer(const NestedMaps& maps, const std::vector<RenderOptions>& i
     });
 }
 
+// reprojectRightEye over the global map alone (maps.insets empty) or a nested terrain, whose
+// inset passes take `insetOptions` (insetPassOptions'; one per inset).
 RenderedFrame reprojectOver(const NestedMaps& maps, const std::vector<RenderOptions>& insetOptions,
                             const RenderedFrame& left, const StereoOptions& options,
                             const RenderOptions& renderOptions,
