@@ -4,6 +4,9 @@
 
 #include "ig/shading.hpp"
 
+#include <emmintrin.h>
+
+#include <algorithm>
 #include <cmath>
 
 namespace prp {
@@ -34,11 +37,11 @@ ApplyResult dispatch(const SourceView& source, Rows rows, const FieldView& field
     });
 }
 
-// The fill pass over one field: walks each line's source points as the kernels do, and writes
-// the pixels (pairs for UYVY) with any point outside again, through convertRow.
+// The fill pass's slow twin: walks each line's source points as the kernels do, and writes the
+// pixels (pairs for UYVY) with any point outside again, one at a time, through convertRow.
 template <class Rows>
-void fillField(const SourceView& source, Rows rows, const FieldView& field, int gainQ8, bool agc,
-               const OutsideFill& fill, ApplyResult& result) {
+void fillFieldPerPixel(const SourceView& source, Rows rows, const FieldView& field, int gainQ8,
+                       bool agc, const OutsideFill& fill, ApplyResult& result) {
     if (result.edgeSamples == 0) return;
     Sampler s(source);
     constexpr int kChunk = 64;  // even: UYVY pairs never straddle chunks
@@ -83,6 +86,82 @@ void fillField(const SourceView& source, Rows rows, const FieldView& field, int 
                 if (agc) convertRow(oldRgb, group, field.format, gainQ8, true, scratch, oldLuma);
                 convertRow(newRgb, group, field.format, gainQ8, agc,
                            out + static_cast<std::size_t>(x0 + g) * bpp, newLuma);
+            }
+        }
+    }
+    if (agc) result.lumaSum = result.lumaSum - oldLuma + newLuma;
+}
+
+// The fill pass over one field: walks each line's source points as the kernels do, 64 pixels at
+// a time. A pixel is written again only where its point lies outside and the fill has a colour
+// for it (elsewhere the kernel's sample stands); for UYVY the pair holding it. Each run of such
+// pixels (pairs) is converted by one convertRow call, the colours of a chunk worked out in one
+// loop, and the source sampled only for what the fill needs: the kernel's sample of a pixel
+// the fill leaves (a pair's other pixel), and, with AGC, of every pixel written again (its luma
+// leaves the sum). The same bytes and sums as fillFieldPerPixel.
+template <class Rows>
+void fillField(const SourceView& source, Rows rows, const FieldView& field, int gainQ8, bool agc,
+               const OutsideFill& fill, ApplyResult& result) {
+    if (result.edgeSamples == 0) return;
+    Sampler s(source);
+    constexpr int kChunk = 64;  // even: UYVY pairs never straddle chunks
+    const bool uyvy = field.format == PixelFormat::Uyvy;
+    const std::size_t bpp = bytesPerPixel(field.format);
+    std::int64_t xs[kChunk], ys[kChunk];
+    bool outside[kChunk], filled[kChunk];
+    std::uint8_t oldRgb[3 * kChunk], newRgb[3 * kChunk], scratch[3 * kChunk];
+    std::uint64_t oldLuma = 0, newLuma = 0;
+    for (int line = 0; line < field.lines; ++line) {
+        const double y = field.firstLine + 2 * line + 0.5;
+        rows.start(y);
+        std::uint8_t* out = field.pixels + static_cast<std::size_t>(line) * field.stride;
+        for (int x0 = 0; x0 < field.width; x0 += kChunk) {
+            const int n = std::min(kChunk, field.width - x0);
+            bool any = false;
+            for (int k = 0; k < n; ++k) {
+                xs[k] = rows.px();
+                ys[k] = rows.py();
+                rows.next();
+                outside[k] = (static_cast<std::uint64_t>(xs[k] + kHalf) > s.spanX) |
+                             (static_cast<std::uint64_t>(ys[k] + kHalf) > s.spanY);
+                any |= outside[k];
+            }
+            if (!any) continue;
+            fill.colorsAlong(x0, n, y, filled, newRgb);
+            bool anyFilled = false;
+            for (int k = 0; k < n; ++k) {
+                filled[k] = filled[k] && outside[k];
+                anyFilled |= filled[k];
+            }
+            if (!anyFilled) continue;
+            // Runs of pixels (UYVY: pairs) written again: [a, b).
+            for (int a = 0; a < n;) {
+                const auto rewritten = [&](int k) {
+                    return filled[k] || (uyvy && (k ^ 1) < n && filled[k ^ 1]);
+                };
+                if (!rewritten(a)) {
+                    ++a;
+                    continue;
+                }
+                int b = a;
+                while (b < n && rewritten(b))
+                    ++b;
+                for (int k = a; k < b; ++k) {
+                    if (filled[k] && !agc) continue;
+                    int r, gr, bl;
+                    s.sample(xs[k], ys[k], r, gr, bl);
+                    const std::uint8_t c[3] = {static_cast<std::uint8_t>(r),
+                                               static_cast<std::uint8_t>(gr),
+                                               static_cast<std::uint8_t>(bl)};
+                    std::copy_n(c, 3, oldRgb + 3 * k);
+                    if (!filled[k]) std::copy_n(c, 3, newRgb + 3 * k);
+                }
+                if (agc) {
+                    convertRow(oldRgb + 3 * a, b - a, field.format, gainQ8, true, scratch, oldLuma);
+                }
+                convertRow(newRgb + 3 * a, b - a, field.format, gainQ8, agc,
+                           out + static_cast<std::size_t>(x0 + a) * bpp, newLuma);
+                a = b;
             }
         }
     }
@@ -134,10 +213,64 @@ bool OutsideFill::colorAt(double x, double y, ig::Rgb8& color) const {
     return true;
 }
 
+namespace detail {
+
+void skyRowSse2(const SkyRow& row, int n, double* t, std::uint8_t* above) {
+    // OutsideFill::colorAt's operations in its order (this file is built without contraction),
+    // two pixels a step (SSE2, every x86-64), each lane rounded as the scalar operation.
+    const __m128d sx = _mm_set1_pd(row.sx), cx = _mm_set1_pd(row.cx);
+    const __m128d fz = _mm_set1_pd(row.fz), rz = _mm_set1_pd(row.rz);
+    const __m128d vz = _mm_set1_pd(row.vz), ff = _mm_set1_pd(row.ff);
+    const __m128d vv = _mm_set1_pd(row.vv), zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
+    for (int k = 0; k < n; k += 2) {
+        const __m128d x = _mm_set_pd(row.x0 + k + 1.5, row.x0 + k + 0.5);
+        const __m128d u = _mm_sub_pd(_mm_mul_pd(sx, x), cx);
+        const __m128d dz = _mm_sub_pd(_mm_add_pd(fz, _mm_mul_pd(u, rz)), vz);
+        const __m128d len = _mm_sqrt_pd(_mm_add_pd(_mm_add_pd(ff, _mm_mul_pd(u, u)), vv));
+        // std::clamp to [0, 1]: the same for every number (a NaN never reaches here).
+        const __m128d c = _mm_min_pd(_mm_max_pd(_mm_div_pd(dz, len), zero), one);
+        _mm_storeu_pd(t + k, _mm_sqrt_pd(c));
+        const int up = _mm_movemask_pd(_mm_cmpgt_pd(dz, zero));
+        above[k] = static_cast<std::uint8_t>(up & 1);
+        above[k + 1] = static_cast<std::uint8_t>((up >> 1) & 1);
+    }
+}
+
+}  // namespace detail
+
+void OutsideFill::colorsAlong(int x0, int n, double y, bool* has, std::uint8_t* rgb) const {
+    // colorAt's expressions, in its order (this file is built without contraction).
+    const double v = sy * y - cy;
+    const SkyRow row{sx, cx, focal * forwardZ, rightZ, v * upZ, focal * focal, v * v, x0};
+    alignas(64) double t[64];
+    alignas(64) std::uint8_t above[64];
+#if VIG_PRP_HAVE_AVX2
+    if (cpuHasAvx512()) {
+        skyRowAvx512(row, n, t, above);
+    } else
+#endif
+    {
+        skyRowSse2(row, n, t, above);
+    }
+    const int a[3] = {sky.horizon.r, sky.horizon.g, sky.horizon.b};
+    const int d[3] = {sky.zenith.r - a[0], sky.zenith.g - a[1], sky.zenith.b - a[2]};
+    for (int k = 0; k < n; ++k) {
+        has[k] = above[k] != 0 || hazeBelow;
+        for (int i = 0; i < 3; ++i)
+            rgb[3 * k + i] = static_cast<std::uint8_t>(a[i] + d[i] * t[k] + 0.5);
+    }
+}
+
 void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,
                  const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
                  ApplyResult& result) {
     fillField(source, QuadraticRows{sourceFromOutput}, field, gainQ8, agc, fill, result);
+}
+
+void fillOutsidePerPixel(const SourceView& source, const Quadratic& sourceFromOutput,
+                         const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                         ApplyResult& result) {
+    fillFieldPerPixel(source, QuadraticRows{sourceFromOutput}, field, gainQ8, agc, fill, result);
 }
 
 void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
@@ -239,12 +372,14 @@ ApplyResult applyHomography(const SourceView& source, const Homography& sourceFr
 
 void convertRow(const std::uint8_t* rgb, int width, PixelFormat format, int gainQ8, bool agc,
                 std::uint8_t* out, std::uint64_t& lumaSum) {
+    // Summed here, added once: `out` is bytes, which may alias the caller's sum.
+    std::uint64_t luma = 0;
     auto px = [&](int i, int& r, int& g, int& b) {
         r = rgb[3 * i];
         g = rgb[3 * i + 1];
         b = rgb[3 * i + 2];
         applyGain<true>(r, g, b, gainQ8);
-        if (agc) lumaSum += grey(r, g, b);
+        if (agc) luma += grey(r, g, b);
     };
     if (format == PixelFormat::Uyvy) {
         for (int i = 0; i + 1 < width; i += 2) {
@@ -258,6 +393,7 @@ void convertRow(const std::uint8_t* rgb, int width, PixelFormat format, int gain
             out[3] = static_cast<std::uint8_t>(luma601(r1, g1, b1));
             out += 4;
         }
+        lumaSum += luma;
         return;
     }
     for (int i = 0; i < width; ++i) {
@@ -271,6 +407,7 @@ void convertRow(const std::uint8_t* rgb, int width, PixelFormat format, int gain
             out[i] = static_cast<std::uint8_t>(grey(r, g, b));
         }
     }
+    lumaSum += luma;
 }
 
 YCbCr bt601(int r, int g, int b) {

@@ -93,6 +93,10 @@ struct OutsideFill {
                           const OutputGeometry& geometry, const ig::Pose& pose);
     // Colour at output pixel centre (x, y); false where the pixel keeps its repeated edge.
     bool colorAt(double x, double y, ig::Rgb8& color) const;
+    // colorAt of the n pixel centres (x0 + k + 0.5, y), k < n <= 64, into rgb[3k..3k+2] where
+    // has[k]: the same colours, a row at a time (the square roots of one pixel wait for none of
+    // the others').
+    void colorsAlong(int x0, int n, double y, bool* has, std::uint8_t* rgb) const;
 };
 
 // Rewrites the pixels of `field` (written by applyQuadratic / applyHomography with any kernel,
@@ -105,6 +109,11 @@ void fillOutside(const SourceView& source, const Quadratic& sourceFromOutput,
 void fillOutside(const SourceView& source, const Homography& sourceFromOutput,
                  const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
                  ApplyResult& result);
+// fillOutside's slow twin (tests): every pixel with its point outside written again, one at a
+// time, colour by colour as the kernels and the fill give them.
+void fillOutsidePerPixel(const SourceView& source, const Quadratic& sourceFromOutput,
+                         const FieldView& field, int gainQ8, bool agc, const OutsideFill& fill,
+                         ApplyResult& result);
 // The same for the points applyPoints sampled (the depth model's).
 void fillOutside(const SourceView& source, const std::int32_t* xs, const std::int32_t* ys,
                  std::size_t stride, const FieldView& field, int gainQ8, bool agc,

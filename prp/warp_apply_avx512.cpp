@@ -338,6 +338,28 @@ template <PixelFormat kFormat, bool kGain, bool kAgc>
 
 }  // namespace
 
+VIG_TARGET_AVX512 void skyRowAvx512(const SkyRow& row, int n, double* t, std::uint8_t* above) {
+    // OutsideFill::colorAt's operations in its order (this file is built without contraction).
+    const __m512d half = _mm512_set_pd(7.5, 6.5, 5.5, 4.5, 3.5, 2.5, 1.5, 0.5);
+    const __m512d sx = _mm512_set1_pd(row.sx), cx = _mm512_set1_pd(row.cx);
+    const __m512d fz = _mm512_set1_pd(row.fz), rz = _mm512_set1_pd(row.rz);
+    const __m512d vz = _mm512_set1_pd(row.vz), ff = _mm512_set1_pd(row.ff);
+    const __m512d vv = _mm512_set1_pd(row.vv), zero = _mm512_setzero_pd();
+    const __m512d one = _mm512_set1_pd(1.0);
+    for (int k = 0; k < n; k += 8) {
+        const __m512d x = _mm512_add_pd(_mm512_set1_pd(static_cast<double>(row.x0 + k)), half);
+        const __m512d u = _mm512_sub_pd(_mm512_mul_pd(sx, x), cx);
+        const __m512d dz = _mm512_sub_pd(_mm512_add_pd(fz, _mm512_mul_pd(u, rz)), vz);
+        const __m512d len =
+            _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(ff, _mm512_mul_pd(u, u)), vv));
+        const __m512d c = _mm512_min_pd(_mm512_max_pd(_mm512_div_pd(dz, len), zero), one);
+        _mm512_storeu_pd(t + k, _mm512_sqrt_pd(c));
+        const __mmask8 up = _mm512_cmp_pd_mask(dz, zero, _CMP_GT_OQ);
+        _mm_storel_epi64(reinterpret_cast<__m128i*>(above + k),
+                         _mm_maskz_mov_epi8(static_cast<__mmask16>(up), _mm_set1_epi8(1)));
+    }
+}
+
 ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sourceFromOutput,
                                  const FieldView& field, int gainQ8, bool agc) {
     return dispatchKernel(field.format, gainQ8, agc, [&]<PixelFormat F, bool G, bool A>() {

@@ -260,6 +260,21 @@ ApplyResult applyQuadraticAvx512(const SourceView& source, const Quadratic& sour
                                  const FieldView& field, int gainQ8, bool agc);
 #endif
 
+// One output row of the out-of-frame fill's sky (OutsideFill::colorsAlong): pixel k's centre
+// x = x0 + k + 0.5 looks up by dz = fz + u rz - vz, u = sx x - cx, over the length
+// sqrt(ff + u u + vv); its sky blend is t = sqrt(clamp(dz / length, 0, 1)).
+struct SkyRow {
+    double sx, cx, fz, rz, vz, ff, vv;
+    int x0;
+};
+// t[k] and above[k] (dz > 0) for k < n <= 64 (t and above hold 64), two pixels a step with
+// SSE2, each lane rounded as the scalar operation.
+void skyRowSse2(const SkyRow& row, int n, double* t, std::uint8_t* above);
+#if VIG_PRP_HAVE_AVX2
+// The same eight pixels a step with AVX-512. Needs cpuHasAvx512().
+void skyRowAvx512(const SkyRow& row, int n, double* t, std::uint8_t* above);
+#endif
+
 // Picks the kernel specialised for the field's format, gain and AGC once per field:
 // run.template operator()<format, gain, agc>().
 template <class Run>

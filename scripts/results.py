@@ -717,6 +717,29 @@ def warp(p):
         share = [t * 1e-6 * 60000 / 1001 * 100 for t in t_auto]
         p.row("Share of one core for the warp at 59.94 fields/s", "—", spread(share, 1, " %"),
               NO_TARGET, cmd)
+    # The out-of-frame fill: run at a time against its per-pixel twin, in the same run.
+    for fast_name, twin_name, what in (
+            ("BM_PrpWarpUyvyFieldOutsideFilled", "BM_PrpWarpUyvyFieldOutsideFilledPerPixel",
+             "sky above the horizon, the edge kept below (`--edge-fill sky`, the default), no "
+             "AGC"),
+            ("BM_PrpWarpUyvyFieldOutsideHazeAgc", "BM_PrpWarpUyvyFieldOutsideHazeAgcPerPixel",
+             "sky and haze (`--edge-fill sky-haze`), AGC on (every pixel sampled again for its "
+             "luma)")):
+        fast, twin = gbench_find(doc, fast_name), gbench_find(doc, twin_name)
+        if not (fast and twin):
+            continue
+        f = [x * 1e9 for x in gbench_runs(doc, fast, "ns_per_px")]
+        t = [x * 1e9 for x in gbench_runs(doc, twin, "ns_per_px")]
+        p.row(f"Warp + out-of-frame fill of one 720×243 UYVY field wholly beyond the frame, "
+              f"{what}, 1 thread: a run of pixels at a time vs the per-pixel twin (the same "
+              f"bytes)", "—",
+              f"{spread(ratios(t, f), 1, '×')} faster; {spread(f, 1, ' ns/px')} vs "
+              f"{spread(t, 1, ' ns/px')}", NO_TARGET, cmd)
+    quarter = gbench_find(doc, "BM_PrpWarpUyvyFieldEdgesFilled")
+    if quarter:
+        q = [x * 1e9 for x in gbench_runs(doc, quarter, "ns_per_px")]
+        p.row("The same with a quarter of the field beyond the frame (default fill)", "—",
+              spread(q, 1, " ns/px"), NO_TARGET, cmd)
 
 
 def depth_warp(p):

@@ -88,6 +88,66 @@ void BM_PrpWarpUyvyFieldEdges(benchmark::State& state) {
 void BM_PrpWarpUyvyFieldEdgesScalar(benchmark::State& state) {
     prpField(state, prp::PixelFormat::Uyvy, prp::WarpKernel::Scalar, kMargin + 0.25 * kW);
 }
+// The same field with the sky drawn beyond the frame (prp::fillOutside, as the processor does
+// with an edge fill other than repeat): `shiftX` as above; a camera 3 degrees up, so the
+// horizon crosses the field. `haze`: below the horizon too (--edge-fill sky-haze; else the
+// repeated edge stays there, the default); `agc`: the luma sum corrected; `perPixel`: the
+// fill's slow twin. Times the warp and the fill together.
+void prpFilledField(benchmark::State& state, double shiftX, bool haze, bool agc,
+                    bool perPixel = false) {
+    const auto src = sourceImage();
+    prp::Quadratic q = typicalWarp();
+    q.a[0] += shiftX;
+    const prp::PixelFormat format = prp::PixelFormat::Uyvy;
+    const std::size_t stride = static_cast<std::size_t>(kW) * prp::bytesPerPixel(format);
+    std::vector<std::uint8_t> out(stride * (kH / 2));
+    const prp::FieldView view{out.data(), stride, kW, 1, kH / 2, format};
+    ig::SkyModel sky;
+    ig::Intrinsics in;
+    in.width = kSrcW;
+    in.height = kSrcH;
+    in.focal = 0.8 * kW;
+    prp::OutputGeometry g;
+    g.width = g.windowWidth = kW;
+    g.height = g.windowHeight = kH;
+    ig::Pose pose;
+    pose.pitch = 0.05;
+    prp::OutsideFill fill = prp::OutsideFill::of(sky, in, g, pose);
+    fill.hazeBelow = haze;
+    const prp::SourceView source{src.data(), kSrcW, kSrcH};
+    for (auto _ : state) {
+        prp::ApplyResult r = prp::applyQuadratic(source, q, view, prp::kUnityGain, agc);
+        if (perPixel) {
+            prp::fillOutsidePerPixel(source, q, view, prp::kUnityGain, agc, fill, r);
+        } else {
+            prp::fillOutside(source, q, view, prp::kUnityGain, agc, fill, r);
+        }
+        benchmark::DoNotOptimize(r);
+        benchmark::DoNotOptimize(out.data());
+        state.counters["edge_pct"] = 100.0 * r.edgeSamples / (static_cast<double>(kW) * (kH / 2));
+    }
+    state.counters["ns_per_px"] = benchmark::Counter(
+        static_cast<double>(kW) * (kH / 2),
+        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+// A quarter of the field beyond the frame, filled (sky only, no AGC: the defaults).
+void BM_PrpWarpUyvyFieldEdgesFilled(benchmark::State& state) {
+    prpFilledField(state, kMargin + 0.25 * kW, false, false);
+}
+// The whole field beyond the frame (a frame far older than the turn it must cover), filled.
+void BM_PrpWarpUyvyFieldOutsideFilled(benchmark::State& state) {
+    prpFilledField(state, 2.0 * kSrcW, false, false);
+}
+void BM_PrpWarpUyvyFieldOutsideFilledPerPixel(benchmark::State& state) {
+    prpFilledField(state, 2.0 * kSrcW, false, false, true);
+}
+// The same with haze below the horizon and AGC: every pixel written again, its luma replaced.
+void BM_PrpWarpUyvyFieldOutsideHazeAgc(benchmark::State& state) {
+    prpFilledField(state, 2.0 * kSrcW, true, true);
+}
+void BM_PrpWarpUyvyFieldOutsideHazeAgcPerPixel(benchmark::State& state) {
+    prpFilledField(state, 2.0 * kSrcW, true, true, true);
+}
 void BM_PrpWarpRgbField(benchmark::State& state) {
     prpField(state, prp::PixelFormat::Rgb8, prp::WarpKernel::Auto);
 }
@@ -200,6 +260,11 @@ BENCHMARK(BM_PrpWarpUyvyFieldAvx2)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpUyvyFieldAvx512)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpUyvyFieldEdges)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpUyvyFieldEdgesScalar)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpWarpUyvyFieldEdgesFilled)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpWarpUyvyFieldOutsideFilled)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpWarpUyvyFieldOutsideFilledPerPixel)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpWarpUyvyFieldOutsideHazeAgc)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PrpWarpUyvyFieldOutsideHazeAgcPerPixel)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpRgbField)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_PrpWarpRgbFieldScalar)->Unit(benchmark::kMicrosecond);
 

@@ -1,10 +1,12 @@
 #include "prp/warp_apply.hpp"
+#include "prp/warp_apply_kernel.hpp"
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -442,6 +444,119 @@ TEST(WarpApplySimd, SaturatingGainMatchesScalar) {
                                "gain " + std::to_string(gainQ8));
         }
     }
+}
+
+// A fill of a random camera: any pitch (the horizon anywhere, or off the field), any roll, a
+// field scaled onto a smaller or larger rendered window, haze below the horizon or not.
+OutsideFill randomFill(std::mt19937& rng, int outW, int outH) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    ig::Pose pose;
+    pose.yaw = 3.0 * u(rng);
+    pose.pitch = 1.5 * u(rng);
+    pose.roll = 0.8 * u(rng);
+    OutputGeometry g;
+    g.width = outW;
+    g.height = outH;
+    g.windowWidth = std::max(1, static_cast<int>(outW * (1.0 + 0.3 * u(rng))));
+    g.windowHeight = std::max(1, static_cast<int>(outH * (1.0 + 0.3 * u(rng))));
+    ig::Intrinsics in;
+    in.width = g.windowWidth;
+    in.height = g.windowHeight;
+    in.focal = (0.5 + 0.5 * (u(rng) + 1.0)) * outW;
+    ig::SkyModel sky;
+    std::uniform_int_distribution<int> byte(0, 255);
+    sky.zenith = {static_cast<std::uint8_t>(byte(rng)), static_cast<std::uint8_t>(byte(rng)),
+                  static_cast<std::uint8_t>(byte(rng))};
+    sky.horizon = {static_cast<std::uint8_t>(byte(rng)), static_cast<std::uint8_t>(byte(rng)),
+                   static_cast<std::uint8_t>(byte(rng))};
+    OutsideFill fill = OutsideFill::of(sky, in, g, pose);
+    fill.hazeBelow = u(rng) > 0.0;
+    return fill;
+}
+
+TEST(WarpApply, OutsideFillIsItsPerPixelTwinBitForBit) {
+    // The fill a run at a time against the one a pixel at a time, over every kernel's field:
+    // same bytes, same luma sum, same edge count, in every format, with and without gain and
+    // AGC, over warps partly or wholly out of the frame.
+    std::mt19937 rng(17);
+    std::uniform_int_distribution<int> size(2, 70);
+    const PixelFormat formats[] = {PixelFormat::Rgb8, PixelFormat::Y8, PixelFormat::Uyvy};
+    std::vector<WarpKernel> kernels = simdKernels();
+    kernels.push_back(WarpKernel::Scalar);
+    int rewritten = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+        const int w = size(rng), h = size(rng);
+        const int outW = 2 * std::uniform_int_distribution<int>(1, 90)(rng);
+        const int outH = std::uniform_int_distribution<int>(1, 40)(rng);
+        const auto img = pattern(w, h, 300 + trial);
+        const Quadratic q = randomWarp(rng, w, h, outW, outH);
+        const OutsideFill fill = randomFill(rng, outW, outH);
+        const PixelFormat f = formats[trial % 3];
+        const int gainQ8 = trial % 4 == 0 ? kUnityGain : 64 + 16 * (trial % 40);
+        const bool agc = trial % 2 == 1;
+        const WarpKernel kernel = kernels[static_cast<std::size_t>(trial) % kernels.size()];
+        const std::string what = "trial " + std::to_string(trial);
+        Output fast(outW, outH, trial % 2, f), slow(outW, outH, trial % 2, f);
+        ApplyResult rf = applyQuadratic({img.data(), w, h}, q, fast.view, gainQ8, agc, kernel);
+        ApplyResult rs = applyQuadratic({img.data(), w, h}, q, slow.view, gainQ8, agc, kernel);
+        const std::vector<std::uint8_t> warped = fast.px;
+        fillOutside({img.data(), w, h}, q, fast.view, gainQ8, agc, fill, rf);
+        fillOutsidePerPixel({img.data(), w, h}, q, slow.view, gainQ8, agc, fill, rs);
+        ASSERT_EQ(fast.px, slow.px) << what;
+        EXPECT_EQ(rf.lumaSum, rs.lumaSum) << what;
+        EXPECT_EQ(rf.edgeSamples, rs.edgeSamples) << what;
+        rewritten += fast.px != warped;
+    }
+    // The cases reach the fill: most fields have pixels it writes again.
+    EXPECT_GT(rewritten, 150);
+}
+
+TEST(WarpApply, SkyRowsAreColorAtInEveryInstructionSet) {
+    // colorsAlong (a row at a time, the processor's widest path) against colorAt pixel by
+    // pixel, and the SSE2 and AVX-512 rows against each other to the bit.
+    std::mt19937 rng(23);
+    std::uniform_int_distribution<int> count(1, 64), start(-20, 700), row(0, 500);
+    int above = 0, below = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        const OutsideFill fill = randomFill(rng, 720, 486);
+        const int x0 = start(rng), n = count(rng);
+        const double y = row(rng) + 0.5;
+        bool has[64];
+        std::uint8_t rgb[3 * 64];
+        fill.colorsAlong(x0, n, y, has, rgb);
+        for (int k = 0; k < n; ++k) {
+            ig::Rgb8 c{1, 2, 3};
+            const bool expected = fill.colorAt(x0 + k + 0.5, y, c);
+            ASSERT_EQ(has[k], expected) << "trial " << trial << " pixel " << k;
+            (expected ? above : below)++;
+            if (!expected) continue;
+            ASSERT_EQ(rgb[3 * k], c.r) << "trial " << trial << " pixel " << k;
+            ASSERT_EQ(rgb[3 * k + 1], c.g) << "trial " << trial << " pixel " << k;
+            ASSERT_EQ(rgb[3 * k + 2], c.b) << "trial " << trial << " pixel " << k;
+        }
+#if VIG_PRP_HAVE_AVX2
+        if (!detail::cpuHasAvx512()) continue;
+        const double v = fill.sy * y - fill.cy;
+        const detail::SkyRow sky{fill.sx,
+                                 fill.cx,
+                                 fill.focal * fill.forwardZ,
+                                 fill.rightZ,
+                                 v * fill.upZ,
+                                 fill.focal * fill.focal,
+                                 v * v,
+                                 x0};
+        double t1[64], t2[64];
+        std::uint8_t a1[64], a2[64];
+        detail::skyRowSse2(sky, n, t1, a1);
+        detail::skyRowAvx512(sky, n, t2, a2);
+        for (int k = 0; k < n; ++k) {
+            ASSERT_EQ(std::memcmp(&t1[k], &t2[k], sizeof(double)), 0) << "trial " << trial;
+            ASSERT_EQ(a1[k], a2[k]) << "trial " << trial;
+        }
+#endif
+    }
+    EXPECT_GT(above, 1000);
+    EXPECT_GT(below, 1000);
 }
 
 TEST(WarpApply, EveryKernelNameRunsAndAgrees) {
