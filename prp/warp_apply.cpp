@@ -4,7 +4,9 @@
 
 #include "ig/shading.hpp"
 
+#if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
@@ -216,8 +218,9 @@ bool OutsideFill::colorAt(double x, double y, ig::Rgb8& color) const {
 namespace detail {
 
 void skyRowSse2(const SkyRow& row, int n, double* t, std::uint8_t* above) {
-    // OutsideFill::colorAt's operations in its order (this file is built without contraction),
-    // two pixels a step (SSE2, every x86-64), each lane rounded as the scalar operation.
+    // OutsideFill::colorAt's operations in its order (this file is built without contraction).
+#if defined(__SSE2__)
+    // Two pixels a step (every x86-64), each lane rounded as the scalar operation.
     const __m128d sx = _mm_set1_pd(row.sx), cx = _mm_set1_pd(row.cx);
     const __m128d fz = _mm_set1_pd(row.fz), rz = _mm_set1_pd(row.rz);
     const __m128d vz = _mm_set1_pd(row.vz), ff = _mm_set1_pd(row.ff);
@@ -234,6 +237,14 @@ void skyRowSse2(const SkyRow& row, int n, double* t, std::uint8_t* above) {
         above[k] = static_cast<std::uint8_t>(up & 1);
         above[k + 1] = static_cast<std::uint8_t>((up >> 1) & 1);
     }
+#else
+    for (int k = 0; k < n; ++k) {
+        const double u = row.sx * (row.x0 + k + 0.5) - row.cx;
+        const double dz = row.fz + u * row.rz - row.vz;
+        t[k] = std::sqrt(std::clamp(dz / std::sqrt(row.ff + u * u + row.vv), 0.0, 1.0));
+        above[k] = dz > 0.0;
+    }
+#endif
 }
 
 }  // namespace detail

@@ -268,7 +268,7 @@ struct SkyRow {
     int x0;
 };
 // t[k] and above[k] (dz > 0) for k < n <= 64 (t and above hold 64), two pixels a step with
-// SSE2, each lane rounded as the scalar operation.
+// SSE2 (one without), each lane rounded as the scalar operation.
 void skyRowSse2(const SkyRow& row, int n, double* t, std::uint8_t* above);
 #if VIG_PRP_HAVE_AVX2
 // The same eight pixels a step with AVX-512. Needs cpuHasAvx512().
