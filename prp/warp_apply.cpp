@@ -39,6 +39,23 @@ ApplyResult dispatch(const SourceView& source, Rows rows, const FieldView& field
     });
 }
 
+// The fill passes' walk: the next n source points of the row (as the kernels walk them) and
+// which lie outside the frame; false when none does.
+template <class Rows>
+bool nextPoints(Rows& rows, const Sampler& s, int n, std::int64_t* xs, std::int64_t* ys,
+                bool* outside) {
+    bool any = false;
+    for (int k = 0; k < n; ++k) {
+        xs[k] = rows.px();
+        ys[k] = rows.py();
+        rows.next();
+        outside[k] = (static_cast<std::uint64_t>(xs[k] + kHalf) > s.spanX) |
+                     (static_cast<std::uint64_t>(ys[k] + kHalf) > s.spanY);
+        any |= outside[k];
+    }
+    return any;
+}
+
 // The fill pass's slow twin: walks each line's source points as the kernels do, and writes the
 // pixels (pairs for UYVY) with any point outside again, one at a time, through convertRow.
 template <class Rows>
@@ -59,16 +76,7 @@ void fillFieldPerPixel(const SourceView& source, Rows rows, const FieldView& fie
         std::uint8_t* out = field.pixels + static_cast<std::size_t>(line) * field.stride;
         for (int x0 = 0; x0 < field.width; x0 += kChunk) {
             const int n = std::min(kChunk, field.width - x0);
-            bool any = false;
-            for (int k = 0; k < n; ++k) {
-                xs[k] = rows.px();
-                ys[k] = rows.py();
-                rows.next();
-                outside[k] = (static_cast<std::uint64_t>(xs[k] + kHalf) > s.spanX) |
-                             (static_cast<std::uint64_t>(ys[k] + kHalf) > s.spanY);
-                any |= outside[k];
-            }
-            if (!any) continue;
+            if (!nextPoints(rows, s, n, xs, ys, outside)) continue;
             for (int g = 0; g + group <= n; g += group) {
                 if (!outside[g] && !(group == 2 && outside[g + 1])) continue;
                 for (int k = 0; k < group; ++k) {
@@ -119,16 +127,7 @@ void fillField(const SourceView& source, Rows rows, const FieldView& field, int 
         std::uint8_t* out = field.pixels + static_cast<std::size_t>(line) * field.stride;
         for (int x0 = 0; x0 < field.width; x0 += kChunk) {
             const int n = std::min(kChunk, field.width - x0);
-            bool any = false;
-            for (int k = 0; k < n; ++k) {
-                xs[k] = rows.px();
-                ys[k] = rows.py();
-                rows.next();
-                outside[k] = (static_cast<std::uint64_t>(xs[k] + kHalf) > s.spanX) |
-                             (static_cast<std::uint64_t>(ys[k] + kHalf) > s.spanY);
-                any |= outside[k];
-            }
-            if (!any) continue;
+            if (!nextPoints(rows, s, n, xs, ys, outside)) continue;
             fill.colorsAlong(x0, n, y, filled, newRgb);
             bool anyFilled = false;
             for (int k = 0; k < n; ++k) {

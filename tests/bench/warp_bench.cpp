@@ -43,6 +43,17 @@ prp::Quadratic typicalWarp() {
     return q;
 }
 
+// The share of a field's samples beyond the frame, and the time per field pixel.
+void countEdges(benchmark::State& state, const prp::ApplyResult& r) {
+    benchmark::DoNotOptimize(r);
+    state.counters["edge_pct"] = 100.0 * r.edgeSamples / (static_cast<double>(kW) * (kH / 2));
+}
+void countPixels(benchmark::State& state) {
+    state.counters["ns_per_px"] = benchmark::Counter(
+        static_cast<double>(kW) * (kH / 2),
+        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
 // The PRP's warp of one field in `format` with `kernel` (Auto: the one the processor runs; a
 // named kernel the processor lacks is reported as an error, not timed).
 // `shiftX` moves the field that many source pixels right (past the margin: edge samples).
@@ -61,13 +72,10 @@ void prpField(benchmark::State& state, prp::PixelFormat format, prp::WarpKernel 
     for (auto _ : state) {
         const prp::ApplyResult r = prp::applyQuadratic({src.data(), kSrcW, kSrcH}, q, view,
                                                        prp::kUnityGain, false, kernel);
-        benchmark::DoNotOptimize(r);
         benchmark::DoNotOptimize(out.data());
-        state.counters["edge_pct"] = 100.0 * r.edgeSamples / (static_cast<double>(kW) * (kH / 2));
+        countEdges(state, r);
     }
-    state.counters["ns_per_px"] = benchmark::Counter(
-        static_cast<double>(kW) * (kH / 2),
-        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    countPixels(state);
 }
 void BM_PrpWarpUyvyField(benchmark::State& state) {
     prpField(state, prp::PixelFormat::Uyvy, prp::WarpKernel::Auto);
@@ -122,13 +130,10 @@ void prpFilledField(benchmark::State& state, double shiftX, bool haze, bool agc,
         } else {
             prp::fillOutside(source, q, view, prp::kUnityGain, agc, fill, r);
         }
-        benchmark::DoNotOptimize(r);
         benchmark::DoNotOptimize(out.data());
-        state.counters["edge_pct"] = 100.0 * r.edgeSamples / (static_cast<double>(kW) * (kH / 2));
+        countEdges(state, r);
     }
-    state.counters["ns_per_px"] = benchmark::Counter(
-        static_cast<double>(kW) * (kH / 2),
-        benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+    countPixels(state);
 }
 // A quarter of the field beyond the frame, filled (sky only, no AGC: the defaults).
 void BM_PrpWarpUyvyFieldEdgesFilled(benchmark::State& state) {
