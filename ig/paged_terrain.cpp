@@ -27,6 +27,9 @@ namespace ig {
 namespace {
 
 constexpr std::size_t kPage = 4096;
+// Poses at most along the lookahead whose control-point rays are prefetched (a turn of 32
+// degrees in half-degree steps).
+constexpr int kMaxRaySweepSteps = 64;
 
 TerrainMap makeSparseMap(const TerrainDb& db) {
     db.checkPageable();
@@ -422,6 +425,24 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
                 .tiles;
     } else if (options_.prefetchMargin > 0.0) {
         prefetch = frameFootprint(camera, layout, info, selection, options_.prefetchMargin).tiles;
+    }
+    // The control points' rays ahead too (cast on level 0 at any distance): thin, so swept
+    // through the lookahead's turn in steps of at most half a degree, not only at its steps.
+    if (pyramid_ && options_.lookahead > 0.0 && (velocity != glm::dvec3(0.0) || yawRate != 0.0)) {
+        const double byTurn = std::abs(yawRate) * options_.lookahead / (0.5 * M_PI / 180.0);
+        const double bySteps =
+            options_.lookaheadStep > 0.0 ? options_.lookahead / options_.lookaheadStep : 1.0;
+        const int steps = static_cast<int>(std::clamp(std::ceil(std::max(byTurn, bySteps)), 1.0,
+                                                      static_cast<double>(kMaxRaySweepSteps)));
+        for (int i = 1; i <= steps; ++i) {
+            const double t = options_.lookahead * i / steps;
+            Pose p = camera.pose();
+            p.position += velocity * t;
+            p.yaw += yawRate * t;
+            const Camera ahead(p, camera.intrinsics());
+            for (const glm::dvec2& px : controlPointPixels(ahead.intrinsics()))
+                addRayTiles(p.position, ahead.rayDirection(px.x, px.y), prefetch);
+        }
     }
     // Only what this map holds: level 0, or the pyramid's levels and nodes.
     auto unused = [&](const TileKey& k) {

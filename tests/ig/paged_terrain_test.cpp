@@ -419,6 +419,38 @@ TEST(PagedTerrain, FastCasterWithheldTilesComeFromCoarserLevels) {
     expectSameImage(renderFrame(*caster, paged.map(), pose, kView), full, "after the tiles came");
 }
 
+TEST(PagedTerrain, ATurnFindsEveryTileReadAheadControlPointRaysIncluded) {
+    // A turn of 60 degrees a second at 20 frames a second, 8 degrees down, the loaders keeping up
+    // between frames: the prefetch along the motion and the turn holds every tile each frame
+    // needs, the level-0 tiles under its control points' rays too (far beyond the footprint's
+    // level-0 band, and thin: at the lookahead's steps alone, the frames between them miss).
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain::Options po;
+    po.cache.budgetBytes = std::size_t{32} << 20;
+    po.pyramid = true;
+    po.levels = kLevelsAuto;
+    PagedTerrain paged(db, po);
+    const double dt = 0.05, yawRate = 60.0 * M_PI / 180.0;
+    Pose pose;
+    pose.position = {0.3 * f.map.extentX(), 0.3 * f.map.extentY(), 0.0};
+    pose.position.z = f.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
+    pose.pitch = -8.0 * M_PI / 180.0;
+    const glm::dvec3 velocity{30.0, 30.0, 0.0};
+    paged.prepare(Camera(pose, kView), true, velocity, yawRate);  // its own tiles, waiting
+    std::size_t substituted = 0, required = 0;
+    for (int i = 1; i <= 24; ++i) {
+        paged.cache().waitIdle();  // a disk as fast as the prefetch asks
+        pose.position += velocity * dt;
+        pose.yaw += yawRate * dt;
+        const PagedFrameStats st = paged.prepare(Camera(pose, kView), false, velocity, yawRate);
+        substituted += st.substituted;
+        required += st.required;
+    }
+    EXPECT_GT(required, 24u * 100u);
+    EXPECT_EQ(substituted, 0u) << "tiles a frame needed that the prefetch had not asked for";
+}
+
 TEST(PagedTerrain, CorruptTileInFlightIsAReportedHoleAndFramesGoOn) {
     const PagedFixture& f = fixture();
     const std::string path =
