@@ -363,6 +363,11 @@ void PagedTerrain::addRayTiles(const glm::dvec3& eye, const glm::dvec3& dir, std
     }
 }
 
+void PagedTerrain::addControlPointTiles(const Camera& camera, std::set<TileKey>& out) const {
+    for (const glm::dvec2& px : controlPointPixels(camera.intrinsics()))
+        addRayTiles(camera.pose().position, camera.rayDirection(px.x, px.y), out);
+}
+
 void PagedTerrain::warmUp(const Camera& camera, int headings) {
     const LevelSelection selection =
         LevelSelection::forCamera(camera.intrinsics(), db_.info(), pyramid_ ? options_.levels : 0);
@@ -410,12 +415,7 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
         fp.tiles.insert(own.tiles.begin(), own.tiles.end());
         // The ground under the eye too (the check that the eye is above it, height queries).
         fp.tiles.insert(tileUnder(eye->pose().position.x, eye->pose().position.y));
-        // The control points are cast exactly on level 0 (renderFrame), at any distance.
-        if (pyramid_) {
-            for (const glm::dvec2& px : controlPointPixels(eye->intrinsics())) {
-                addRayTiles(eye->pose().position, eye->rayDirection(px.x, px.y), fp.tiles);
-            }
-        }
+        if (pyramid_) addControlPointTiles(*eye, fp.tiles);
     }
     std::set<TileKey> prefetch;
     if (velocity != glm::dvec3(0.0) || yawRate != 0.0) {
@@ -439,9 +439,7 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
             Pose p = camera.pose();
             p.position += velocity * t;
             p.yaw += yawRate * t;
-            const Camera ahead(p, camera.intrinsics());
-            for (const glm::dvec2& px : controlPointPixels(ahead.intrinsics()))
-                addRayTiles(p.position, ahead.rayDirection(px.x, px.y), prefetch);
+            addControlPointTiles(Camera(p, camera.intrinsics()), prefetch);
         }
     }
     // Only what this map holds: level 0, or the pyramid's levels and nodes.

@@ -114,6 +114,9 @@ class PagedTerrain {
     // terrain's height range and not above the finest resident bound on the tile.
     void addRayTiles(const glm::dvec3& origin, const glm::dvec3& dir, std::set<TileKey>& out,
                      double maxRange = std::numeric_limits<double>::infinity()) const;
+    // addRayTiles along the rays of `camera`'s control points (cast exactly on level 0 by
+    // renderFrame, at any distance).
+    void addControlPointTiles(const Camera& camera, std::set<TileKey>& out) const;
     // Places exactly `tiles`, waiting for them (the others placed leave, as between frames).
     PagedFrameStats placeTiles(const std::set<TileKey>& tiles) { return page(tiles, {}, true); }
     // Whether `key` is placed from its own data (not a stand-in from a coarser level).
