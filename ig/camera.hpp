@@ -30,6 +30,12 @@ struct Intrinsics {
     int height = 0;  // full rendered height, margins included
     int margin = 0;
     double focal = 0.0;  // focal length in pixels
+    // Level of detail: the multiresolution casters read level 0 out to detail * focal * spacing
+    // (where a level-0 voxel shrinks to 1 / detail pixels across) and each coarser level from
+    // there on, as if the focal length were detail * focal. 1: a voxel to a pixel (the
+    // default); below 1 coarser levels sooner, fewer level-0 tiles for a paged map to place.
+    double detail = 1.0;
+    double lodFocal() const { return focal * detail; }
 
     // Window of `windowWidth` x `windowHeight` pixels seen with horizontal field of view `hfov`
     // (radians), plus `margin` pixels on each side.

@@ -122,7 +122,7 @@ void FastCaster::render(const Camera& camera, RenderedFrame& frame) const {
 void FastCaster::finishFrame(const Camera& camera, RenderedFrame& frame) const {
     // The levels renderUnit's march draws at each distance.
     const LevelBands bands{
-        topLevel_ > 0 ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
+        topLevel_ > 0 ? camera.intrinsics().lodFocal() * std::max(map_.spacingX(), map_.spacingY())
                       : std::numeric_limits<double>::infinity(),
         topLevel_};
     finishPasses(map_, options_, bands, camera, frame);
@@ -142,9 +142,9 @@ void FastCaster::renderUnit(const Camera& camera, RenderedFrame& frame, int unit
                             UnitCounters& counters) const {
     checkRoll(camera);
     // Level 0 is used out to where a voxel spans one pixel across the view.
-    const double d0 = topLevel_ > 0
-                          ? camera.intrinsics().focal * std::max(map_.spacingX(), map_.spacingY())
-                          : std::numeric_limits<double>::infinity();
+    const double d0 =
+        topLevel_ > 0 ? camera.intrinsics().lodFocal() * std::max(map_.spacingX(), map_.spacingY())
+                      : std::numeric_limits<double>::infinity();
     const double scale = map_.heightScale(), offset = map_.heightOffset();
     const MapView mv{map_.rawHeights().data(),
                      map_.cellMaxData(),

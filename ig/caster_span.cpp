@@ -45,6 +45,7 @@ struct SpanFrame {
     int width = 0, height = 0;  // output image
     int columns = 0;            // vertical-plane columns
     double focal = 0.0, cx = 0.0;
+    double lodFocal = 0.0;          // Intrinsics::lodFocal: where the levels begin
     double half = 0.0;              // columns / 2
     std::vector<double> up;         // per output row: elevation offset in vertical-plane px
     std::vector<double> stretch;    // per output row: vertical-plane columns per output px
@@ -289,6 +290,7 @@ SpanFrame SpanCaster::setUp(const Camera& camera) const {
     sf.width = in.width;
     sf.height = in.height;
     sf.focal = in.focal;
+    sf.lodFocal = in.lodFocal();
     sf.cx = in.cx();
     const double f = in.focal, cy = in.cy();
     const double sp = std::sin(pose.pitch), cp = std::cos(pose.pitch);
@@ -469,7 +471,7 @@ std::uint64_t SpanCaster::renderColumn(const SpanFrame& sf, int j,
         const double dMaj = majorX ? dx : dy, dMin = majorX ? dy : dx;
         const int sgn = dMaj > 0.0 ? 1 : -1;
         const int top = pyramid_->levelCount() - 1;
-        const double d0 = top > 0 ? sf.focal * std::max(map_.spacingX(), map_.spacingY()) : kInf;
+        const double d0 = top > 0 ? sf.lodFocal * std::max(map_.spacingX(), map_.spacingY()) : kInf;
 
         const int topNode = pyramid_->nodeLevelCount() - 1;
         const double invDx = dx != 0.0 ? 1.0 / dx : kInf, invDy = dy != 0.0 ? 1.0 / dy : kInf;

@@ -17,6 +17,7 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -30,6 +31,14 @@ constexpr std::size_t kPage = 4096;
 // Poses at most along the lookahead whose control-point rays are prefetched (a turn of 32
 // degrees in half-degree steps).
 constexpr int kMaxRaySweepSteps = 64;
+// chooseDetail: detail 2^(-step / kDetailStepsPerOctave); a frame that wrote fewer tiles than
+// kMinTilesToMeasure does not move the measured cost per tile.
+constexpr int kDetailStepsPerOctave = 4;
+constexpr std::size_t kMinTilesToMeasure = 16;
+
+double detailAt(int step) {
+    return std::exp2(-static_cast<double>(step) / kDetailStepsPerOctave);
+}
 
 TerrainMap makeSparseMap(const TerrainDb& db) {
     db.checkPageable();
@@ -260,7 +269,7 @@ void PagedTerrain::tilePages(const TileKey& key, std::vector<std::uintptr_t>& ou
 void PagedTerrain::hold(const TileKey& key) {
     tilePages(key, pages_);
     for (const std::uintptr_t page : pages_)
-        ++pageRefs_[page];
+        if (pageRefs_[page]++ == 0) fresh_.push_back(page);
 }
 
 void PagedTerrain::place(const TileKey& key, const Placed& p) {
@@ -281,16 +290,20 @@ void PagedTerrain::release(const TileKey& key, std::vector<std::uintptr_t>& free
 }
 
 void PagedTerrain::givePagesBack(std::vector<std::uintptr_t>& freed) {
-    // One call per run of adjacent pages.
+    // Runs of adjacent pages, many to a call where the kernel allows.
     std::sort(freed.begin(), freed.end());
-    for (std::size_t i = 0; i < freed.size();) {
-        std::size_t j = i + 1;
-        while (j < freed.size() && freed[j] == freed[j - 1] + kPage)
-            ++j;
-        releaseSparsePages(reinterpret_cast<void*>(freed[i]), (j - i) * kPage);
-        i = j;
-    }
+    pageRuns(freed, runs_);
+    releaseSparsePageRuns(runs_);
     freed.clear();
+}
+
+void PagedTerrain::populateFresh() {
+    // Pages no tile held before read zero and are not backed (never written, or given back):
+    // backed in one pass before the writes instead of a fault each.
+    std::sort(fresh_.begin(), fresh_.end());
+    pageRuns(fresh_, runs_);
+    populateSparsePageRuns(runs_);
+    fresh_.clear();
 }
 
 TileKey PagedTerrain::tileUnder(double x, double y) const {
@@ -369,19 +382,23 @@ void PagedTerrain::addControlPointTiles(const Camera& camera, std::set<TileKey>&
 }
 
 void PagedTerrain::warmUp(const Camera& camera, int headings) {
-    const LevelSelection selection =
-        LevelSelection::forCamera(camera.intrinsics(), db_.info(), pyramid_ ? options_.levels : 0);
+    // At full detail and, where frames may be drawn coarser, at the lowest detail too (its
+    // coarser levels' tiles nearer: few).
+    std::vector<Intrinsics> details{camera.intrinsics()};
+    if (detailSteps() > 0) {
+        details.push_back(camera.intrinsics());
+        details.back().detail = detailAt(detailSteps());
+    }
     std::set<TileKey> all;
-    for (int i = 0; i < headings; ++i) {
-        Pose p = camera.pose();
-        p.yaw += 2.0 * M_PI * i / headings;
-        const Camera turned(p, camera.intrinsics());
-        const Footprint fp = frameFootprint(turned, db_.layout(), db_.info(), selection);
-        for (const TileKey& k : fp.tiles) {
-            if (k.kind == TileKind::Nodes
-                    ? pyramid_ != nullptr
-                    : k.level == 0 || (pyramid_ && k.level < pyramid_->levelCount())) {
-                all.insert(k);
+    for (const Intrinsics& in : details) {
+        const LevelSelection selection =
+            LevelSelection::forCamera(in, db_.info(), pyramid_ ? options_.levels : 0);
+        for (int i = 0; i < headings; ++i) {
+            Pose p = camera.pose();
+            p.yaw += 2.0 * M_PI * i / headings;
+            const Footprint fp = frameFootprint(Camera(p, in), db_.layout(), db_.info(), selection);
+            for (const TileKey& k : fp.tiles) {
+                if (holds(k)) all.insert(k);
             }
         }
     }
@@ -400,6 +417,57 @@ PagedFrameStats PagedTerrain::placeAround(double x, double y) {
     return page({tileUnder(x, y)}, {}, true);
 }
 
+bool PagedTerrain::holds(const TileKey& k) const {
+    if (k.kind == TileKind::Nodes) return pyramid_ != nullptr;
+    return k.level == 0 || (pyramid_ && k.level < pyramid_->levelCount());
+}
+
+PagedTerrain::Writes PagedTerrain::tilesToPlace(const Camera& camera) const {
+    const LevelSelection selection =
+        LevelSelection::forCamera(camera.intrinsics(), db_.info(), pyramid_ ? options_.levels : 0);
+    Writes w;
+    for (const TileKey& k : frameFootprint(camera, db_.layout(), db_.info(), selection).tiles) {
+        if (!holds(k) || placedExact(k)) continue;
+        ++w.tiles;
+        w.missing += cache_.find(k) == nullptr;
+    }
+    return w;
+}
+
+int PagedTerrain::detailSteps() const {
+    if (options_.placeBudgetMs <= 0.0) return 0;
+    const double lowest = std::clamp(options_.minDetail, 1e-3, 1.0);
+    return static_cast<int>(std::floor(-kDetailStepsPerOctave * std::log2(lowest) + 1e-9));
+}
+
+double PagedTerrain::chooseDetail(const Camera& camera) {
+    const int last = detailSteps();
+    if (options_.placeBudgetMs <= 0.0 || msPerTile_ <= 0.0 || last <= 0) {
+        detailStep_ = 0;
+        return 1.0;
+    }
+    Intrinsics in = camera.intrinsics();
+    auto at = [&](int step) {
+        in.detail = detailAt(step);
+        return tilesToPlace(Camera(camera.pose(), in));
+    };
+    const double budget = options_.placeBudgetMs;
+    // A step finer once the tiles it adds are all loaded and the frames' steady writes there
+    // (the last frames' at this step, times the level-0 area's growth, 2^(1/2) a step) fit:
+    // its first frame writes the ring of tiles the step adds once.
+    if (detailStep_ > 0 && at(detailStep_ - 1).missing == 0 &&
+        copiedPerFrame_ * std::sqrt(2.0) * msPerTile_ <= budget) {
+        --detailStep_;
+        return detailAt(detailStep_);
+    }
+    // Coarser while this frame's writes would not fit.
+    for (; detailStep_ < last; ++detailStep_) {
+        const double ms = static_cast<double>(at(detailStep_).tiles) * msPerTile_;
+        if (ms <= budget) break;
+    }
+    return detailAt(detailStep_);
+}
+
 PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm::dvec3& velocity,
                                       double yawRate, const Camera* otherEye) {
     const TerrainDbLayout& layout = db_.layout();
@@ -408,6 +476,16 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
     // caster's (its max-height nodes whatever its levels).
     const LevelSelection selection =
         LevelSelection::forCamera(camera.intrinsics(), info, pyramid_ ? options_.levels : 0);
+    // Ahead of a frame drawn at lower detail, a step finer: the tiles chooseDetail waits for
+    // before it raises the detail.
+    Intrinsics ahead = camera.intrinsics();
+    ahead.detail = std::min(1.0, ahead.detail * detailAt(-1));
+    const LevelSelection aheadSelection =
+        LevelSelection::forCamera(ahead, info, pyramid_ ? options_.levels : 0);
+    // And a step coarser, where the detail may go down: the coarser levels' tiles nearer (a
+    // thin ring each, few tiles), for this pose.
+    Intrinsics below = camera.intrinsics();
+    below.detail = std::max(detailAt(detailSteps()), below.detail * detailAt(1));
     Footprint fp;
     for (const Camera* eye : {&camera, otherEye}) {
         if (!eye) continue;
@@ -420,11 +498,18 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
     std::set<TileKey> prefetch;
     if (velocity != glm::dvec3(0.0) || yawRate != 0.0) {
         prefetch =
-            extendedFootprint(camera, layout, info, selection, velocity, yawRate,
+            extendedFootprint(camera, layout, info, aheadSelection, velocity, yawRate,
                               options_.lookahead, options_.lookaheadStep, options_.prefetchMargin)
                 .tiles;
     } else if (options_.prefetchMargin > 0.0) {
-        prefetch = frameFootprint(camera, layout, info, selection, options_.prefetchMargin).tiles;
+        prefetch =
+            frameFootprint(camera, layout, info, aheadSelection, options_.prefetchMargin).tiles;
+    }
+    if (options_.placeBudgetMs > 0.0 && below.detail < camera.intrinsics().detail) {
+        const Footprint coarser =
+            frameFootprint(Camera(camera.pose(), below), layout, info,
+                           LevelSelection::forCamera(below, info, pyramid_ ? options_.levels : 0));
+        prefetch.insert(coarser.tiles.begin(), coarser.tiles.end());
     }
     // The control points' rays ahead too (cast on level 0 at any distance): thin, so swept
     // through the lookahead's turn in steps of at most half a degree, not only at its steps.
@@ -443,12 +528,8 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
         }
     }
     // Only what this map holds: level 0, or the pyramid's levels and nodes.
-    auto unused = [&](const TileKey& k) {
-        if (k.kind == TileKind::Nodes) return !pyramid_;
-        return k.level > 0 && (!pyramid_ || k.level >= pyramid_->levelCount());
-    };
-    std::erase_if(fp.tiles, unused);
-    std::erase_if(prefetch, [&](const TileKey& k) { return unused(k) || fp.tiles.count(k) > 0; });
+    std::erase_if(fp.tiles, [&](const TileKey& k) { return !holds(k); });
+    std::erase_if(prefetch, [&](const TileKey& k) { return !holds(k) || fp.tiles.count(k) > 0; });
     return page(fp.tiles, prefetch, wait);
 }
 
@@ -458,6 +539,8 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     st.frame = ++frame_;
     cache_.beginFrame(frame_, required, prefetch);
     if (wait) cache_.waitIdle();
+    // From here on the cost grows with the tiles written (chooseDetail's measure).
+    const auto start = std::chrono::steady_clock::now();
 
     // Tiles no longer needed leave first. Their pages stay (a page is counted once per tile
     // holding it) until the pages held pass the map's budget; then the oldest leavers give
@@ -490,13 +573,22 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
         givePagesBack(freed);
     }
 
+    // The writes are decided first and made once their fresh pages are backed, in the order
+    // decided (a stand-in leaves the edge samples an exact neighbour placed in this frame
+    // holds; that neighbour's copy writes them, before or after).
+    struct Write {
+        std::shared_ptr<const TerrainTile> tile;
+        TileKey key;  // a stand-in's own key (tile is then the coarser one)
+    };
+    std::vector<Write> writes;
+    fresh_.clear();
     for (const TileKey& key : required) {
         auto it = placed_.find(key);
         const bool placedExact = it != placed_.end() && it->second.sourceLevel == key.level;
         std::shared_ptr<const TerrainTile> tile = cache_.find(key);
         if (key.kind == TileKind::Nodes) {
             ++st.nodesRequired;
-            if (tile && !placedExact) copyTile(*tile);
+            if (tile && !placedExact) writes.push_back(Write{tile, key});
             if (tile || placedExact) {
                 place(key, Placed{key.level, false});
             } else {
@@ -522,7 +614,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             }
             if (tile->key.level > key.level) {
                 if (it == placed_.end() || it->second.sourceLevel != tile->key.level) {
-                    fillFromCoarser(key, *tile);
+                    writes.push_back(Write{tile, key});
                     ++st.copied;
                 }
                 place(key, Placed{tile->key.level, !failure.empty()});
@@ -530,14 +622,30 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             }
             --st.substituted;  // loaded meanwhile
         }
-        copyTile(*tile);
+        writes.push_back(Write{tile, key});
         ++st.copied;
         place(key, Placed{key.level, false});
+    }
+    populateFresh();
+    for (const Write& w : writes) {
+        if (w.tile->key == w.key) {
+            copyTile(*w.tile);
+        } else {
+            fillFromCoarser(w.key, *w.tile);
+        }
     }
     // Stand-ins' cell maxima from the map as it now is (an exact neighbour may have replaced
     // a shared edge).
     for (const auto& [key, p] : placed_)
         if (key.kind == TileKind::Display && p.sourceLevel != key.level) updateCellMax(key);
+    copiedPerFrame_ = 0.75 * copiedPerFrame_ + 0.25 * static_cast<double>(st.copied);
+    if (st.copied >= kMinTilesToMeasure) {
+        const double ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count() /
+            static_cast<double>(st.copied);
+        msPerTile_ = msPerTile_ > 0.0 ? 0.75 * msPerTile_ + 0.25 * ms : ms;
+    }
     return st;
 }
 

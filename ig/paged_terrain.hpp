@@ -65,6 +65,11 @@ class PagedTerrain {
         // oldest waiting give theirs back, down to half of it (giving pages back is a system
         // call and a TLB shootdown across the renderer's threads). 0: the cache's budget.
         std::size_t mapBudgetBytes = 0;
+        // Real-time detail (chooseDetail): where writing the tiles a frame needs would take
+        // longer than this, the frame is drawn at a lower Intrinsics::detail, in steps of
+        // 2^(-1/4) down to minDetail; it comes back a step a frame. 0: always full detail.
+        double placeBudgetMs = 60.0;
+        double minDetail = 0.5;
     };
 
     // `db` must outlive this. Loads the cache's resident coarse levels (InputError when the
@@ -94,9 +99,26 @@ class PagedTerrain {
     PagedFrameStats prepare(const Camera& camera, bool wait, const glm::dvec3& velocity = {},
                             double yawRate = 0.0, const Camera* otherEye = nullptr);
 
+    // For a real-time frame of `camera` (its detail ignored), before prepare(): the detail to
+    // draw it at (set it in the camera's intrinsics), in steps of 2^(-1/4) from the last
+    // frame's. Coarser while writing the tiles the frame needs, at the cost per tile measured
+    // over the frames so far, would pass Options::placeBudgetMs (down to minDetail); a step
+    // finer once every tile that step adds is loaded and the frames' writes there would fit.
+    // 1 until a frame has written enough tiles to measure.
+    double chooseDetail(const Camera& camera);
+    // The display and node tiles `camera`'s footprint needs that are not placed from their
+    // own data (each a write), and of those, not loaded.
+    struct Writes {
+        std::size_t tiles = 0, missing = 0;
+    };
+    Writes tilesToPlace(const Camera& camera) const;
+    // The cost of a tile written, measured (ms; 0 before any).
+    double msPerTile() const { return msPerTile_; }
+
     // Before a flight's first frame: loads (waiting) the tiles of `camera`'s view turned to
     // `headings` headings all round, so that a turn from the start finds its tiles resident
-    // (within the cache's budget). Places nothing: the next prepare() places its frame's.
+    // (within the cache's budget), at full detail and at chooseDetail's lowest. Places
+    // nothing: the next prepare() places its frame's.
     void warmUp(const Camera& camera, int headings = 6);
 
     // Places the level-0 tile under world (x, y) (clamped to the map), waiting for it, and
@@ -147,6 +169,11 @@ class PagedTerrain {
     };
 
     Grid grid(TileKind kind, int level) const;
+    // Whether this map holds `k`'s kind and level: level 0, or the pyramid's levels and nodes.
+    bool holds(const TileKey& k) const;
+    // chooseDetail's coarsest step (detail 2^(-steps/4), the lowest not below minDetail); 0
+    // without a placing budget.
+    int detailSteps() const;
     // A bound (metres) on the surface over level-0 tile (tx, ty): the finest resident node
     // covering it, else the map's highest point.
     double tileBound(int tx, int ty) const;
@@ -163,6 +190,8 @@ class PagedTerrain {
     // A tile's pages no longer held by it; those no tile holds now go to `freed`.
     void release(const TileKey& key, std::vector<std::uintptr_t>& freed);
     void givePagesBack(std::vector<std::uintptr_t>& freed);
+    // Backs the pages hold() found no tile holding before (fresh_), ahead of their writes.
+    void populateFresh();
     // Whether an exact placed tile (not a stand-in) of `self`'s level other than `self` holds
     // sample (x, y) of that level.
     bool heldByExactNeighbour(const TileKey& self, int x, int y) const;
@@ -179,8 +208,13 @@ class PagedTerrain {
     std::set<TileKey> held_;  // placed_ and leaving_: the tiles holding pages
     std::unordered_map<std::uintptr_t, std::uint32_t> pageRefs_;  // page -> tiles holding it
     std::vector<std::uintptr_t> pages_;                           // scratch
-    std::set<TileKey> reported_;                                  // failed tiles already reported
+    std::vector<std::uintptr_t> fresh_;  // pages a tile placed in this frame holds first
+    std::vector<PageRun> runs_;          // scratch
+    std::set<TileKey> reported_;         // failed tiles already reported
     std::uint64_t frame_ = 0;
+    int detailStep_ = 0;           // chooseDetail's last: detail 2^(-step/4)
+    double msPerTile_ = 0.0;       // page()'s time per tile written, smoothed
+    double copiedPerFrame_ = 0.0;  // tiles page() wrote a frame, smoothed
 };
 
 // The ground of a paged map for what is worked out before a run, off the field thread (a scene's

@@ -1,9 +1,13 @@
 #include "ig/terrain.hpp"
 
 #include <sys/mman.h>
+#include <sys/syscall.h>
+#include <sys/uio.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -12,12 +16,113 @@
 #ifndef MADV_COLLAPSE
 #define MADV_COLLAPSE 25  // Linux 6.1; older C libraries lack the name
 #endif
+#ifndef MADV_POPULATE_WRITE
+#define MADV_POPULATE_WRITE 23  // Linux 5.14
+#endif
 
 namespace ig {
 
 namespace {
 std::atomic<bool> gHugePageAdvice{true};
+std::atomic<bool> gPageBatching{true};
+// Whether this kernel took process_madvise with each advice on the calling process: -1 not
+// tried yet, 0 refused (then never tried again), 1 taken.
+std::atomic<int> gBatchedRelease{-1};
+std::atomic<int> gBatchedPopulate{-1};
+std::atomic<bool> gPopulateRefused{false};
+
+constexpr std::size_t kSparsePage = 4096;
+constexpr std::size_t kMaxBatch = 1024;  // IOV_MAX on Linux
+
+// One madvise per run; false where the kernel refuses the advice itself.
+bool adviseEach(const std::vector<PageRun>& runs, std::size_t first, int advice) {
+    for (std::size_t i = first; i < runs.size(); ++i) {
+        if (madvise(reinterpret_cast<void*>(runs[i].begin), runs[i].pages * kSparsePage, advice) !=
+                0 &&
+            errno == EINVAL) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// The runs in batches by process_madvise on this process; returns the runs it advised, after
+// which the rest go by madvise (a kernel that refuses the call, or a batch cut short).
+std::size_t adviseBatched(const std::vector<PageRun>& runs, int advice, std::atomic<int>& taken) {
+    if (runs.empty() || !gPageBatching.load() || taken.load() == 0) return 0;
+#if defined(SYS_process_madvise) && defined(SYS_pidfd_open)
+    // Opened per call: a forked renderer process is a process of its own.
+    const int pidfd = static_cast<int>(syscall(SYS_pidfd_open, getpid(), 0));
+    if (pidfd < 0) {
+        taken.store(0);
+        return 0;
+    }
+    iovec iov[kMaxBatch];
+    std::size_t done = 0;
+    while (done < runs.size()) {
+        const std::size_t n = std::min(kMaxBatch, runs.size() - done);
+        std::size_t bytes = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            iov[i].iov_base = reinterpret_cast<void*>(runs[done + i].begin);
+            iov[i].iov_len = runs[done + i].pages * kSparsePage;
+            bytes += iov[i].iov_len;
+        }
+        const long r = syscall(SYS_process_madvise, pidfd, iov, n, advice, 0u);
+        if (r < 0) {
+            // Before Linux 6.13 only a few advices are taken (EINVAL); no pidfd support, or
+            // none allowed (ENOSYS, EPERM, ESRCH): the rest by madvise, and no more tries.
+            if (done == 0) taken.store(0);
+            break;
+        }
+        taken.store(1);
+        if (static_cast<std::size_t>(r) != bytes) {
+            // Cut short: the runs wholly advised count, the others go by madvise.
+            std::size_t whole = 0, sum = 0;
+            while (whole < n && sum + iov[whole].iov_len <= static_cast<std::size_t>(r))
+                sum += iov[whole++].iov_len;
+            done += whole;
+            break;
+        }
+        done += n;
+    }
+    close(pidfd);
+    return done;
+#else
+    (void)advice;
+    taken.store(0);
+    return 0;
+#endif
+}
 }  // namespace
+
+void setPageBatching(bool enabled) {
+    gPageBatching.store(enabled);
+}
+
+void pageRuns(const std::vector<std::uintptr_t>& pages, std::vector<PageRun>& out) {
+    out.clear();
+    for (std::size_t i = 0; i < pages.size();) {
+        std::size_t j = i + 1;
+        while (j < pages.size() && pages[j] == pages[j - 1] + kSparsePage)
+            ++j;
+        out.push_back(PageRun{pages[i], j - i});
+        i = j;
+    }
+}
+
+std::size_t releaseSparsePageRuns(const std::vector<PageRun>& runs) noexcept {
+    const std::size_t batched = adviseBatched(runs, MADV_DONTNEED, gBatchedRelease);
+    adviseEach(runs, batched, MADV_DONTNEED);
+    return batched;
+}
+
+std::size_t populateSparsePageRuns(const std::vector<PageRun>& runs) noexcept {
+    if (gPopulateRefused.load()) return 0;
+    const std::size_t batched = adviseBatched(runs, MADV_POPULATE_WRITE, gBatchedPopulate);
+    // A kernel without MADV_POPULATE_WRITE: the writes fault the pages in, as they would.
+    if (!adviseEach(runs, batched, MADV_POPULATE_WRITE)) gPopulateRefused.store(true);
+    return batched;
+}
 
 void setHugePageAdvice(bool enabled) {
     gHugePageAdvice.store(enabled);

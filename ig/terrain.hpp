@@ -25,6 +25,28 @@ void* allocateSparse(std::size_t bytes);
 void deallocateSparse(void* p, std::size_t bytes) noexcept;
 void releaseSparsePages(void* p, std::size_t bytes) noexcept;
 
+// Runs of whole pages of sparse blocks: [begin, begin + pages * 4 KiB), begin page-aligned.
+struct PageRun {
+    std::uintptr_t begin = 0;
+    std::size_t pages = 0;
+};
+// Many runs at once. releaseSparsePageRuns gives their pages back (as releaseSparsePages);
+// populateSparsePageRuns backs them ahead of the writes that follow (MADV_POPULATE_WRITE: a
+// page already backed keeps its bytes, a fresh one reads zero), one call for many pages instead
+// of a fault per page. Where the kernel takes a list of ranges in one call (process_madvise on
+// the calling process, Linux 6.13 and later) they go in batches of up to 1024 runs: giving
+// pages back then costs a TLB shootdown across the process's threads per batch, not per run.
+// Elsewhere each run is its own madvise; populating is skipped where the kernel lacks it
+// (before Linux 5.14: the writes fault the pages in). Both return the runs given to a batched
+// call (0 when every run went by madvise).
+std::size_t releaseSparsePageRuns(const std::vector<PageRun>& runs) noexcept;
+std::size_t populateSparsePageRuns(const std::vector<PageRun>& runs) noexcept;
+// Whether the batched call is tried (default true); false: one madvise per run, the twin the
+// tests compare with.
+void setPageBatching(bool enabled);
+// Sorted, distinct page addresses -> runs of adjacent pages.
+void pageRuns(const std::vector<std::uintptr_t>& pages, std::vector<PageRun>& out);
+
 // `sparse`: the vector's block is a sparse one and its elements are left as the fresh block
 // holds them (zero bytes, which is what value-initialisation gives the map's element types):
 // a sparse vector is sized once, at construction, and never grows.

@@ -122,7 +122,7 @@ LevelSelection LevelSelection::forCamera(const Intrinsics& intrinsics, const Ter
                                          int coarseLevels) {
     LevelSelection s;
     s.coarseLevels = coarseLevels;
-    s.d0 = intrinsics.focal * std::max(info.spacingX, info.spacingY);
+    s.d0 = intrinsics.lodFocal() * std::max(info.spacingX, info.spacingY);
     return s;
 }
 

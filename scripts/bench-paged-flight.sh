@@ -8,10 +8,12 @@
 # a 4096^2 database paged and loaded whole, three times each in turn, render time per frame side
 # by side. Writes docs/results/data/paged_flight_SIZE.json.
 # Usage: scripts/bench-paged-flight.sh [BUILD_DIR] [SCRATCH_DIR] [SIZE] [CACHE_MB] [SECONDS]
-#                                      [IMAGES]
-#   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60, "720x486"
+#                                      [IMAGES] [FULL_DETAIL_IMAGES]
+#   defaults: build/release, /tmp/vig-paged-flight, 16384, 512, 60, "720x486", ""
 #   (65536 needs ~45 GB free and half an hour to build on a 2-core machine; IMAGES is a list of
-#   WxH, e.g. "720x486 1920x1080")
+#   WxH, e.g. "720x486 1920x1080", flown with flythrough's default placing budget (frames over
+#   it drawn at lower detail); FULL_DETAIL_IMAGES are flown again with --place-budget-ms 0.
+#   The 4096^2 comparison, paged against in memory, is flown at full detail.)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$root/build/release}
@@ -20,6 +22,7 @@ size=${3:-16384}
 cacheMb=${4:-512}
 seconds=${5:-60}
 images=${6:-720x486}
+fullImages=${7:-}
 data=$root/docs/results/data
 bin=$build/bin
 mkdir -p "$scratch" "$data"
@@ -69,17 +72,20 @@ open(out, "w").write("\n".join(rows) + "\n")
 PY
 }
 
-fly() {  # fly NAME DB CACHE_MB SECONDS TRAJECTORY [WxH]: one wall-clock flight, its JSON kept
+# fly NAME DB CACHE_MB SECONDS TRAJECTORY WxH PLACE_BUDGET_MS: one wall-clock flight, its JSON
+# kept
+fly() {
     local dropped=0
     sync
     if echo 3 >/proc/sys/vm/drop_caches 2>/dev/null; then dropped=1; fi
     "$bin/flythrough" --db "$2" --cache-mb "$3" --trajectory "$5" --duration "$4" \
-        --size "${6:-720x486}" --renderer thread --colors image --out null --contact none --quiet \
-        --json "$scratch/$1.json" >&2
-    python3 - "$scratch/$1.json" "$dropped" <<'PY'
+        --size "$6" --place-budget-ms "$7" --renderer thread --colors image --out null \
+        --contact none --quiet --json "$scratch/$1.json" >&2
+    python3 - "$scratch/$1.json" "$dropped" "$7" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1]))
 j["page_cache_dropped"] = sys.argv[2] == "1"
+j["place_budget_ms"] = float(sys.argv[3])
 json.dump(j, open(sys.argv[1], "w"), indent=2)
 PY
 }
@@ -87,31 +93,38 @@ PY
 big=$(db "$size")
 trajectory "$big" "$scratch/flight_$size.csv" "$seconds"
 for image in $images; do
-    fly "paged_${size}_$image" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv" "$image"
+    fly "paged_${size}_$image" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv" "$image" 60
+done
+for image in $fullImages; do
+    fly "paged_${size}_${image}_full" "$big" "$cacheMb" "$seconds" "$scratch/flight_$size.csv" \
+        "$image" 0
 done
 
 small=$(db 4096)
 short=$((seconds < 15 ? seconds : 15))
 trajectory "$small" "$scratch/flight_4096.csv" "$short"
 for rep in 1 2 3; do  # in turn, so the machine's drift falls on both alike
-    fly "paged_4096_$rep" "$small" 64 "$short" "$scratch/flight_4096.csv"
-    fly "whole_4096_$rep" "$small" 4096 "$short" "$scratch/flight_4096.csv"
+    fly "paged_4096_$rep" "$small" 64 "$short" "$scratch/flight_4096.csv" 720x486 0
+    fly "whole_4096_$rep" "$small" 4096 "$short" "$scratch/flight_4096.csv" 720x486 0
 done
 
-python3 - "$data/paged_flight_$size.json" "$scratch" "$size" "$cacheMb" "$seconds" "$images" <<'PY'
+python3 - "$data/paged_flight_$size.json" "$scratch" "$size" "$cacheMb" "$seconds" "$images" \
+    "$fullImages" <<'PY'
 import json, os, sys
-out, scratch, size, cache_mb, seconds, images = sys.argv[1:7]
+out, scratch, size, cache_mb, seconds, images, full = sys.argv[1:8]
 def load(name):
     return json.load(open(os.path.join(scratch, name + ".json")))
 build = os.path.join(scratch, f"build_{size}.json")
 doc = {
     "command": f"scripts/bench-paged-flight.sh build/release /tmp/vig-paged-flight {size} "
-               f"{cache_mb} {seconds}" + (f" '{images}'" if images != "720x486" else ""),
+               f"{cache_mb} {seconds}" + (f" '{images}'" if images != "720x486" or full else "")
+               + (f" '{full}'" if full else ""),
     "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
     "size": int(size), "cache_mb": float(cache_mb), "seconds": float(seconds),
     "db_bytes": os.path.getsize(os.path.join(scratch, f"synthetic_{size}.db")),
     "build": json.load(open(build)) if os.path.exists(build) else None,
     "flights": [load(f"paged_{size}_{image}") for image in images.split()],
+    "flights_full_detail": [load(f"paged_{size}_{image}_full") for image in full.split()],
     "paged_4096": [load(f"paged_4096_{r}") for r in (1, 2, 3)],
     "whole_4096": [load(f"whole_4096_{r}") for r in (1, 2, 3)]}
 json.dump(doc, open(out, "w"), indent=2)

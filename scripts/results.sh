@@ -7,7 +7,7 @@
 # generate the first time; a raw copy is kept in $VIG_BENCH_CACHE, default /tmp/vig-bench-cache).
 #
 # Usage: scripts/results.sh [--skip-build] [--only NAME...]
-#   NAME: machine caster render appearance insets warp warp-eval stereo flythrough io restart cigi objects  (default: all)
+#   NAME: machine caster render detail appearance insets warp warp-eval stereo flythrough io restart cigi objects  (default: all)
 #   field-clock (twenty minutes: scripts/bench-field-clock.sh 600) runs only when named.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +23,8 @@ while [ $# -gt 0 ]; do
         --only)
             shift
             case "${1:-}" in
-                machine|caster|render|appearance|insets|warp|warp-eval|stereo|flythrough|io|restart|cigi|objects|field-clock) only+=("$1") ;;
-                *) echo "$0: --only ${1:-}: expected machine, caster, render, appearance, insets, warp, warp-eval, stereo, flythrough, io, restart, cigi, objects or field-clock" >&2
+                machine|caster|render|detail|appearance|insets|warp|warp-eval|stereo|flythrough|io|restart|cigi|objects|field-clock) only+=("$1") ;;
+                *) echo "$0: --only ${1:-}: expected machine, caster, render, detail, appearance, insets, warp, warp-eval, stereo, flythrough, io, restart, cigi, objects or field-clock" >&2
                    exit 2 ;;
             esac ;;
         *) echo "usage: $0 [--skip-build] [--only NAME]..." >&2; exit 2 ;;
@@ -118,6 +118,12 @@ if wanted render; then
     # The span caster against a Comanche-style peer and the multiresolution caster, per view.
     run span_bench "$bin/bench-render" span span-threads --size 16384 --repeat 3 --cache "$cache" \
         --json "$data/span_bench.json"
+fi
+
+if wanted detail; then
+    # Lower detail, what a paged flight draws over its placing budget: time and error per step.
+    run render_detail "$bin/bench-render" detail --size 4096 --repeat 3 --cache "$cache" \
+        --json "$data/render_detail.json"
 fi
 
 if wanted appearance; then

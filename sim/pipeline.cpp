@@ -249,7 +249,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         const RenderGeometry g = viewed(geometry, requestView());
         ig::Pose level = pose;
         level.roll = 0.0;  // the PRP applies roll
-        const ig::Intrinsics intr = renderIntrinsics(g, pose);
+        ig::Intrinsics intr = renderIntrinsics(g, pose);
         glm::dvec3 velocity(0.0);
         double yawRate = 0.0;
         if (s.have && time > s.time) {
@@ -266,6 +266,9 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         // with its holes cast: both eyes' tiles are placed.
         const bool pair = stereo.eyeSeparation > 0.0;
         const EyePoses eyes = eyePoses(level, pair ? stereo.eyeSeparation : 0.0);
+        // The detail whose tiles the placing can write in its budget (full before the first
+        // frame, which waits for its tiles).
+        if (s.have) intr.detail = s.paged->chooseDetail(ig::Camera(pair ? eyes.left : level, intr));
         const ig::Camera first(pair ? eyes.left : level, intr);
         const ig::Camera second(eyes.right, intr);
         // Before the first frame, the view all round: a turn from the start finds its tiles.
@@ -287,7 +290,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             }
             log->frames.push_back(PagingLog::Frame{time, st.required, st.substituted, st.failed,
                                                    st.nodesMissing, pageMs, cs.tilesRead,
-                                                   cs.bytesRead});
+                                                   cs.bytesRead, intr.detail});
             log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
         }
         if (objects.scene) {

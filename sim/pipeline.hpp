@@ -94,6 +94,7 @@ struct PagingLog {
         double pageMs = 0.0;           // the placing, on the renderer's thread
         std::uint64_t tilesRead = 0;   // by the cache's loaders since the start (all levels)
         std::uint64_t bytesRead = 0;
+        double detail = 1.0;  // the frame's Intrinsics::detail (PagedTerrain::chooseDetail)
     };
     std::vector<Frame> frames;
     std::vector<std::string> failures;  // each unreadable tile, once

@@ -230,9 +230,13 @@ nlohmann::json pagingSummary(const sim::PagingLog& log, double cacheMb, bool ren
     j["frames"] = log.frames.size();
     j["in_renderer_process"] = rendererProcess;
     std::size_t substituted = 0, withSub = 0, withSubLate = 0, maxSub = 0, failed = 0;
-    double pageSum = 0.0, pageMax = 0.0;
+    double pageSum = 0.0, pageMax = 0.0, detailSum = 0.0, detailMin = 1.0;
+    std::size_t reduced = 0;
     const double t0 = log.frames.empty() ? 0.0 : log.frames.front().time;
     for (const sim::PagingLog::Frame& f : log.frames) {
+        detailSum += f.detail;
+        detailMin = std::min(detailMin, f.detail);
+        reduced += f.detail < 1.0;
         substituted += f.substituted;
         withSub += f.substituted > 0;
         withSubLate += f.substituted > 0 && f.time >= t0 + 1.0;
@@ -259,6 +263,10 @@ nlohmann::json pagingSummary(const sim::PagingLog& log, double cacheMb, bool ren
     j["tiles_read_per_s"] = span > 0.0 ? static_cast<double>(read) / span : 0.0;
     j["page_ms_mean"] = log.frames.empty() ? 0.0 : pageSum / log.frames.size();
     j["page_ms_max"] = pageMax;
+    // Frames drawn at lower detail to keep the placing in its budget (--place-budget-ms).
+    j["frames_reduced_detail"] = reduced;
+    j["detail_min"] = detailMin;
+    j["detail_mean"] = log.frames.empty() ? 1.0 : detailSum / log.frames.size();
     j["peak_rss_mb"] = static_cast<double>(ig::peakResidentBytes()) / 1048576.0;
     return j;
 }
@@ -299,6 +307,8 @@ int main(int argc, char** argv) {
     double renderTimeoutMs = 0.0, holdAfterMs = 1000.0;
     double prefetchSeconds = 0.5;
     int tileLoaders = 2;
+    double placeBudgetMs = 60.0;
+    double minDetail = 0.5;
     std::string faultText;
     std::string levelsText = "auto";
     std::string casterText = "fast";
@@ -402,6 +412,16 @@ int main(int argc, char** argv) {
                    "With a database paged beyond --cache-mb: the renderer's threads reading "
                    "tiles (1..16)")
         ->capture_default_str();
+    app.add_option("--place-budget-ms", placeBudgetMs,
+                   "With a database paged beyond --cache-mb: where writing a frame's tiles into "
+                   "the map would take longer than this, the frame is drawn at lower detail "
+                   "(coarser levels nearer, fewer level-0 tiles), down to --min-detail; "
+                   "0: always full detail")
+        ->capture_default_str();
+    app.add_option("--min-detail", minDetail,
+                   "With --place-budget-ms: the lowest detail, as a fraction of the focal length "
+                   "the levels are chosen by (0.25..1)")
+        ->capture_default_str();
     app.add_option("--render-timeout-ms", renderTimeoutMs,
                    "Renderer process silent this long is killed and restarted (0: 500 ms, on "
                    "the simulated clock 5 s, or eight renders, whichever is longer; a restarted "
@@ -494,6 +514,13 @@ int main(int argc, char** argv) {
         if (tileLoaders < 1 || tileLoaders > 16) {
             throw ig::InputError("--tile-loaders " + std::to_string(tileLoaders) +
                                  ": expected 1..16 threads");
+        }
+        if (!(placeBudgetMs >= 0.0 && placeBudgetMs <= 60000.0)) {
+            throw ig::InputError("--place-budget-ms " + base::number(placeBudgetMs) +
+                                 ": must be 0 (always full detail) .. 60000");
+        }
+        if (!(minDetail >= 0.25 && minDetail <= 1.0)) {
+            throw ig::InputError("--min-detail " + base::number(minDetail) + ": must be 0.25..1");
         }
         if (!(prefetchSeconds >= 0.0 && prefetchSeconds <= 10.0)) {
             throw ig::InputError("--prefetch-s " + base::number(prefetchSeconds) +
@@ -1074,6 +1101,8 @@ int main(int argc, char** argv) {
             pagedOptions.cache.budgetBytes = static_cast<std::size_t>(terrain.cacheMb * 1048576.0);
             pagedOptions.cache.loaderThreads = tileLoaders;
             pagedOptions.lookahead = prefetchSeconds;
+            pagedOptions.placeBudgetMs = placeBudgetMs;
+            pagedOptions.minDetail = minDetail;
         }
         // Over a paged map the paged renderer draws the scene or the stereo pairs (the fast
         // caster's, as in memory).
@@ -1209,7 +1238,8 @@ int main(int argc, char** argv) {
                     stderr,
                     "paging: %zu frames, %zu tiles drawn from a coarser level in %zu frames "
                     "(%zu after the first second), %llu tiles read (%.0f a second), placing "
-                    "%.2f ms mean, %.2f ms max; peak RSS %.0f MB (--cache-mb %g)\n",
+                    "%.2f ms mean, %.2f ms max; %zu frames at lower detail (down to %.2f); "
+                    "peak RSS %.0f MB (--cache-mb %g)\n",
                     pagingLog->frames.size(), pagingJson["substituted_tiles"].get<std::size_t>(),
                     pagingJson["frames_with_substitutions"].get<std::size_t>(),
                     pagingJson["frames_with_substitutions_after_1s"].get<std::size_t>(),
@@ -1217,7 +1247,9 @@ int main(int argc, char** argv) {
                     pagingJson["tiles_read_per_s"].get<double>(),
                     pagingJson["page_ms_mean"].get<double>(),
                     pagingJson["page_ms_max"].get<double>(),
-                    pagingJson["peak_rss_mb"].get<double>(), terrain.cacheMb);
+                    pagingJson["frames_reduced_detail"].get<std::size_t>(),
+                    pagingJson["detail_min"].get<double>(), pagingJson["peak_rss_mb"].get<double>(),
+                    terrain.cacheMb);
             }
             for (const std::string& m : pagingLog->failures)
                 std::fprintf(stderr, "paging: %s (drawn from a coarser level)\n", m.c_str());

@@ -6,7 +6,7 @@
 //                [--cache DIR] [--caster K] [--levels auto|N] [--span-max-stretch S]
 //                [--json FILE]
 //   sections: speed packets sensitivity headings pitches threads supersample flight quality
-//             frame stream span span-threads autosample lighting edge-fill insets
+//             frame stream span span-threads autosample lighting edge-fill insets detail
 //             (default: speed)
 //
 // Timings are wall-clock, best of --repeat frames (in `speed` the three fast casters take their
@@ -505,6 +505,67 @@ void quality(const Config& c, double pitchDeg, const char* title) {
     }
     j["rows"] = rows;
     gJson[title] = j;
+}
+
+// Lower detail (Intrinsics::detail, what a paged flight draws when writing a frame's tiles
+// would pass its budget): levels auto, one ray per pixel, at each step the paging takes down to
+// 0.5: time at --image (one thread, the details' frames in turn), error at 1/8 of it against
+// the 4x4 supersampled reference, and how far level 0 reaches.
+void detailSection(const Config& c) {
+    const int size = std::min(c.size, 4096);
+    const ig::TerrainMap& map = syntheticMap(size);
+    const ig::Pose pose = issuePose(map, -10.0);
+    const int qw = c.width / 8, qh = c.height / 8;
+    const double pixels = static_cast<double>(c.width) * c.height;
+    std::printf(
+        "\n## detail: synthetic %d^2, pitch -10 deg, time at %dx%d (one thread), error at %dx%d "
+        "vs 4x4 supersampled reference\n",
+        size, c.width, c.height, qw, qh);
+    const auto ref = supersampledReference(map, pose, qw, qh, 4);
+    const auto fast = caster(ig::CasterKind::Fast, map, ig::kLevelsAuto, 1);
+    const std::vector<double> details{1.0, std::exp2(-0.25), std::exp2(-0.5), std::exp2(-0.75),
+                                      0.5};
+    std::vector<ig::Intrinsics> ins;
+    for (const double d : details) {
+        ig::Intrinsics in = ig::Intrinsics::fromFov(c.width, c.height, ig::degToRad(60.0));
+        in.detail = d;
+        ins.push_back(in);
+    }
+    std::vector<Timed> best(details.size());
+    for (int r = 0; r < c.repeat; ++r) {
+        for (std::size_t i = 0; i < details.size(); ++i) {
+            ig::RenderedFrame f = ig::renderFrame(*fast, map, pose, ins[i]);
+            best[i].runs.push_back(f.stats.renderMs);
+            if (r == 0 || f.stats.renderMs < best[i].ms) {
+                best[i].ms = f.stats.renderMs;
+                best[i].frame = std::move(f);
+            }
+        }
+    }
+    std::printf("| %-6s | %12s | %9s | %8s | %8s | %14s |\n", "detail", "level 0 to", "frame ms",
+                "ns/px", "MAE %", "vs detail 1 %");
+    nlohmann::json j = sectionJson(c, size), rows = nlohmann::json::array();
+    j["pitch_deg"] = -10.0;
+    j["error_image"] = std::to_string(qw) + "x" + std::to_string(qh);
+    for (std::size_t i = 0; i < details.size(); ++i) {
+        ig::Intrinsics small = ig::Intrinsics::fromFov(qw, qh, ig::degToRad(60.0));
+        small.detail = details[i];
+        const auto q = ig::renderFrame(*fast, map, pose, small);
+        const double reachKm =
+            2.0 * ins[i].lodFocal() * std::max(map.spacingX(), map.spacingY()) / 1000.0;
+        const double mae = ig::meanAbsErrorPct(q.color, ref);
+        const double vsFull = ig::meanAbsErrorPct(best[i].frame.color, best[0].frame.color);
+        std::printf("| %6.3f | %9.1f km | %9.1f | %8.2f | %8.3f | %14.3f |\n", details[i], reachKm,
+                    best[i].ms, best[i].ms * 1e6 / pixels, mae, vsFull);
+        nlohmann::json row = timedJson("detail " + std::to_string(details[i]), best[i], pixels);
+        row["detail"] = details[i];
+        row["level0_reach_km"] = reachKm;
+        row["mae_pct_vs_reference"] = mae;
+        row["mae_pct_vs_detail_1"] = vsFull;
+        rows.push_back(row);
+    }
+    j["rows"] = rows;
+    gJson["detail"] = j;
 }
 
 // The best of --repeat frames of --caster at --levels, one thread: for profiles, and for
@@ -1353,7 +1414,7 @@ int main(int argc, char** argv) {
                    a == "flight" || a == "quality" || a == "frame" || a == "stream" ||
                    a == "headings" || a == "pitches" || a == "packets" || a == "span" ||
                    a == "span-threads" || a == "autosample" || a == "lighting" ||
-                   a == "edge-fill" || a == "insets") {
+                   a == "edge-fill" || a == "insets" || a == "detail") {
             c.sections.push_back(a);
         } else {
             std::fprintf(
@@ -1361,7 +1422,7 @@ int main(int argc, char** argv) {
                 "bench-render: unknown argument '%s'\nusage: bench-render [speed] [packets] "
                 "[sensitivity] [threads] [supersample] [quality] [flight] [frame] "
                 "[stream] [headings] [pitches] [span] [span-threads] [autosample] [lighting] "
-                "[edge-fill] [insets] [--size N] "
+                "[edge-fill] [insets] [detail] [--size N] "
                 "[--image WxH] [--repeat N] [--no-hugepages] [--kernel auto|scalar|avx2|avx512] "
                 "[--heading "
                 "DEG] [--pitch DEG] [--span-max-stretch S] [--cache DIR] "
@@ -1397,6 +1458,7 @@ int main(int argc, char** argv) {
             if (s == "lighting") lighting(c);
             if (s == "edge-fill") edgeFill(c);
             if (s == "insets") insetsSection(c);
+            if (s == "detail") detailSection(c);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench-render: %s\n", e.what());

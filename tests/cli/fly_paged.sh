@@ -16,10 +16,12 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 printf 't,x,y,z,yaw_deg,pitch_deg,roll_deg\n0,2000,2000,1800,45,-20,0\n1,2300,2300,1800,75,-20,10\n2,2600,2600,1800,105,-20,0\n' \
     >"$tmp/traj.csv"
 
+# Full detail throughout (--place-budget-ms 0): which tiles a frame needs does not depend on
+# how fast this machine writes them.
 for renderer in thread process; do
     rm -f "$tmp/fly.json"
     msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
-        --renderer $renderer --clock simulated --out null --contact none \
+        --renderer $renderer --clock simulated --out null --contact none --place-budget-ms 0 \
         --json "$tmp/fly.json" 2>&1) || fail "fly ($renderer): $msg"
     python3 - "$tmp/fly.json" "$renderer" <<'PY' || fail "fly ($renderer): $msg"
 import json, sys
@@ -36,6 +38,7 @@ if sys.argv[2] == "thread":
     assert p["tiles_read"] > 100, p
     assert p["frames_with_substitutions_after_1s"] == 0, p
     assert p["failed_tiles"] == 0, p
+    assert p["frames_reduced_detail"] == 0 and p["detail_min"] == 1.0, p
 else:
     assert p["in_renderer_process"] and p["frames"] == 0, p
 PY
@@ -59,6 +62,29 @@ msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.cs
     --tile-loaders 0 --out null --contact none 2>&1)
 [ $? -eq 2 ] || fail "--tile-loaders 0: not refused"
 grep -q -- "--tile-loaders 0" <<<"$msg" || fail "--tile-loaders 0: $msg"
+
+# --place-budget-ms: a budget no frame's writes fit draws the frames after the first at lower
+# detail, down to --min-detail and not below; the fields go on. Bad values are refused.
+rm -f "$tmp/detail.json"
+msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+    --renderer thread --clock simulated --place-budget-ms 0.000001 --min-detail 0.6 \
+    --out null --contact none --json "$tmp/detail.json" 2>&1) || fail "--place-budget-ms: $msg"
+grep -q "frames at lower detail (down to 0.71)" <<<"$msg" || fail "--place-budget-ms: $msg"
+python3 - "$tmp/detail.json" <<'PY' || fail "--place-budget-ms"
+import json, sys
+j = json.load(open(sys.argv[1]))
+p = j["paging"]
+assert j["fields"] == 120 and j["missed_deadlines"] == 0, (j["fields"], j["missed_deadlines"])
+# 0.6 lies between two steps of 2^(-1/4): the lowest is the one above it, 2^(-1/2).
+assert abs(p["detail_min"] - 2 ** -0.5) < 1e-9, p
+assert p["frames_reduced_detail"] >= p["frames"] - 2, p
+PY
+for bad in "--place-budget-ms -1" "--min-detail 0.1" "--min-detail nan"; do
+    msg=$("$bin/flythrough" --db "$tmp/s.db" --cache-mb 6 --trajectory "$tmp/traj.csv" \
+        $bad --out null --contact none 2>&1)
+    [ $? -eq 2 ] || fail "$bad: not refused"
+    grep -q -- "${bad% *}" <<<"$msg" || fail "$bad: $msg"
+done
 
 # The default scenario over the paged map, started 20 m over the ground: the flight model stands
 # on a ground of its own (ig/paged_ground.hpp), exact where its tiles are resident; the field log's

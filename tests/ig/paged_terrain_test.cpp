@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -95,6 +96,19 @@ std::pair<std::size_t, double> colourDifference(const RenderedFrame& a, const Re
     }
     return {differ, sum};
 }
+
+// The fast caster with every level over the map in memory and over `paged`'s map and pyramid.
+struct FastTwins {
+    std::unique_ptr<Caster> inMemory, fromCache;
+    FastTwins(const TerrainMap& map, const PagedTerrain& paged) {
+        RenderOptions o;
+        o.levels = kLevelsAuto;
+        inMemory = makeCaster(CasterKind::Fast, map, o);
+        o.pyramid = paged.pyramid();
+        o.slopes = paged.slopes();
+        fromCache = makeCaster(CasterKind::Fast, paged.map(), o);
+    }
+};
 
 TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
     const PagedFixture& f = fixture();
@@ -234,12 +248,9 @@ TEST(PagedTerrain, MissingNodeTilesLeaveTheFastCastersImageUnchanged) {
     EXPECT_EQ(paged.pyramid()->nodeMaxRaw(1, 0, 0), 65535) << "a node never placed";
     // Every node tile below the cache's pinned levels (those are loaded at construction).
     paged.cache().setWithheld([](const TileKey& k) { return k.kind == TileKind::Nodes; });
-    RenderOptions o;
-    o.levels = kLevelsAuto;
-    const auto inMemory = makeCaster(CasterKind::Fast, f.map, o);
-    o.pyramid = paged.pyramid();
-    o.slopes = paged.slopes();
-    const auto fromCache = makeCaster(CasterKind::Fast, paged.map(), o);
+    const FastTwins twins(f.map, paged);
+    const Caster* inMemory = twins.inMemory.get();
+    const Caster* fromCache = twins.fromCache.get();
     std::uint64_t stepsWhole = 0, stepsPaged = 0;
     std::size_t missing = 0;
     int pose = 0;
@@ -449,6 +460,108 @@ TEST(PagedTerrain, ATurnFindsEveryTileReadAheadControlPointRaysIncluded) {
     }
     EXPECT_GT(required, 24u * 100u);
     EXPECT_EQ(substituted, 0u) << "tiles a frame needed that the prefetch had not asked for";
+}
+
+// A frame drawn at lower detail (Intrinsics::detail: coarser levels nearer) needs fewer
+// level-0 tiles, and over the paged map it is the in-memory render at that detail, to the bit.
+TEST(PagedTerrain, LowerDetailNeedsFewerTilesAndEqualsTheInMemoryRenderAtThatDetail) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain::Options po = smallBudget();
+    po.cache.budgetBytes = std::size_t{5} << 18;
+    po.pyramid = true;
+    po.levels = kLevelsAuto;
+    PagedTerrain paged(db, po);
+    const FastTwins twins(f.map, paged);
+    const Caster* inMemory = twins.inMemory.get();
+    const Caster* fromCache = twins.fromCache.get();
+    Intrinsics half = kView;
+    half.detail = 0.5;
+    const LevelSelection full = LevelSelection::forCamera(kView, db.info(), kLevelsAuto);
+    const LevelSelection coarse = LevelSelection::forCamera(half, db.info(), kLevelsAuto);
+    EXPECT_DOUBLE_EQ(coarse.d0, 0.5 * full.d0);
+    int pose = 0;
+    std::size_t differing = 0;
+    for (Pose p : lowSweep(f.map, 12)) {
+        p.pitch = -6.0 * M_PI / 180.0;  // far enough that level 0 ends within the view
+        const std::size_t level0Full =
+            frameFootprint(Camera(p, kView), db.layout(), db.info(), full)
+                .count(TileKind::Display, 0);
+        const std::size_t level0Half =
+            frameFootprint(Camera(p, half), db.layout(), db.info(), coarse)
+                .count(TileKind::Display, 0);
+        EXPECT_LT(level0Half, level0Full) << "pose " << pose;
+        const PagedFrameStats st = paged.prepare(Camera(p, half), true);
+        EXPECT_EQ(st.substituted, 0u) << "pose " << pose;
+        const RenderedFrame a = renderFrame(*inMemory, f.map, p, half);
+        const RenderedFrame b = renderFrame(*fromCache, paged.map(), p, half);
+        expectSameImage(a, b, "detail 0.5, pose " + std::to_string(pose));
+        differing += colourDifference(a, renderFrame(*inMemory, f.map, p, kView)).first;
+        ++pose;
+    }
+    EXPECT_GT(differing, 0u) << "the detail changed no pixel: the casters do not take it";
+}
+
+// chooseDetail: no lower detail without a budget; a budget no write fits drops a turn's frames
+// to the lowest detail (as many steps of 2^(-1/4) in a frame as it takes), never below it; held
+// still, the detail comes back to full a step a frame at most, each step only once its tiles are
+// loaded (no frame on the way draws a tile from a coarser level).
+TEST(PagedTerrain, DetailDropsWhereWritesPassTheBudgetAndComesBackWithItsTilesLoaded) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    const double dt = 0.05, yawRate = 60.0 * M_PI / 180.0;
+    const glm::dvec3 velocity{30.0, 30.0, 0.0};
+    Pose start;
+    start.position = {0.3 * f.map.extentX(), 0.3 * f.map.extentY(), 0.0};
+    start.position.z = f.map.surfaceHeight(start.position.x, start.position.y) + 120.0;
+    start.pitch = -8.0 * M_PI / 180.0;
+    for (const double budget : {0.0, 1e-6}) {
+        SCOPED_TRACE("budget " + std::to_string(budget));
+        PagedTerrain::Options po;
+        po.cache.budgetBytes = std::size_t{32} << 20;
+        po.pyramid = true;
+        po.levels = kLevelsAuto;
+        po.placeBudgetMs = budget;
+        po.minDetail = 0.5;
+        PagedTerrain paged(db, po);
+        Pose pose = start;
+        paged.prepare(Camera(pose, kView), true, velocity, yawRate);
+        EXPECT_GT(paged.msPerTile(), 0.0) << "the first frame's writes measured";
+        double last = 1.0, lowest = 1.0;
+        for (int i = 1; i <= 12; ++i) {
+            pose.position += velocity * dt;
+            pose.yaw += yawRate * dt;
+            const double d = paged.chooseDetail(Camera(pose, kView));
+            EXPECT_GE(d, 0.5);
+            const double steps = -4.0 * std::log2(d);
+            EXPECT_NEAR(steps, std::round(steps), 1e-9) << d << ": not a step";
+            last = d;
+            lowest = std::min(lowest, d);
+            Intrinsics in = kView;
+            in.detail = d;
+            paged.prepare(Camera(pose, in), false, velocity, yawRate);
+        }
+        if (budget == 0.0) {
+            EXPECT_EQ(lowest, 1.0);
+            continue;
+        }
+        EXPECT_DOUBLE_EQ(lowest, 0.5);
+        // Held still: nothing new to write, the loaders keeping up.
+        int frames = 0;
+        std::size_t substituted = 0;
+        while (last < 1.0 && frames < 2000) {
+            paged.cache().waitIdle();
+            const double d = paged.chooseDetail(Camera(pose, kView));
+            EXPECT_LE(d, last * std::exp2(0.25) + 1e-12) << "more than a step up";
+            last = d;
+            Intrinsics in = kView;
+            in.detail = d;
+            substituted += paged.prepare(Camera(pose, in), false).substituted;
+            ++frames;
+        }
+        EXPECT_EQ(last, 1.0) << "after " << frames << " frames held still";
+        EXPECT_EQ(substituted, 0u);
+    }
 }
 
 TEST(PagedTerrain, CorruptTileInFlightIsAReportedHoleAndFramesGoOn) {

@@ -59,6 +59,8 @@ struct Viewing {
         geometry.margin = 8;
         options.levels = ig::kLevelsAuto;
         paging.cache.budgetBytes = std::size_t{2} << 20;
+        // Full detail, as the in-memory twins draw, however fast this machine writes tiles.
+        paging.placeBudgetMs = 0.0;
     }
 };
 
@@ -116,6 +118,34 @@ TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
                     std::string(ig::casterName(kind)).c_str(), exact, frames,
                     static_cast<unsigned long long>(log->frames.back().tilesRead));
         EXPECT_GE(exact, 1u);
+    }
+}
+
+// Over the placing budget the frames are drawn at lower detail: the detail the paging chose is
+// the one the frame was cast with (its intrinsics), and the log's.
+TEST(PagedRenderer, FramesOverThePlacingBudgetAreDrawnAtLowerDetail) {
+    const Database d;
+    const ig::TerrainDb db = ig::TerrainDb::open(d.path);
+    Viewing setup;
+    setup.paging.placeBudgetMs = 1e-6;  // no frame's writes fit
+    setup.paging.minDetail = 0.5;
+    auto log = std::make_shared<sim::PagingLog>();
+    sim::FrameRenderer paged = sim::makePagedRenderer(db, setup.paging, setup.geometry,
+                                                      ig::CasterKind::Fast, setup.options, log);
+    ig::Pose pose;
+    for (int i = 0; i < 12; ++i) {
+        const double t = i / 30.0;
+        pose.yaw = 0.4 + t * M_PI / 3.0;
+        pose.position = {2000.0 + 300.0 * t, 2000.0 + 300.0 * t, 0.0};
+        pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
+        pose.pitch = -0.25;
+        const ig::RenderedFrame a = paged(pose, t, static_cast<std::uint64_t>(i));
+        EXPECT_EQ(a.intrinsics.detail, log->frames.back().detail) << "frame " << i;
+        if (i == 0) {
+            EXPECT_EQ(a.intrinsics.detail, 1.0) << "the first frame waits, at full detail";
+        } else {
+            EXPECT_EQ(a.intrinsics.detail, 0.5) << "frame " << i;
+        }
     }
 }
 
