@@ -793,8 +793,14 @@ PipelineResult Pipeline::run() {
         publish(renderAt(t0_, 0));
     }
     frames_.fetch();
-    renderEstimate_ = clock_.now() - before;
-    stats_.addFrame(renderEstimate_ * 1e3);  // frame 0 counts among the frames rendered
+    const double firstWall = clock_.now() - before;
+    stats_.addFrame(firstWall * 1e3);  // frame 0 counts among the frames rendered
+    // The next renders are aimed as far ahead as frame 0's own render took. Its wall time also
+    // holds what only a first frame waits for (a renderer process's start, a paged map's
+    // tiles): aimed that far ahead, the first frames of a flight would show poses seconds
+    // after their fields'.
+    const double firstRender = frames_.front().stats.renderMs * 1e-3;
+    renderEstimate_ = firstRender > 0.0 ? std::min(firstWall, firstRender) : firstWall;
     // The processors' buffers and frame 0's per-frame data, before the field clock starts.
     processor.warmUp(frames_.front());
     if (stereo && frames_.front().right) rightProcessor->warmUp(*frames_.front().right);

@@ -255,6 +255,33 @@ TEST(Pipeline, WallClockRendererStallShowsInFrameAge) {
     EXPECT_GE(run.result.stats.framesRendered, 3u);
 }
 
+// A first frame that waits a second longer than its render (a renderer process's start, a
+// paged map's tiles), then renders of 50 ms: the next frames are aimed their own render time
+// ahead, not the first frame's second, so no field is warped from a frame of a pose far after
+// its own.
+TEST(Pipeline, ASlowFirstFrameDoesNotAimTheNextOnesAhead) {
+    World world;
+    sim::PipelineOptions options;
+    options.clock = sim::ClockMode::Wall;
+    options.duration = 1.0;
+    options.renderThreads = 1;
+    const sim::FrameRenderer inner = world.renderer();
+    const sim::FrameRenderer waitsFirst = [inner](const ig::Pose& pose, double time,
+                                                  std::uint64_t sequence) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(sequence == 0 ? 1000 : 50));
+        return inner(pose, time, sequence);
+    };
+    const PipelineRun run = runPipeline(world, options, kGentleScript, &waitsFirst);
+    ASSERT_TRUE(run.result.ok()) << run.result.error;
+    ASSERT_EQ(run.frameTimes.size(), run.fieldTimes.size());
+    double ahead = 0.0;
+    for (std::size_t n = 0; n < run.frameTimes.size(); ++n)
+        ahead = std::max(ahead, run.frameTimes[n] - run.fieldTimes[n]);
+    std::printf("the most a field's frame was ahead of it: %.3f s\n", ahead);
+    EXPECT_LT(ahead, 0.5) << "a field warped from a frame this many seconds after it";
+    EXPECT_GE(run.result.stats.framesRendered, 3u);
+}
+
 TEST(Pipeline, SinkErrorStopsTheRun) {
     World world;
     auto flight = world.flight("");
