@@ -172,13 +172,6 @@ void deallocateSparse(void* p, std::size_t bytes) noexcept {
     if (p) munmap(p, bytes == 0 ? 1 : bytes);
 }
 
-void releaseSparsePages(void* p, std::size_t bytes) noexcept {
-    constexpr std::uintptr_t kPage = 4096;
-    const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kPage - 1) & ~(kPage - 1);
-    const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kPage - 1);
-    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
-}
-
 TerrainMap TerrainMap::sparse(int width, int height, double spacingX, double spacingY,
                               double heightScale, double heightOffset, double minHeight,
                               double maxHeight, double maxSlope) {

@@ -19,18 +19,17 @@ namespace ig {
 void* allocateLarge(std::size_t bytes);
 void deallocateLarge(void* p, std::size_t bytes) noexcept;
 // Sparse blocks: address space reserved without backing (mmap, MAP_NORESERVE, 4 KiB pages),
-// reading zero until written; only the pages written count as memory. releaseSparsePages gives
-// back the whole pages inside [p, p + bytes) (they read zero again).
+// reading zero until written; only the pages written count as memory (releaseSparsePageRuns
+// gives pages back: they read zero again).
 void* allocateSparse(std::size_t bytes);
 void deallocateSparse(void* p, std::size_t bytes) noexcept;
-void releaseSparsePages(void* p, std::size_t bytes) noexcept;
 
 // Runs of whole pages of sparse blocks: [begin, begin + pages * 4 KiB), begin page-aligned.
 struct PageRun {
     std::uintptr_t begin = 0;
     std::size_t pages = 0;
 };
-// Many runs at once. releaseSparsePageRuns gives their pages back (as releaseSparsePages);
+// Many runs at once. releaseSparsePageRuns gives their pages back (MADV_DONTNEED);
 // populateSparsePageRuns backs them ahead of the writes that follow (MADV_POPULATE_WRITE: a
 // page already backed keeps its bytes, a fresh one reads zero), one call for many pages instead
 // of a fault per page. Where the kernel takes a list of ranges in one call (process_madvise on
