@@ -571,6 +571,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             ++st.released;
         }
         givePagesBack(freed);
+        if (options_.progress) options_.progress();
     }
 
     // The writes are decided first and made once their fresh pages are backed, in the order
@@ -627,11 +628,17 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
         place(key, Placed{key.level, false});
     }
     populateFresh();
+    if (options_.progress) options_.progress();
+    int sinceProgress = 0;
     for (const Write& w : writes) {
         if (w.tile->key == w.key) {
             copyTile(*w.tile);
         } else {
             fillFromCoarser(w.key, *w.tile);
+        }
+        if (++sinceProgress == kProgressTiles && options_.progress) {
+            options_.progress();
+            sinceProgress = 0;
         }
     }
     // Stand-ins' cell maxima from the map as it now is (an exact neighbour may have replaced

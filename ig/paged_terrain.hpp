@@ -20,6 +20,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -70,7 +71,13 @@ class PagedTerrain {
         // 2^(-1/4) down to minDetail; it comes back a step a frame. 0: always full detail.
         double placeBudgetMs = 60.0;
         double minDetail = 0.5;
+        // Called on the renderer's thread now and then while a frame's tiles are placed (at
+        // least every kProgressTiles tiles written, and between the steps of the placing): a
+        // renderer process's sign of life, since placing a frame can take seconds. Empty:
+        // nothing is called.
+        std::function<void()> progress;
     };
+    static constexpr int kProgressTiles = 64;
 
     // `db` must outlive this. Loads the cache's resident coarse levels (InputError when the
     // budget cannot hold them).

@@ -636,11 +636,14 @@ DepthWarpResult DepthWarp::apply(const ig::RenderedFrame& frame, const ig::Rgb8*
         result.splatPixels = fieldPixels;
     }
     if (late()) return result;
+    const auto committed = std::chrono::steady_clock::now();
     const ApplyResult r = applyPoints(
         {color, w, h}, pointX_.data(), pointY_.data(), static_cast<std::size_t>(field.width), field,
         gainQ8, agc, kernel == DepthKernel::Scalar ? WarpKernel::Scalar : WarpKernel::Auto);
     result.edgeSamples = r.edgeSamples;
     result.lumaSum = r.lumaSum;
+    result.tailSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - committed).count();
     return result;
 }
 

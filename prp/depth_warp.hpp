@@ -151,6 +151,9 @@ struct DepthWarpResult {
     // The clock passed apply()'s `giveUpAt` first: nothing of the field is written (the points
     // are incomplete), the other fields are not set.
     bool abandoned = false;
+    // Seconds from the last look at the clock (the field's points complete) to the return: the
+    // part of the field no deadline can stop, which a caller's deadline must leave room for.
+    double tailSeconds = 0.0;
 };
 
 // Per-frame buffers' room for a `width` x `height` frame and the frames of the same window the

@@ -188,10 +188,10 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         useDepth = out.warp.fallback != Fallback::None ||
                    !(out.warp.checkErrorPx <= options_.autoThresholdPx);
         // Never a field late for the depth model: over its budget, the quadratic (a field in
-        // kDepthRetryFields measures the depth model again).
+        // depthRetryFields_ measures the depth model again).
         if (useDepth && options_.autoDepthBudget > 0.0 && depthFields_ > 0 &&
             depthSeconds_ > options_.autoDepthBudget &&
-            fieldIndex - lastDepthField_ < kDepthRetryFields) {
+            fieldIndex - lastDepthField_ < depthRetryFields_) {
             useDepth = false;
             out.warp.depthOverBudget = true;
         }
@@ -213,12 +213,15 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         const auto depthStart = std::chrono::steady_clock::now();
         // Auto on a deadline: a depth field still unfinished at the budget (another process
         // taking the core, a page fault storm) is abandoned for the quadratic, so no field is
-        // late for it.
+        // late for it. The budget is the whole field's: the deadline leaves room for the part
+        // past the warp's last look at the clock, as long as the recent depth fields' took.
         const bool mayAbandon = model == WarpModel::Auto && options_.autoDepthBudget > 0.0;
+        const double allowed = std::max(0.0, options_.autoDepthBudget - depthTailSeconds_);
         const auto giveUpAt =
             mayAbandon ? depthStart + std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                          std::chrono::duration<double>(options_.autoDepthBudget))
+                                          std::chrono::duration<double>(allowed))
                        : std::chrono::steady_clock::time_point::max();
+        double tail = -1.0;  // set by a depth field that completes
         if (options_.depthReference) {
             const WarpInfo fitted = out.warp;
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
@@ -227,6 +230,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             const DepthWarpResult r = depthWarp_.apply(
                 frame, sourcePixels(frame), poseAtField, geometry, quadraticOf(out.warp), view,
                 gainQ8, options_.agc, options_.depthKernel, options_.depthMethod, giveUpAt);
+            const auto returned = std::chrono::steady_clock::now();
             if (r.abandoned) {
                 useDepth = false;
                 out.warp.depthAbandoned = true;
@@ -250,12 +254,29 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
                     warpIdsPoints(idSource, depthWarp_.pointsX(), depthWarp_.pointsY(),
                                   static_cast<std::size_t>(out.width), idView);
                 }
+                tail = r.tailSeconds +
+                       std::chrono::duration<double>(std::chrono::steady_clock::now() - returned)
+                           .count();
             }
+        }
+        if (tail >= 0.0) {
+            depthTailSeconds_ =
+                depthTailSeconds_ == 0.0 ? tail : 0.75 * depthTailSeconds_ + 0.25 * tail;
         }
         if (useDepth) out.warp.model = WarpModel::Depth;
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - depthStart).count();
+        const bool retry = depthFields_ > 0 && options_.autoDepthBudget > 0.0 &&
+                           depthSeconds_ > options_.autoDepthBudget;
         depthSeconds_ = depthFields_ == 0 ? s : 0.75 * depthSeconds_ + 0.25 * s;
+        if (options_.autoDepthBudget > 0.0) {
+            const bool over = out.warp.depthAbandoned || s > options_.autoDepthBudget;
+            if (!over) {
+                depthRetryFields_ = kDepthRetryFields;
+            } else if (retry) {
+                depthRetryFields_ = std::min(2 * depthRetryFields_, kDepthRetryFieldsMax);
+            }
+        }
         ++depthFields_;
         lastDepthField_ = fieldIndex;
     }

@@ -53,8 +53,12 @@ struct PrpOptions {
     ig::SkyModel sky;
 };
 
-// Auto over budget: one field in this many takes the depth model to measure its cost again.
+// Auto over budget: one field in this many takes the depth model to measure its cost again;
+// each retry that finds it over budget still doubles the wait, up to kDepthRetryFieldsMax (a
+// retry is the one field with little slack left: its budget and then the quadratic), and one
+// that finds it within budget brings the wait back to kDepthRetryFields.
 inline constexpr std::uint64_t kDepthRetryFields = 300;
+inline constexpr std::uint64_t kDepthRetryFieldsMax = 8 * kDepthRetryFields;
 
 class PostRenderingProcessor {
   public:
@@ -109,10 +113,15 @@ class PostRenderingProcessor {
     std::vector<float> splatSource_;
     std::vector<float> splatDepth_;
     std::vector<std::uint8_t> rowRgb_;
-    // The depth model's cost per field (seconds, a running mean of its recent fields), and the
-    // last field it warped.
+    // The depth model's cost per field (seconds, a running mean of its recent fields), the
+    // last field it warped, and the fields to wait over budget before it is tried again.
     double depthSeconds_ = 0.0;
     std::uint64_t depthFields_ = 0, lastDepthField_ = 0;
+    std::uint64_t depthRetryFields_ = kDepthRetryFields;
+    // The part of a depth field past its last look at the clock (writing the field from its
+    // points, the fill beyond the frame, the ids), seconds, a running mean: the deadline leaves
+    // room for it.
+    double depthTailSeconds_ = 0.0;
     DepthWarp depthWarp_;
     RestampScratch restamp_;
 };

@@ -183,47 +183,74 @@ def paged_flight(p):
     for doc in docs:
         cmd = "`" + doc["command"] + "`"
         n, mb = doc["size"], doc["cache_mb"]
+        # The runs of one image size and placing budget together (REPEATS runs each), and the
+        # same flight over a 4096² map in memory flown in turn with them.
+        groups = {}
         for b in doc["flights"] + doc.get("flights_full_detail", []):
-            pg = b["paging"]
-            cold = ("page cache dropped first" if b.get("page_cache_dropped")
+            key = (b["width"], b["height"], b.get("place_budget_ms"))
+            groups.setdefault(key, []).append(b)
+        whole = {}
+        for b in doc.get("whole_flights", []):
+            whole.setdefault((b["width"], b["height"]), []).append(b)
+        for (width, height, place), runs in groups.items():
+            b = runs[0]
+            cold = ("page cache dropped first" if all(r.get("page_cache_dropped") for r in runs)
                     else "page cache not dropped")
-            if "place_budget_ms" not in b:  # flown before the placing budget
+            if place is None:  # flown before the placing budget
                 budget = ""
-            elif b["place_budget_ms"] == 0:
+            elif place == 0:
                 budget = "; --place-budget-ms 0: every frame at full detail"
             else:
                 budget = ("; lower detail over the placing budget, --place-budget-ms "
-                          f"{fmt(b['place_budget_ms'], 0)}")
+                          f"{fmt(place, 0)}")
+            renderer = doc.get("renderer", "thread")
             what = (f"Flythrough over a synthetic {n}² database ({fmt(doc['db_bytes'] / 1e9, 2)} "
-                    f"GB) paged through --cache-mb {fmt(mb, 0)}, {b['width']}×{b['height']}, "
+                    f"GB) paged through --cache-mb {fmt(mb, 0)}, {width}×{height}, "
                     f"{fmt(doc['seconds'], 0)} s wall clock, a third turning 60°/s, then 300 m/s "
-                    f"low ({cold}{budget})")
+                    f"low ({cold}{budget}; renderer {renderer}"
+                    + (f", {len(runs)} runs" if len(runs) > 1 else "") + ")")
+            per = lambda f: "/".join(str(f(r)) for r in runs)
+            rss = max(r["paging"]["peak_rss_mb"] for r in runs)
+            missed = [r["missed_deadlines"] for r in runs]
+            base = whole.get((width, height), []) if place != 0 else []
+            baseline = ""
+            if base:
+                baseline = (f"; the same flight over a 4096² map in memory, in turn: "
+                            f"{'/'.join(str(r['missed_deadlines']) for r in base)} missed")
             p.row(what + ": peak resident memory; missed fields", "≤ 2 GB; 0 missed",
-                  f"peak RSS {fmt(pg['peak_rss_mb'], 0)} MB; {b['missed_deadlines']} missed of "
-                  f"{b['fields']} fields; renderer {fmt(b['render_fps'], 1)} fps",
-                  status(pg["peak_rss_mb"] <= 2048 and b["missed_deadlines"] == 0), cmd)
+                  f"peak RSS {fmt(rss, 0)} MB" + (" (field and renderer processes)"
+                                                 if renderer == "process" else "")
+                  + f"; {'/'.join(str(m) for m in missed)} missed of {b['fields']} fields; "
+                  f"renderer {per(lambda r: fmt(r['render_fps'], 1))} fps{baseline}",
+                  status(rss <= 2048 and max(missed) == 0), cmd)
             # The target is at 720×486; at other sizes the figure is reported.
-            targeted = (b["width"], b["height"]) == (720, 486)
+            targeted = (width, height) == (720, 486)
+            late = [r["paging"]["frames_with_substitutions_after_1s"] for r in runs]
             p.row(what + ": tiles drawn from a coarser level",
                   "none after the first second" if targeted else "—",
-                  f"{pg['frames_with_substitutions_after_1s']} frames after the first second "
-                  f"({pg['frames_with_substitutions']} of {pg['frames']} in all; at most "
-                  f"{pg['max_substituted_per_frame']} tiles a frame, "
-                  f"{fmt(pg['mean_substituted_per_frame'], 2)} mean)",
-                  status(pg["frames_with_substitutions_after_1s"] == 0) if targeted else NO_TARGET,
-                  cmd)
+                  f"{'/'.join(str(x) for x in late)} frames after the first second "
+                  f"({per(lambda r: r['paging']['frames_with_substitutions'])} of "
+                  f"{per(lambda r: r['paging']['frames'])} in all; at most "
+                  f"{max(r['paging']['max_substituted_per_frame'] for r in runs)} tiles a "
+                  f"frame, {per(lambda r: fmt(r['paging']['mean_substituted_per_frame'], 2))} "
+                  "mean)",
+                  status(max(late) == 0) if targeted else NO_TARGET, cmd)
             p.row(what + ": tiles read; placing the frame's tiles on the renderer's thread", "—",
-                  f"{fmt(pg['tiles_read_per_s'], 0)} tiles/s ({fmt(pg['bytes_read'] / 2**20, 0)} "
-                  f"MiB in all); placing {fmt(pg['page_ms_mean'], 2)} ms mean, "
-                  f"{fmt(pg['page_ms_max'], 1)} ms max a frame", NO_TARGET, cmd)
-            if "frames_reduced_detail" in pg:
-                age = b["frame_age_ms"]
+                  f"{per(lambda r: fmt(r['paging']['tiles_read_per_s'], 0))} tiles/s "
+                  f"({per(lambda r: fmt(r['paging']['bytes_read'] / 2**20, 0))} MiB in all); "
+                  f"placing {per(lambda r: fmt(r['paging']['page_ms_mean'], 2))} ms mean, "
+                  f"{per(lambda r: fmt(r['paging']['page_ms_max'], 1))} ms max a frame",
+                  NO_TARGET, cmd)
+            if "frames_reduced_detail" in b["paging"]:
                 p.row(what + ": frames drawn at lower detail; age of the frame each field is "
                       "warped from", "—",
-                      f"{pg['frames_reduced_detail']} of {pg['frames']} frames (detail mean "
-                      f"{fmt(pg['detail_mean'], 2)}, lowest {fmt(pg['detail_min'], 2)}); frame "
-                      f"age p50 {fmt(age['p50'], 0)} ms, p99 {fmt(age['p99'], 0)} ms, max "
-                      f"{fmt(age['max'], 0)} ms", NO_TARGET, cmd)
+                      f"{per(lambda r: r['paging']['frames_reduced_detail'])} of "
+                      f"{per(lambda r: r['paging']['frames'])} frames (detail mean "
+                      f"{per(lambda r: fmt(r['paging']['detail_mean'], 2))}, lowest "
+                      f"{fmt(min(r['paging']['detail_min'] for r in runs), 2)}); frame age p50 "
+                      f"{per(lambda r: fmt(r['frame_age_ms']['p50'], 0))} ms, p99 "
+                      f"{per(lambda r: fmt(r['frame_age_ms']['p99'], 0))} ms, max "
+                      f"{per(lambda r: fmt(r['frame_age_ms']['max'], 0))} ms", NO_TARGET, cmd)
     if not docs:
         return
     doc = docs[-1]

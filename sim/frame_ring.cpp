@@ -64,6 +64,7 @@ struct FrameRing::Header {
     std::atomic<std::uint64_t> published;
     std::atomic<std::uint32_t> publishWord;  // low bits of `published`, for futex waits
     std::atomic<std::int64_t> lastPublishNs;
+    std::atomic<std::int64_t> lastAliveNs;  // the renderer's last sign of life between frames
     alignas(kAlign) std::atomic<std::uint64_t> requestLock;  // odd while a post is written
     std::atomic<std::uint64_t> request[kRequestWords];
     std::atomic<std::uint64_t> requestObjectCount;
@@ -391,6 +392,14 @@ std::uint64_t FrameRing::published() const {
 
 std::int64_t FrameRing::lastPublishNs() const {
     return header().lastPublishNs.load(std::memory_order_relaxed);
+}
+
+void FrameRing::noteAlive(std::int64_t clockNs) {
+    header().lastAliveNs.store(clockNs, std::memory_order_relaxed);
+}
+
+std::int64_t FrameRing::lastAliveNs() const {
+    return header().lastAliveNs.load(std::memory_order_relaxed);
 }
 
 void FrameRing::requestStop() {

@@ -91,6 +91,10 @@ class FrameRing {
     // pass (a futex on the shared word: the publishing process wakes the waiter).
     void waitForPublish(std::uint64_t seen, double seconds) const;
     std::int64_t lastPublishNs() const;
+    // Renderer side: a sign of life while a frame takes long (its tiles being placed), clock
+    // in ns (CLOCK_MONOTONIC); field side: the last one, 0 before any.
+    void noteAlive(std::int64_t clockNs);
+    std::int64_t lastAliveNs() const;
 
     // Flags shared by both sides.
     void requestStop();

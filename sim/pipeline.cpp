@@ -174,6 +174,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
     ig::PagedTerrain::Options po = paging;
     po.pyramid = kind == ig::CasterKind::Fast;
     po.levels = options.levels;
+    // A renderer process placing a frame's tiles for seconds is alive, not hung.
+    po.progress = [] { noteRendererAlive(); };
     // What one process renders with, and the last frame's pose and time (for the motion the
     // prefetch follows).
     struct State {
@@ -288,10 +290,23 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                 cs.tilesRead += own.tilesRead;
                 cs.bytesRead += own.bytesRead;
             }
-            log->frames.push_back(PagingLog::Frame{time, st.required, st.substituted, st.failed,
-                                                   st.nodesMissing, pageMs, cs.tilesRead,
-                                                   cs.bytesRead, intr.detail});
-            log->failures.insert(log->failures.end(), st.failures.begin(), st.failures.end());
+            rusage usage{};
+            const bool rss = getrusage(RUSAGE_SELF, &usage) == 0;
+            PagingLog::Frame f;
+            f.time = time;
+            f.required = st.required;
+            f.substituted = st.substituted;
+            f.failed = st.failed;
+            f.nodesMissing = st.nodesMissing;
+            f.pageMs = pageMs;
+            f.tilesRead = cs.tilesRead;
+            f.bytesRead = cs.bytesRead;
+            f.detail = intr.detail;
+            f.peakRssBytes = rss ? static_cast<std::uint64_t>(usage.ru_maxrss) * 1024 : 0;
+            f.pid = static_cast<std::int32_t>(s.pid);
+            log->add(f);
+            for (const std::string& failure : st.failures)
+                log->addFailure(failure);
         }
         if (objects.scene) {
             s.objectGround->follow(pose.position.x, pose.position.y);
@@ -659,7 +674,8 @@ Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, st
             why = *ended;
             return Await::Ended;
         }
-        const double waited = static_cast<double>(io::monotonicNs() - start) * 1e-9;
+        const std::int64_t since = std::max(start, ring_->lastAliveNs());
+        const double waited = static_cast<double>(io::monotonicNs() - since) * 1e-9;
         if (waited > timeout) {
             why = "silent for " + std::to_string(std::lround(waited * 1e3)) + " ms";
             return Await::Silent;
@@ -714,7 +730,10 @@ void Pipeline::superviseLoop() {
             }
             if (cause.empty()) {
                 const std::int64_t nowNs = io::monotonicNs();
-                const std::int64_t since = std::max(ring_->lastPublishNs(), processStartNs_);
+                // A sign of life between frames counts (a frame whose tiles take seconds to
+                // place), one from before this process started does not.
+                const std::int64_t since =
+                    std::max({ring_->lastPublishNs(), ring_->lastAliveNs(), processStartNs_});
                 const double silent = static_cast<double>(nowNs - since) * 1e-9;
                 if (silent > silenceAllowed()) {
                     cause = "silent for " + std::to_string(std::lround(silent * 1e3)) + " ms";

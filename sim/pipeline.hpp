@@ -9,6 +9,7 @@
 #include "io/frame_sink.hpp"
 #include "prp/processor.hpp"
 #include "sim/mailbox.hpp"
+#include "sim/paging_log.hpp"
 #include "sim/pose_source.hpp"
 #include "sim/render_process.hpp"
 #include "sim/scene_motion.hpp"
@@ -81,24 +82,6 @@ FrameRenderer makeCasterRenderer(const ig::TerrainMap& map, const RenderGeometry
 FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderGeometry& geometry,
                                  ig::CasterKind kind = ig::CasterKind::Fast,
                                  const ig::RenderOptions& options = {});
-
-// What paging a database did before each frame (makePagedRenderer): written on the renderer's
-// thread, read once the run is over.
-struct PagingLog {
-    struct Frame {
-        double time = 0.0;             // the frame's simulation time
-        std::size_t required = 0;      // display tiles its footprint needed
-        std::size_t substituted = 0;   // of those, drawn from a coarser level
-        std::size_t failed = 0;        // of those, unreadable
-        std::size_t nodesMissing = 0;  // node tiles not resident (their nodes give no bound)
-        double pageMs = 0.0;           // the placing, on the renderer's thread
-        std::uint64_t tilesRead = 0;   // by the cache's loaders since the start (all levels)
-        std::uint64_t bytesRead = 0;
-        double detail = 1.0;  // the frame's Intrinsics::detail (PagedTerrain::chooseDetail)
-    };
-    std::vector<Frame> frames;
-    std::vector<std::string> failures;  // each unreadable tile, once
-};
 
 // More objects asked for at each frame's instant, on the renderer's thread (a CIGI host's
 // entities).

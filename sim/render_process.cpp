@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -28,6 +29,8 @@ namespace {
 std::vector<ExtraObject> gRequestObjects;
 // The view of the render the calling thread is doing.
 thread_local RenderView tRequestView;
+// The renderer process's ring (null in any other process).
+std::atomic<FrameRing*> gAliveRing{nullptr};
 
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
@@ -61,6 +64,12 @@ RenderView requestView() {
 
 void setRequestView(const RenderView& view) {
     tRequestView = view;
+}
+
+void noteRendererAlive() {
+    if (FrameRing* ring = gAliveRing.load(std::memory_order_relaxed)) {
+        ring->noteAlive(io::monotonicNs());
+    }
 }
 
 RendererFault parseRendererFault(std::string_view text, std::string_view flag) {
@@ -173,6 +182,7 @@ void RendererProcess::childMain() {
     sigprocmask(SIG_SETMASK, &none, nullptr);
     // Threads inherit the nice value of the thread that starts them: set it before the arena's.
     if (options_.nice != 0) setpriority(PRIO_PROCESS, 0, options_.nice);
+    gAliveRing.store(&ring_, std::memory_order_relaxed);
     try {
         tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
         std::uint64_t lastGeneration = skipGeneration_;

@@ -53,6 +53,11 @@ std::span<const ExtraObject> requestObjects();
 RenderView requestView();
 void setRequestView(const RenderView& view);
 
+// In the renderer process, while its renderer runs: tells the supervisor that the render is
+// still making progress (a frame whose tiles take seconds to place is not a hang:
+// FrameRing::noteAlive); nothing in any other process. Any thread of the renderer.
+void noteRendererAlive();
+
 struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
     double renderHz = 0.0;  // wall pacing of renders; 0: as fast as it can

@@ -223,51 +223,64 @@ std::string fieldLogLine(const prp::Field& field, const ig::Pose& pose,
 
 }  // namespace
 
-// What paging a database did over the run (sim::PagingLog), for the summary and --json.
-nlohmann::json pagingSummary(const sim::PagingLog& log, double cacheMb, bool rendererProcess) {
+// What paging a database did over the run (sim::PagingLog, written by the renderer's thread or
+// process), for the summary and --json.
+nlohmann::json pagingSummary(const sim::PagingLog& pagingLog, double cacheMb,
+                             bool rendererProcess) {
+    const std::vector<sim::PagingLog::Frame> frames = pagingLog.frames();
     nlohmann::json j;
     j["budget_mb"] = cacheMb;
-    j["frames"] = log.frames.size();
+    j["frames"] = frames.size();
+    j["frames_not_kept"] = pagingLog.dropped();
     j["in_renderer_process"] = rendererProcess;
     std::size_t substituted = 0, withSub = 0, withSubLate = 0, maxSub = 0, failed = 0;
     double pageSum = 0.0, pageMax = 0.0, detailSum = 0.0, detailMin = 1.0;
     std::size_t reduced = 0;
-    const double t0 = log.frames.empty() ? 0.0 : log.frames.front().time;
-    for (const sim::PagingLog::Frame& f : log.frames) {
+    std::uint64_t rendererPeak = 0;
+    const double t0 = frames.empty() ? 0.0 : frames.front().time;
+    for (const sim::PagingLog::Frame& f : frames) {
         detailSum += f.detail;
         detailMin = std::min(detailMin, f.detail);
         reduced += f.detail < 1.0;
         substituted += f.substituted;
         withSub += f.substituted > 0;
         withSubLate += f.substituted > 0 && f.time >= t0 + 1.0;
-        maxSub = std::max(maxSub, f.substituted);
+        maxSub = std::max<std::size_t>(maxSub, f.substituted);
         failed += f.failed;
         pageSum += f.pageMs;
         pageMax = std::max(pageMax, f.pageMs);
+        rendererPeak = std::max(rendererPeak, f.peakRssBytes);
     }
-    const double span = log.frames.size() > 1 ? log.frames.back().time - t0 : 0.0;
-    const std::uint64_t read = log.frames.empty() ? 0 : log.frames.back().tilesRead;
+    const double span = frames.size() > 1 ? frames.back().time - t0 : 0.0;
+    const std::uint64_t read = frames.empty() ? 0 : frames.back().tilesRead;
     j["substituted_tiles"] = substituted;
     j["frames_with_substitutions"] = withSub;
     j["frames_with_substitutions_after_1s"] = withSubLate;
     j["max_substituted_per_frame"] = maxSub;
     j["mean_substituted_per_frame"] =
-        log.frames.empty() ? 0.0 : static_cast<double>(substituted) / log.frames.size();
+        frames.empty() ? 0.0 : static_cast<double>(substituted) / frames.size();
     j["failed_tiles"] = failed;
     std::vector<double> late;  // the instants of frames with substitutions after the first second
-    for (const sim::PagingLog::Frame& f : log.frames)
+    for (const sim::PagingLog::Frame& f : frames)
         if (f.substituted > 0 && f.time >= t0 + 1.0) late.push_back(f.time);
     j["substitution_times_after_1s"] = late;
     j["tiles_read"] = read;
-    j["bytes_read"] = log.frames.empty() ? 0 : log.frames.back().bytesRead;
+    j["bytes_read"] = frames.empty() ? 0 : frames.back().bytesRead;
     j["tiles_read_per_s"] = span > 0.0 ? static_cast<double>(read) / span : 0.0;
-    j["page_ms_mean"] = log.frames.empty() ? 0.0 : pageSum / log.frames.size();
+    j["page_ms_mean"] = frames.empty() ? 0.0 : pageSum / frames.size();
     j["page_ms_max"] = pageMax;
     // Frames drawn at lower detail to keep the placing in its budget (--place-budget-ms).
     j["frames_reduced_detail"] = reduced;
     j["detail_min"] = detailMin;
-    j["detail_mean"] = log.frames.empty() ? 1.0 : detailSum / log.frames.size();
-    j["peak_rss_mb"] = static_cast<double>(ig::peakResidentBytes()) / 1048576.0;
+    j["detail_mean"] = frames.empty() ? 1.0 : detailSum / frames.size();
+    // Resident memory: the field process's peak, and a renderer process's (each restart's own:
+    // they do not overlap) on top of it. The two count the pages they shared since the fork
+    // twice, so their sum is an upper bound.
+    const double fieldPeak = static_cast<double>(ig::peakResidentBytes()) / 1048576.0;
+    const double rendererPeakMb = static_cast<double>(rendererPeak) / 1048576.0;
+    j["peak_rss_mb"] = rendererProcess ? fieldPeak + rendererPeakMb : fieldPeak;
+    j["field_process_peak_rss_mb"] = fieldPeak;
+    j["renderer_process_peak_rss_mb"] = rendererProcess ? rendererPeakMb : 0.0;
     return j;
 }
 
@@ -1229,29 +1242,24 @@ int main(int argc, char** argv) {
         nlohmann::json pagingJson;
         if (pagingLog) {
             pagingJson = pagingSummary(*pagingLog, terrain.cacheMb, rendererProcess);
-            if (pagingLog->frames.empty()) {
-                std::fprintf(stderr,
-                             "paging: in the renderer process (its figures with "
-                             "--renderer thread)\n");
-            } else {
-                std::fprintf(
-                    stderr,
-                    "paging: %zu frames, %zu tiles drawn from a coarser level in %zu frames "
-                    "(%zu after the first second), %llu tiles read (%.0f a second), placing "
-                    "%.2f ms mean, %.2f ms max; %zu frames at lower detail (down to %.2f); "
-                    "peak RSS %.0f MB (--cache-mb %g)\n",
-                    pagingLog->frames.size(), pagingJson["substituted_tiles"].get<std::size_t>(),
-                    pagingJson["frames_with_substitutions"].get<std::size_t>(),
-                    pagingJson["frames_with_substitutions_after_1s"].get<std::size_t>(),
-                    static_cast<unsigned long long>(pagingJson["tiles_read"].get<std::uint64_t>()),
-                    pagingJson["tiles_read_per_s"].get<double>(),
-                    pagingJson["page_ms_mean"].get<double>(),
-                    pagingJson["page_ms_max"].get<double>(),
-                    pagingJson["frames_reduced_detail"].get<std::size_t>(),
-                    pagingJson["detail_min"].get<double>(), pagingJson["peak_rss_mb"].get<double>(),
-                    terrain.cacheMb);
-            }
-            for (const std::string& m : pagingLog->failures)
+            std::fprintf(
+                stderr,
+                "paging%s: %zu frames, %zu tiles drawn from a coarser level in %zu frames "
+                "(%zu after the first second), %llu tiles read (%.0f a second), placing "
+                "%.2f ms mean, %.2f ms max; %zu frames at lower detail (down to %.2f); "
+                "peak RSS %.0f MB%s (--cache-mb %g)\n",
+                rendererProcess ? " (renderer process)" : "",
+                pagingJson["frames"].get<std::size_t>(),
+                pagingJson["substituted_tiles"].get<std::size_t>(),
+                pagingJson["frames_with_substitutions"].get<std::size_t>(),
+                pagingJson["frames_with_substitutions_after_1s"].get<std::size_t>(),
+                static_cast<unsigned long long>(pagingJson["tiles_read"].get<std::uint64_t>()),
+                pagingJson["tiles_read_per_s"].get<double>(),
+                pagingJson["page_ms_mean"].get<double>(), pagingJson["page_ms_max"].get<double>(),
+                pagingJson["frames_reduced_detail"].get<std::size_t>(),
+                pagingJson["detail_min"].get<double>(), pagingJson["peak_rss_mb"].get<double>(),
+                rendererProcess ? " (field and renderer processes)" : "", terrain.cacheMb);
+            for (const std::string& m : pagingLog->failures())
                 std::fprintf(stderr, "paging: %s (drawn from a coarser level)\n", m.c_str());
             if (fieldGround) {
                 // The flight model's ground: its answers from a resident tile, and the bounds

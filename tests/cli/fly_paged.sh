@@ -31,16 +31,27 @@ assert j["fields"] == 120, j["fields"]
 assert j["missed_deadlines"] == 0, j["missed_deadlines"]
 assert p["budget_mb"] == 6, p
 assert not j["memory_locked"] and "paged" in j["memory_lock_error"], j["memory_lock_error"]
+# Tiles read, none unreadable, every frame's paging logged. A renderer process's figures reach
+# the field process (sim::PagingLog), with its own resident memory on top of the field
+# process's; a renderer process restarted on a loaded machine may have logged a frame it never
+# delivered.
+assert p["tiles_read"] > 100, p
+assert p["failed_tiles"] == 0, p
+assert p["frames_reduced_detail"] == 0 and p["detail_min"] == 1.0, p
+assert p["frames_not_kept"] == 0, p
 if sys.argv[2] == "thread":
-    # Every frame paged, tiles read, the budget holds a frame: the first frame waits for its
-    # tiles, and the misses end within the first second.
+    # The budget holds a frame: the first frame waits for its tiles, and the misses end within
+    # the first second.
     assert p["frames"] == j["frames_rendered"], (p["frames"], j["frames_rendered"])
-    assert p["tiles_read"] > 100, p
     assert p["frames_with_substitutions_after_1s"] == 0, p
-    assert p["failed_tiles"] == 0, p
-    assert p["frames_reduced_detail"] == 0 and p["detail_min"] == 1.0, p
+    assert not p["in_renderer_process"], p
+    assert p["peak_rss_mb"] == p["field_process_peak_rss_mb"], p
+    assert p["renderer_process_peak_rss_mb"] == 0, p
 else:
-    assert p["in_renderer_process"] and p["frames"] == 0, p
+    assert p["frames"] >= j["frames_rendered"] > 0, (p["frames"], j["frames_rendered"])
+    assert p["in_renderer_process"], p
+    assert p["renderer_process_peak_rss_mb"] > 0, p
+    assert p["peak_rss_mb"] == p["field_process_peak_rss_mb"] + p["renderer_process_peak_rss_mb"], p
 PY
 done
 

@@ -4,6 +4,7 @@
 #include "sim/pipeline.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "common/box_vox.hpp"
 #include "common/small_terrain_db.hpp"
@@ -88,8 +90,8 @@ TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
             pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
             pose.pitch = -0.25;
             const ig::RenderedFrame a = paged(pose, t, static_cast<std::uint64_t>(i));
-            ASSERT_EQ(log->frames.size(), static_cast<std::size_t>(i + 1));
-            const sim::PagingLog::Frame& f = log->frames.back();
+            ASSERT_EQ(log->frames().size(), static_cast<std::size_t>(i + 1));
+            const sim::PagingLog::Frame f = log->frames().back();
             EXPECT_GT(f.required, 0u);
             if (i == 0) {
                 EXPECT_EQ(f.substituted, 0u) << "the first frame waits for its tiles";
@@ -105,7 +107,7 @@ TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
         bool caughtUp = false;
         for (int tries = 0; tries < 200 && !caughtUp; ++tries) {
             const ig::RenderedFrame a = paged(pose, 10.0 + tries, 1000);
-            if (log->frames.back().substituted == 0) {
+            if (log->frames().back().substituted == 0) {
                 caughtUp = true;
                 EXPECT_TRUE(sameFrame(a, whole(pose, 10.0 + tries, 1000)));
             } else {
@@ -113,10 +115,10 @@ TEST(PagedRenderer, FramesWithTheirTilesResidentEqualTheInMemoryRender) {
             }
         }
         EXPECT_TRUE(caughtUp) << "the tiles never came";
-        EXPECT_GT(log->frames.back().tilesRead, 0u);
+        EXPECT_GT(log->frames().back().tilesRead, 0u);
         std::printf("%s: %zu of %d frames with every tile resident, %llu tiles read\n",
                     std::string(ig::casterName(kind)).c_str(), exact, frames,
-                    static_cast<unsigned long long>(log->frames.back().tilesRead));
+                    static_cast<unsigned long long>(log->frames().back().tilesRead));
         EXPECT_GE(exact, 1u);
     }
 }
@@ -140,13 +142,79 @@ TEST(PagedRenderer, FramesOverThePlacingBudgetAreDrawnAtLowerDetail) {
         pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
         pose.pitch = -0.25;
         const ig::RenderedFrame a = paged(pose, t, static_cast<std::uint64_t>(i));
-        EXPECT_EQ(a.intrinsics.detail, log->frames.back().detail) << "frame " << i;
+        EXPECT_EQ(a.intrinsics.detail, log->frames().back().detail) << "frame " << i;
         if (i == 0) {
             EXPECT_EQ(a.intrinsics.detail, 1.0) << "the first frame waits, at full detail";
         } else {
             EXPECT_EQ(a.intrinsics.detail, 0.5) << "frame " << i;
         }
     }
+}
+
+// A renderer process is forked from the field process after the log is made, and makes its own
+// paged map: its frames' paging reaches the field process's log, marked with its process and
+// its own peak resident set, as a renderer thread's would.
+TEST(PagedRenderer, ARendererProcessLogsWhereTheFieldProcessReads) {
+    const Database d;
+    const ig::TerrainDb db = ig::TerrainDb::open(d.path);
+    const Viewing setup;
+    auto log = std::make_shared<sim::PagingLog>();
+    sim::FrameRenderer paged = sim::makePagedRenderer(db, setup.paging, setup.geometry,
+                                                      ig::CasterKind::Fast, setup.options, log);
+    constexpr int kFrames = 3;
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        ig::Pose pose;
+        for (int i = 0; i < kFrames; ++i) {
+            pose.yaw = 0.4 + 0.1 * i;
+            pose.position = {2000.0 + 50.0 * i, 2000.0, 0.0};
+            pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 120.0;
+            pose.pitch = -0.25;
+            const ig::RenderedFrame f = paged(pose, i / 30.0, static_cast<std::uint64_t>(i));
+            if (f.width() == 0) _exit(2);
+        }
+        _exit(0);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    const std::vector<sim::PagingLog::Frame> frames = log->frames();
+    ASSERT_EQ(frames.size(), static_cast<std::size_t>(kFrames));
+    for (int i = 0; i < kFrames; ++i) {
+        EXPECT_EQ(frames[i].pid, pid) << "frame " << i;
+        EXPECT_EQ(frames[i].time, i / 30.0);
+        EXPECT_GT(frames[i].required, 0u);
+        EXPECT_GT(frames[i].peakRssBytes, 0u);
+    }
+    EXPECT_EQ(frames[0].substituted, 0u) << "the first frame waits for its tiles";
+    EXPECT_GT(frames.back().tilesRead, 0u);
+}
+
+// The log keeps kCapacity frames and counts the rest; kMaxFailures failures, each cut to
+// kFailureBytes - 1 bytes.
+TEST(PagingLog, KeepsWhatFitsAndCountsTheRest) {
+    sim::PagingLog log;
+    EXPECT_TRUE(log.frames().empty());
+    EXPECT_EQ(log.dropped(), 0u);
+    for (std::size_t i = 0; i < sim::PagingLog::kCapacity + 5; ++i) {
+        sim::PagingLog::Frame f;
+        f.time = static_cast<double>(i);
+        f.required = i;
+        log.add(f);
+    }
+    const std::vector<sim::PagingLog::Frame> frames = log.frames();
+    ASSERT_EQ(frames.size(), sim::PagingLog::kCapacity);
+    EXPECT_EQ(frames.back().required, sim::PagingLog::kCapacity - 1);
+    EXPECT_EQ(log.dropped(), 5u);
+    const std::string longMessage(1000, 'x');
+    log.addFailure("tile 3 of level 0: bad checksum");
+    for (std::size_t i = 1; i < sim::PagingLog::kMaxFailures + 3; ++i)
+        log.addFailure(longMessage);
+    const std::vector<std::string> failures = log.failures();
+    ASSERT_EQ(failures.size(), sim::PagingLog::kMaxFailures);
+    EXPECT_EQ(failures[0], "tile 3 of level 0: bad checksum");
+    EXPECT_EQ(failures[1], longMessage.substr(0, sim::PagingLog::kFailureBytes - 1));
 }
 
 // A scene of boxes (`json`, its box model and `drive.csv` written to a folder of the test's own)
@@ -228,7 +296,7 @@ TEST(PagedRenderer, SceneObjectsAsOverTheMapInMemory) {
         pose.position.z = d.map.surfaceHeight(pose.position.x, pose.position.y) + 40.0;
         pose.pitch = -0.2;
         const ig::RenderedFrame a = pagedRenderer(pose, t, static_cast<std::uint64_t>(i));
-        if (log->frames.back().substituted != 0) continue;
+        if (log->frames().back().substituted != 0) continue;
         // The paged renderer's ground has the tiles around the eye once its thread has them.
         const ig::RenderedFrame b = inMemory(pose, t, static_cast<std::uint64_t>(i));
         ASSERT_EQ(a.objectId.size(), b.objectId.size());
@@ -279,7 +347,7 @@ TEST(PagedRenderer, StereoPairsAsOverTheMapInMemory) {
         sim::setRequestView(sim::RenderView{});
         ASSERT_TRUE(a.right && b.right) << "a pair";
         EXPECT_EQ(a.right->nearM, i % 2 == 1 ? 100.0 : 0.0);
-        if (log->frames.back().substituted != 0) continue;
+        if (log->frames().back().substituted != 0) continue;
         EXPECT_TRUE(sameFrame(a, b)) << "left eye, frame " << i;
         EXPECT_TRUE(sameFrame(*a.right, *b.right)) << "right eye, frame " << i;
         ++exact;
@@ -317,7 +385,7 @@ TEST(PagedRenderer, StereoPairsWithASceneAsOverTheMapInMemory) {
         pose.pitch = -0.2;
         const ig::RenderedFrame a = pagedRenderer(pose, t, static_cast<std::uint64_t>(i));
         ASSERT_TRUE(a.right) << "a pair";
-        if (log->frames.back().substituted != 0) continue;
+        if (log->frames().back().substituted != 0) continue;
         const ig::RenderedFrame b = inMemory(pose, t, static_cast<std::uint64_t>(i));
         ASSERT_TRUE(b.right);
         EXPECT_TRUE(sameFrame(a, b) && a.objectId == b.objectId) << "left eye, frame " << i;

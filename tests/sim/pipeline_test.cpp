@@ -535,6 +535,45 @@ TEST(RendererProcess, ASlowRenderOnTheSimulatedClockIsNotARestart) {
     EXPECT_TRUE(run.result.stats.restarts.empty()) << run.result.stats.restarts[0].cause;
 }
 
+// A render that takes far longer than the render timeout but shows signs of life as it goes
+// (sim::noteRendererAlive: a paged map placing a frame's tiles for seconds) is awaited; the
+// same render silent throughout is taken for a hang and restarted.
+TEST(RendererProcess, ASlowRenderThatShowsSignsOfLifeIsNotAHang) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    const auto slowFrame = [inner](bool alive) -> sim::FrameRenderer {
+        return [inner, alive](const ig::Pose& pose, double time, std::uint64_t sequence) {
+            if (sequence == 3) {
+                for (int i = 0; i < 75; ++i) {
+                    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+                    if (alive) sim::noteRendererAlive();
+                }
+            }
+            return inner(pose, time, sequence);
+        };
+    };
+    // The simulated clock waits for each frame; the wall clock's supervisor watches the ring.
+    for (const sim::ClockMode clock : {sim::ClockMode::Simulated, sim::ClockMode::Wall}) {
+        SCOPED_TRACE(clock == sim::ClockMode::Wall ? "wall clock" : "simulated clock");
+        sim::PipelineOptions o = processOptions(2.0);
+        o.clock = clock;
+        o.renderTimeout = 0.4;  // the 1.5 s render is nearly four of them
+        const sim::FrameRenderer alive = slowFrame(true);
+        const PipelineRun awaited = runPipeline(world, o, kGentleScript, &alive);
+        ASSERT_TRUE(awaited.result.ok()) << awaited.result.error;
+        EXPECT_TRUE(awaited.result.stats.restarts.empty())
+            << awaited.result.stats.restarts[0].cause;
+        const sim::FrameRenderer silent = slowFrame(false);
+        const PipelineRun restarted = runPipeline(world, o, kGentleScript, &silent);
+        ASSERT_TRUE(restarted.result.ok()) << restarted.result.error;
+        ASSERT_FALSE(restarted.result.stats.restarts.empty());
+        EXPECT_NE(restarted.result.stats.restarts[0].cause.find("silent for"), std::string::npos)
+            << restarted.result.stats.restarts[0].cause;
+    }
+    // In the field process (no renderer process) a sign of life is nothing.
+    sim::noteRendererAlive();
+}
+
 // A renderer whose first frame in each process is slow (a paged map reads its first view's
 // tiles, waiting) is given its start allowance after a restart too, not the render timeout:
 // one restart, not one per timeout until a start happens to be quick enough.
