@@ -46,7 +46,47 @@ void checkFrame(const ig::RenderedFrame& frame, bool needDepth) {
 
 }  // namespace
 
-PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options) : options_(options) {
+bool DepthBudget::mayTry(std::uint64_t index) const {
+    if (budget_ <= 0.0 || fields_ == 0) return true;
+    return !overBudget() || index - lastField_ >= retryFields_;
+}
+
+bool DepthBudget::overBudget() const {
+    return budget_ > 0.0 && (abandonedLast_ || (measured_ && depthSeconds_ > budget_));
+}
+
+double DepthBudget::allowance() const {
+    if (budget_ <= 0.0) return std::numeric_limits<double>::infinity();
+    return std::max(0.0, budget_ - std::max(tailSeconds_, quadraticSeconds_));
+}
+
+void DepthBudget::depthField(std::uint64_t index, double seconds, bool abandoned,
+                             double tailSeconds) {
+    const bool retry = fields_ > 0 && overBudget();
+    abandonedLast_ = abandoned;
+    if (!abandoned) {
+        depthSeconds_ = measured_ ? 0.75 * depthSeconds_ + 0.25 * seconds : seconds;
+        tailSeconds_ = measured_ ? 0.75 * tailSeconds_ + 0.25 * tailSeconds : tailSeconds;
+        measured_ = true;
+    }
+    if (budget_ > 0.0) {
+        if (!abandoned && seconds <= budget_) {
+            retryFields_ = kDepthRetryFields;
+        } else if (retry) {
+            retryFields_ = std::min(2 * retryFields_, kDepthRetryFieldsMax);
+        }
+    }
+    ++fields_;
+    lastField_ = index;
+}
+
+void DepthBudget::quadraticField(double seconds) {
+    quadraticSeconds_ =
+        quadraticSeconds_ == 0.0 ? seconds : 0.75 * quadraticSeconds_ + 0.25 * seconds;
+}
+
+PostRenderingProcessor::PostRenderingProcessor(const PrpOptions& options)
+    : options_(options), depthBudget_(options.autoDepthBudget) {
     if (options.outWidth < 2 || options.outHeight < 2 || options.outWidth > 16384 ||
         options.outHeight > 16384) {
         throw ig::InputError("output size " + std::to_string(options.outWidth) + "x" +
@@ -189,9 +229,7 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
                    !(out.warp.checkErrorPx <= options_.autoThresholdPx);
         // Never a field late for the depth model: over its budget, the quadratic (a field in
         // depthRetryFields_ measures the depth model again).
-        if (useDepth && options_.autoDepthBudget > 0.0 && depthFields_ > 0 &&
-            depthSeconds_ > options_.autoDepthBudget &&
-            fieldIndex - lastDepthField_ < depthRetryFields_) {
+        if (useDepth && !depthBudget_.mayTry(fieldIndex)) {
             useDepth = false;
             out.warp.depthOverBudget = true;
         }
@@ -213,15 +251,15 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         const auto depthStart = std::chrono::steady_clock::now();
         // Auto on a deadline: a depth field still unfinished at the budget (another process
         // taking the core, a page fault storm) is abandoned for the quadratic, so no field is
-        // late for it. The budget is the whole field's: the deadline leaves room for the part
-        // past the warp's last look at the clock, as long as the recent depth fields' took.
+        // late for it. The budget is the whole field's, either way it ends: the deadline leaves
+        // room for the part past the warp's last look at the clock, or for the quadratic that
+        // follows an abandoned one, as long as recent fields took for them.
         const bool mayAbandon = model == WarpModel::Auto && options_.autoDepthBudget > 0.0;
-        const double allowed = std::max(0.0, options_.autoDepthBudget - depthTailSeconds_);
         const auto giveUpAt =
             mayAbandon ? depthStart + std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                          std::chrono::duration<double>(allowed))
+                                          std::chrono::duration<double>(depthBudget_.allowance()))
                        : std::chrono::steady_clock::time_point::max();
-        double tail = -1.0;  // set by a depth field that completes
+        double tail = 0.0;  // of a depth field that completes
         if (options_.depthReference) {
             const WarpInfo fitted = out.warp;
             warpDepth(frame, poseAtField, geometry, out, gainQ8, lumaSum);  // ids too
@@ -259,28 +297,14 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
                            .count();
             }
         }
-        if (tail >= 0.0) {
-            depthTailSeconds_ =
-                depthTailSeconds_ == 0.0 ? tail : 0.75 * depthTailSeconds_ + 0.25 * tail;
-        }
         if (useDepth) out.warp.model = WarpModel::Depth;
-        const double s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - depthStart).count();
-        const bool retry = depthFields_ > 0 && options_.autoDepthBudget > 0.0 &&
-                           depthSeconds_ > options_.autoDepthBudget;
-        depthSeconds_ = depthFields_ == 0 ? s : 0.75 * depthSeconds_ + 0.25 * s;
-        if (options_.autoDepthBudget > 0.0) {
-            const bool over = out.warp.depthAbandoned || s > options_.autoDepthBudget;
-            if (!over) {
-                depthRetryFields_ = kDepthRetryFields;
-            } else if (retry) {
-                depthRetryFields_ = std::min(2 * depthRetryFields_, kDepthRetryFieldsMax);
-            }
-        }
-        ++depthFields_;
-        lastDepthField_ = fieldIndex;
+        depthBudget_.depthField(
+            fieldIndex,
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - depthStart).count(),
+            out.warp.depthAbandoned, tail);
     }
     if (!useDepth) {
+        const auto quadraticStart = std::chrono::steady_clock::now();
         if (depthModel) out.warp.model = model == WarpModel::Auto ? WarpModel::Poly : model;
         const SourceView source{sourcePixels(frame), frame.width(), frame.height()};
         ApplyResult r =
@@ -305,6 +329,12 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
             warpIdsHomography(idSource, Homography{out.warp.h}, idView);
         } else if (ids) {
             warpIdsQuadratic(idSource, quadraticOf(out.warp), idView);
+        }
+        if (depthModel) {
+            const double q =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - quadraticStart)
+                    .count();
+            depthBudget_.quadraticField(q);
         }
     }
 

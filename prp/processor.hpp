@@ -60,6 +60,40 @@ struct PrpOptions {
 inline constexpr std::uint64_t kDepthRetryFields = 300;
 inline constexpr std::uint64_t kDepthRetryFieldsMax = 8 * kDepthRetryFields;
 
+// Auto's time budget for the depth model on the wall clock (PrpOptions::autoDepthBudget): whether
+// a field that wants the depth model may take it, when its warp must give up, and what the
+// fields measured. Seconds throughout; a budget of 0: none (every field may, none gives up).
+class DepthBudget {
+  public:
+    explicit DepthBudget(double budget = 0.0) : budget_(budget) {}
+
+    // Whether field `index`, which wants the depth model, may take it: not while the model is
+    // over budget (its recent completed fields' running mean above it, or its last field
+    // abandoned), except one field once retryFields() have passed since the last it took.
+    bool mayTry(std::uint64_t index) const;
+    // Seconds from the depth warp's start at which to give it up: the budget less the larger
+    // of the part of a depth field past its warp's last look at the clock and the quadratic
+    // that follows an abandoned one (their running means), so the field ends within the
+    // budget either way; +inf without a budget.
+    double allowance() const;
+    // A depth field `index` ended after `seconds`: abandoned at its deadline (its time is the
+    // deadline's, not the model's: the running mean is left alone), or complete, `tailSeconds`
+    // of it past the warp's last look at the clock.
+    void depthField(std::uint64_t index, double seconds, bool abandoned, double tailSeconds);
+    // A quadratic field of the same processor took `seconds`.
+    void quadraticField(double seconds);
+
+    bool overBudget() const;
+    std::uint64_t retryFields() const { return retryFields_; }
+
+  private:
+    double budget_ = 0.0;
+    double depthSeconds_ = 0.0, tailSeconds_ = 0.0, quadraticSeconds_ = 0.0;
+    bool measured_ = false, abandonedLast_ = false;
+    std::uint64_t fields_ = 0, lastField_ = 0;
+    std::uint64_t retryFields_ = kDepthRetryFields;
+};
+
 class PostRenderingProcessor {
   public:
     // Throws ig::InputError naming the option when the options are unusable (size below 2 x 2,
@@ -113,15 +147,8 @@ class PostRenderingProcessor {
     std::vector<float> splatSource_;
     std::vector<float> splatDepth_;
     std::vector<std::uint8_t> rowRgb_;
-    // The depth model's cost per field (seconds, a running mean of its recent fields), the
-    // last field it warped, and the fields to wait over budget before it is tried again.
-    double depthSeconds_ = 0.0;
-    std::uint64_t depthFields_ = 0, lastDepthField_ = 0;
-    std::uint64_t depthRetryFields_ = kDepthRetryFields;
-    // The part of a depth field past its last look at the clock (writing the field from its
-    // points, the fill beyond the frame, the ids), seconds, a running mean: the deadline leaves
-    // room for it.
-    double depthTailSeconds_ = 0.0;
+    // Auto's budget for the depth model, and what its fields measured.
+    DepthBudget depthBudget_;
     DepthWarp depthWarp_;
     RestampScratch restamp_;
 };

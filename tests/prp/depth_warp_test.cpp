@@ -483,6 +483,61 @@ TEST(DepthWarp, AutoOverItsTimeBudgetTakesTheQuadratic) {
     EXPECT_THROW(PostRenderingProcessor{o}, ig::InputError);
 }
 
+// The depth model's budget on synthetic times (seconds): a field that wants it takes it while
+// it is within budget; an abandoned field marks it over budget whatever its own time (its time is
+// its deadline's: a deadline brought early by a slow quadratic made every field try the depth
+// model, and give it up, when that time counted as the model's cost); the retries' waits double
+// up to kDepthRetryFieldsMax and a retry within budget brings them back; the deadline leaves
+// room for the larger of the depth field's tail and the quadratic.
+TEST(DepthWarp, TheDepthBudgetDecidesOnWhatTheFieldsMeasured) {
+    const DepthBudget none;
+    EXPECT_TRUE(none.mayTry(5));
+    EXPECT_TRUE(std::isinf(none.allowance()));
+
+    DepthBudget b(0.010);
+    EXPECT_TRUE(b.mayTry(1));
+    EXPECT_DOUBLE_EQ(b.allowance(), 0.010);
+    b.depthField(1, 0.004, false, 0.001);
+    b.quadraticField(0.002);
+    EXPECT_TRUE(b.mayTry(2));
+    EXPECT_DOUBLE_EQ(b.allowance(), 0.010 - 0.002);  // the quadratic is the larger
+    b.quadraticField(0.002);
+    b.depthField(2, 0.005, false, 0.004);  // tail mean 0.00175
+    EXPECT_DOUBLE_EQ(b.allowance(), 0.010 - 0.002);
+
+    // Abandoned early (3 ms of a 10 ms budget): over budget all the same.
+    b.depthField(3, 0.003, true, 0.0);
+    EXPECT_TRUE(b.overBudget());
+    EXPECT_FALSE(b.mayTry(4));
+    EXPECT_FALSE(b.mayTry(3 + kDepthRetryFields - 1));
+    EXPECT_TRUE(b.mayTry(3 + kDepthRetryFields));
+    std::uint64_t at = 3 + kDepthRetryFields;
+    for (std::uint64_t wait = 2 * kDepthRetryFields; wait <= 2 * kDepthRetryFieldsMax; wait *= 2) {
+        b.depthField(at, 0.003, true, 0.0);  // the retry abandoned too
+        const std::uint64_t expected = std::min(wait, kDepthRetryFieldsMax);
+        EXPECT_EQ(b.retryFields(), expected);
+        EXPECT_FALSE(b.mayTry(at + expected - 1));
+        EXPECT_TRUE(b.mayTry(at + expected));
+        at += expected;
+    }
+    // A retry that completes within budget: the model is back, the wait too.
+    b.depthField(at, 0.004, false, 0.001);
+    EXPECT_FALSE(b.overBudget());
+    EXPECT_TRUE(b.mayTry(at + 1));
+    EXPECT_EQ(b.retryFields(), kDepthRetryFields);
+
+    // Completed fields over budget (their running mean above it) send the next ones to the
+    // quadratic as well.
+    DepthBudget slow(0.010);
+    for (std::uint64_t n = 1; n <= 4; ++n)
+        slow.depthField(n, 0.020, false, 0.002);
+    EXPECT_TRUE(slow.overBudget());
+    EXPECT_FALSE(slow.mayTry(5));
+    // A slow quadratic leaves the depth model no time at all rather than a negative one.
+    slow.quadraticField(0.050);
+    EXPECT_EQ(slow.allowance(), 0.0);
+}
+
 // The gather method abandons the same way (its lines and splatted tiles look at the clock).
 TEST(DepthWarp, TheGatherIsAbandonedAtItsDeadlineToo) {
     const ig::Pose pose = test::lookingDown(-10.0, 300.0);
