@@ -636,7 +636,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
         } else {
             fillFromCoarser(w.key, *w.tile);
         }
-        if (++sinceProgress == kProgressTiles && options_.progress) {
+        if (options_.progress && ++sinceProgress == kProgressTiles) {
             options_.progress();
             sinceProgress = 0;
         }

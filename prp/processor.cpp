@@ -227,8 +227,8 @@ void PostRenderingProcessor::process(const ig::RenderedFrame& frame, const ig::P
         out.warp.checkErrorPx = warpCheckError(out.warp, {check.data(), n});
         useDepth = out.warp.fallback != Fallback::None ||
                    !(out.warp.checkErrorPx <= options_.autoThresholdPx);
-        // Never a field late for the depth model: over its budget, the quadratic (a field in
-        // depthRetryFields_ measures the depth model again).
+        // Never a field late for the depth model: over its budget, the quadratic (now and then
+        // a field measures the depth model again: DepthBudget::mayTry).
         if (useDepth && !depthBudget_.mayTry(fieldIndex)) {
             useDepth = false;
             out.warp.depthOverBudget = true;

@@ -292,19 +292,18 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             }
             rusage usage{};
             const bool rss = getrusage(RUSAGE_SELF, &usage) == 0;
-            PagingLog::Frame f;
-            f.time = time;
-            f.required = st.required;
-            f.substituted = st.substituted;
-            f.failed = st.failed;
-            f.nodesMissing = st.nodesMissing;
-            f.pageMs = pageMs;
-            f.tilesRead = cs.tilesRead;
-            f.bytesRead = cs.bytesRead;
-            f.detail = intr.detail;
-            f.peakRssBytes = rss ? static_cast<std::uint64_t>(usage.ru_maxrss) * 1024 : 0;
-            f.pid = static_cast<std::int32_t>(s.pid);
-            log->add(f);
+            log->add(PagingLog::Frame{
+                .time = time,
+                .required = st.required,
+                .substituted = st.substituted,
+                .failed = st.failed,
+                .nodesMissing = st.nodesMissing,
+                .pageMs = pageMs,
+                .tilesRead = cs.tilesRead,
+                .bytesRead = cs.bytesRead,
+                .detail = intr.detail,
+                .peakRssBytes = rss ? static_cast<std::uint64_t>(usage.ru_maxrss) * 1024 : 0,
+                .pid = static_cast<std::int32_t>(s.pid)});
             for (const std::string& failure : st.failures)
                 log->addFailure(failure);
         }
