@@ -22,6 +22,7 @@
 #include <cstring>
 #include <limits>
 #include <set>
+#include <span>
 
 namespace ig {
 
@@ -289,21 +290,34 @@ void PagedTerrain::release(const TileKey& key, std::vector<std::uintptr_t>& free
     }
 }
 
+void PagedTerrain::advisePages(std::vector<std::uintptr_t>& pages, PlacingStep step) {
+    // Runs of adjacent pages, many to a call where the kernel allows, progressPages at a time
+    // with a sign of life between (a frame's thousands of tiles can be a second of the
+    // kernel's work where it must reclaim the page cache first).
+    std::sort(pages.begin(), pages.end());
+    const std::size_t batch = std::max<std::size_t>(options_.progressPages, 1);
+    for (std::size_t i = 0; i < pages.size();) {
+        const std::size_t end = std::min(pages.size(), i + batch);
+        pageRuns(std::span<const std::uintptr_t>(pages).subspan(i, end - i), runs_);
+        if (step == PlacingStep::Released) {
+            releaseSparsePageRuns(runs_);
+        } else {
+            populateSparsePageRuns(runs_);
+        }
+        if (options_.progress) options_.progress(step);
+        i = end;
+    }
+    pages.clear();
+}
+
 void PagedTerrain::givePagesBack(std::vector<std::uintptr_t>& freed) {
-    // Runs of adjacent pages, many to a call where the kernel allows.
-    std::sort(freed.begin(), freed.end());
-    pageRuns(freed, runs_);
-    releaseSparsePageRuns(runs_);
-    freed.clear();
+    advisePages(freed, PlacingStep::Released);
 }
 
 void PagedTerrain::populateFresh() {
     // Pages no tile held before read zero and are not backed (never written, or given back):
-    // backed in one pass before the writes instead of a fault each.
-    std::sort(fresh_.begin(), fresh_.end());
-    pageRuns(fresh_, runs_);
-    populateSparsePageRuns(runs_);
-    fresh_.clear();
+    // backed before the writes instead of a fault each.
+    advisePages(fresh_, PlacingStep::Backed);
 }
 
 TileKey PagedTerrain::tileUnder(double x, double y) const {
@@ -530,6 +544,7 @@ PagedFrameStats PagedTerrain::prepare(const Camera& camera, bool wait, const glm
     // Only what this map holds: level 0, or the pyramid's levels and nodes.
     std::erase_if(fp.tiles, [&](const TileKey& k) { return !holds(k); });
     std::erase_if(prefetch, [&](const TileKey& k) { return !holds(k) || fp.tiles.count(k) > 0; });
+    if (options_.progress) options_.progress(PlacingStep::Footprint);
     return page(fp.tiles, prefetch, wait);
 }
 
@@ -539,6 +554,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     st.frame = ++frame_;
     cache_.beginFrame(frame_, required, prefetch);
     if (wait) cache_.waitIdle();
+    if (options_.progress) options_.progress(PlacingStep::Requested);
     // From here on the cost grows with the tiles written (chooseDetail's measure).
     const auto start = std::chrono::steady_clock::now();
 
@@ -571,7 +587,6 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             ++st.released;
         }
         givePagesBack(freed);
-        if (options_.progress) options_.progress();
     }
 
     // The writes are decided first and made once their fresh pages are backed, in the order
@@ -583,7 +598,12 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     };
     std::vector<Write> writes;
     fresh_.clear();
+    int sinceProgress = 0;
     for (const TileKey& key : required) {
+        if (options_.progress && ++sinceProgress == kProgressTiles) {
+            options_.progress(PlacingStep::Decided);
+            sinceProgress = 0;
+        }
         auto it = placed_.find(key);
         const bool placedExact = it != placed_.end() && it->second.sourceLevel == key.level;
         std::shared_ptr<const TerrainTile> tile = cache_.find(key);
@@ -627,9 +647,9 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
         ++st.copied;
         place(key, Placed{key.level, false});
     }
+    if (options_.progress) options_.progress(PlacingStep::Decided);
     populateFresh();
-    if (options_.progress) options_.progress();
-    int sinceProgress = 0;
+    sinceProgress = 0;
     for (const Write& w : writes) {
         if (w.tile->key == w.key) {
             copyTile(*w.tile);
@@ -637,7 +657,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             fillFromCoarser(w.key, *w.tile);
         }
         if (options_.progress && ++sinceProgress == kProgressTiles) {
-            options_.progress();
+            options_.progress(PlacingStep::Written);
             sinceProgress = 0;
         }
     }
@@ -645,6 +665,7 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     // a shared edge).
     for (const auto& [key, p] : placed_)
         if (key.kind == TileKind::Display && p.sourceLevel != key.level) updateCellMax(key);
+    if (options_.progress) options_.progress(PlacingStep::StandIns);
     copiedPerFrame_ = 0.75 * copiedPerFrame_ + 0.25 * static_cast<double>(st.copied);
     if (st.copied >= kMinTilesToMeasure) {
         const double ms =

@@ -47,6 +47,17 @@ struct PagedFrameStats {
     std::vector<std::string> failures;  // messages of failed tiles, each reported once
 };
 
+// The steps of placing a frame's tiles (PagedTerrain::Options::progress), in order.
+enum class PlacingStep : std::uint8_t {
+    Footprint,  // the tiles required and prefetched are known
+    Requested,  // the cache has them (or has them on the way)
+    Released,   // pages given back (Options::progressPages at a time)
+    Decided,    // the tiles to write chosen and their pages counted (kProgressTiles at a time)
+    Backed,     // fresh pages backed ahead of the writes (Options::progressPages at a time)
+    Written,    // tiles copied into the map (kProgressTiles at a time)
+    StandIns,   // the stand-ins' cell maxima made; the frame's tiles are placed
+};
+
 class PagedTerrain {
   public:
     struct Options {
@@ -71,11 +82,14 @@ class PagedTerrain {
         // 2^(-1/4) down to minDetail; it comes back a step a frame. 0: always full detail.
         double placeBudgetMs = 60.0;
         double minDetail = 0.5;
-        // Called on the renderer's thread now and then while a frame's tiles are placed (at
-        // least every kProgressTiles tiles written, and between the steps of the placing): a
-        // renderer process's sign of life, since placing a frame can take seconds. Empty:
-        // nothing is called.
-        std::function<void()> progress;
+        // Called on the renderer's thread now and then while a frame's tiles are placed, with
+        // the step just done: after the footprint, after the cache's requests, after every
+        // progressPages pages given back or backed, every kProgressTiles tiles decided and
+        // written, and once the stand-ins' bounds are made. A renderer process's sign of life,
+        // since placing a frame can take seconds. Empty: nothing is called.
+        std::function<void(PlacingStep)> progress;
+        // Pages (4 KiB) given back or backed between two calls of `progress` (32 MiB).
+        std::size_t progressPages = 8192;
     };
     static constexpr int kProgressTiles = 64;
 
@@ -197,6 +211,8 @@ class PagedTerrain {
     // A tile's pages no longer held by it; those no tile holds now go to `freed`.
     void release(const TileKey& key, std::vector<std::uintptr_t>& freed);
     void givePagesBack(std::vector<std::uintptr_t>& freed);
+    // Gives back (Released) or backs (Backed) `pages`, then clears it.
+    void advisePages(std::vector<std::uintptr_t>& pages, PlacingStep step);
     // Backs the pages hold() found no tile holding before (fresh_), ahead of their writes.
     void populateFresh();
     // Whether an exact placed tile (not a stand-in) of `self`'s level other than `self` holds

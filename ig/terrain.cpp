@@ -99,7 +99,7 @@ void setPageBatching(bool enabled) {
     gPageBatching.store(enabled);
 }
 
-void pageRuns(const std::vector<std::uintptr_t>& pages, std::vector<PageRun>& out) {
+void pageRuns(std::span<const std::uintptr_t> pages, std::vector<PageRun>& out) {
     out.clear();
     for (std::size_t i = 0; i < pages.size();) {
         std::size_t j = i + 1;

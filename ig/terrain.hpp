@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -44,7 +45,7 @@ std::size_t populateSparsePageRuns(const std::vector<PageRun>& runs) noexcept;
 // tests compare with.
 void setPageBatching(bool enabled);
 // Sorted, distinct page addresses -> runs of adjacent pages.
-void pageRuns(const std::vector<std::uintptr_t>& pages, std::vector<PageRun>& out);
+void pageRuns(std::span<const std::uintptr_t> pages, std::vector<PageRun>& out);
 
 // `sparse`: the vector's block is a sparse one and its elements are left as the fresh block
 // holds them (zero bytes, which is what value-initialisation gives the map's element types):

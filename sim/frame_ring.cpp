@@ -64,7 +64,8 @@ struct FrameRing::Header {
     std::atomic<std::uint64_t> published;
     std::atomic<std::uint32_t> publishWord;  // low bits of `published`, for futex waits
     std::atomic<std::int64_t> lastPublishNs;
-    std::atomic<std::int64_t> lastAliveNs;  // the renderer's last sign of life between frames
+    std::atomic<std::int64_t> lastAliveNs;     // the renderer's last sign of life between frames
+    std::atomic<std::uint32_t> lastAliveStep;  // its RenderStep
     alignas(kAlign) std::atomic<std::uint64_t> requestLock;  // odd while a post is written
     std::atomic<std::uint64_t> request[kRequestWords];
     std::atomic<std::uint64_t> requestObjectCount;
@@ -394,8 +395,47 @@ std::int64_t FrameRing::lastPublishNs() const {
     return header().lastPublishNs.load(std::memory_order_relaxed);
 }
 
-void FrameRing::noteAlive(std::int64_t clockNs) {
+void FrameRing::noteAlive(std::int64_t clockNs, RenderStep step) {
+    header().lastAliveStep.store(static_cast<std::uint32_t>(step), std::memory_order_relaxed);
     header().lastAliveNs.store(clockNs, std::memory_order_relaxed);
+}
+
+RenderStep FrameRing::lastAliveStep() const {
+    const std::uint32_t step = header().lastAliveStep.load(std::memory_order_relaxed);
+    return step <= static_cast<std::uint32_t>(RenderStep::Cast) ? static_cast<RenderStep>(step)
+                                                                : RenderStep::Request;
+}
+
+const char* renderStepName(RenderStep step) {
+    switch (step) {
+        case RenderStep::Request:
+            return "request taken";
+        case RenderStep::Detail:
+            return "detail chosen";
+        case RenderStep::WarmUp:
+            return "warm-up requested";
+        case RenderStep::Footprint:
+            return "footprint";
+        case RenderStep::Requested:
+            return "tiles requested";
+        case RenderStep::Released:
+            return "pages given back";
+        case RenderStep::Decided:
+            return "writes decided";
+        case RenderStep::Backed:
+            return "pages backed";
+        case RenderStep::Written:
+            return "tiles written";
+        case RenderStep::StandIns:
+            return "stand-ins' bounds";
+        case RenderStep::Placed:
+            return "tiles placed";
+        case RenderStep::Objects:
+            return "objects stamped";
+        case RenderStep::Cast:
+            return "image cast";
+    }
+    return "?";
 }
 
 std::int64_t FrameRing::lastAliveNs() const {

@@ -40,6 +40,25 @@ struct RenderRequest {
 // Objects a request carries at most (a CIGI host's entities placed at the request's instant).
 inline constexpr std::size_t kMaxRequestObjects = 1024;
 
+// Where a renderer is in its frame when it gives a sign of life (sim::noteRendererAlive): the
+// step just done. The placing's steps are ig::PlacingStep's, in its order.
+enum class RenderStep : std::uint8_t {
+    Request,    // a request taken; the frame begins
+    Detail,     // its detail chosen (PagedTerrain::chooseDetail)
+    WarmUp,     // the first frame's view all round requested
+    Footprint,  // the placing's steps (ig::PlacingStep)
+    Requested,
+    Released,
+    Decided,
+    Backed,
+    Written,
+    StandIns,
+    Placed,   // every map's tiles placed (insets too)
+    Objects,  // the moving objects stamped
+    Cast,     // the image cast; published next
+};
+const char* renderStepName(RenderStep step);
+
 class FrameRing {
   public:
     // A new shared mapping with three slots of up to `maxPixels` pixels per eye, `eyes` (1, or
@@ -92,9 +111,11 @@ class FrameRing {
     void waitForPublish(std::uint64_t seen, double seconds) const;
     std::int64_t lastPublishNs() const;
     // Renderer side: a sign of life while a frame takes long (its tiles being placed), clock
-    // in ns (CLOCK_MONOTONIC); field side: the last one, 0 before any.
-    void noteAlive(std::int64_t clockNs);
+    // in ns (CLOCK_MONOTONIC), and the step just done; field side: the last one's clock (0
+    // before any) and step.
+    void noteAlive(std::int64_t clockNs, RenderStep step);
     std::int64_t lastAliveNs() const;
+    RenderStep lastAliveStep() const;
 
     // Flags shared by both sides.
     void requestStop();

@@ -2,6 +2,8 @@
 // the field process reads it.
 #pragma once
 
+#include "sim/frame_ring.hpp"
+
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -32,6 +34,11 @@ class PagingLog {
         // process's own, which the field process's does not include.
         std::uint64_t peakRssBytes = 0;
         std::int32_t pid = 0;  // the process that rendered it
+        // The renderer's longest silence in the frame, from taking the request to the image
+        // cast (sim::takeRendererSilence): what the supervisor's silence rule sees of it.
+        double silenceMs = 0.0;
+        RenderStep silenceAfter = RenderStep::Request;
+        RenderStep silenceUntil = RenderStep::Request;
     };
     // Frames kept (18 minutes at 60 frames a second); later ones are counted, not kept.
     static constexpr std::size_t kCapacity = std::size_t{1} << 16;

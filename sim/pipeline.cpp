@@ -175,7 +175,13 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
     po.pyramid = kind == ig::CasterKind::Fast;
     po.levels = options.levels;
     // A renderer process placing a frame's tiles for seconds is alive, not hung.
-    po.progress = [] { noteRendererAlive(); };
+    po.progress = [](ig::PlacingStep step) {
+        static_assert(static_cast<int>(RenderStep::StandIns) -
+                          static_cast<int>(RenderStep::Footprint) ==
+                      static_cast<int>(ig::PlacingStep::StandIns));
+        noteRendererAlive(static_cast<RenderStep>(static_cast<int>(RenderStep::Footprint) +
+                                                  static_cast<int>(step)));
+    };
     // What one process renders with, and the last frame's pose and time (for the motion the
     // prefetch follows).
     struct State {
@@ -207,6 +213,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
     return [&db, po, kind, options, state, geometry, sky, log, objects, stereo](
                const ig::Pose& pose, double time, std::uint64_t sequence) {
         State& s = *state;
+        noteRendererAlive(RenderStep::Request);
+        (void)takeRendererSilence();  // the wait for this request is not the renderer's
         if (s.pid != ::getpid()) {
             // A forked copy's paged map and ground have no threads: left alone (never
             // destroyed, which would join them), and this process makes its own.
@@ -270,19 +278,28 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         const EyePoses eyes = eyePoses(level, pair ? stereo.eyeSeparation : 0.0);
         // The detail whose tiles the placing can write in its budget (full before the first
         // frame, which waits for its tiles).
-        if (s.have) intr.detail = s.paged->chooseDetail(ig::Camera(pair ? eyes.left : level, intr));
+        if (s.have) {
+            intr.detail = s.paged->chooseDetail(ig::Camera(pair ? eyes.left : level, intr));
+            noteRendererAlive(RenderStep::Detail);
+        }
         const ig::Camera first(pair ? eyes.left : level, intr);
         const ig::Camera second(eyes.right, intr);
         // Before the first frame, the view all round: a turn from the start finds its tiles.
-        if (!s.have) s.paged->warmUp(first);
+        if (!s.have) {
+            s.paged->warmUp(first);
+            noteRendererAlive(RenderStep::WarmUp);
+        }
         const ig::PagedFrameStats st =
             s.nested->prepare(first, !s.have, velocity, yawRate, pair ? &second : nullptr);
+        noteRendererAlive(RenderStep::Placed);
         const double pageMs =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count();
         s.have = true;
         s.pose = pose;
         s.time = time;
+        // The frame's paging, logged once it is cast (with the renderer's longest silence).
+        PagingLog::Frame logged;
         if (log) {
             ig::TileCacheStats cs = s.paged->cache().stats();
             for (std::size_t k = 0; k < s.nested->insetCount(); ++k) {
@@ -292,7 +309,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             }
             rusage usage{};
             const bool rss = getrusage(RUSAGE_SELF, &usage) == 0;
-            log->add(PagingLog::Frame{
+            logged = PagingLog::Frame{
                 .time = time,
                 .required = st.required,
                 .substituted = st.substituted,
@@ -303,14 +320,24 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                 .bytesRead = cs.bytesRead,
                 .detail = intr.detail,
                 .peakRssBytes = rss ? static_cast<std::uint64_t>(usage.ru_maxrss) * 1024 : 0,
-                .pid = static_cast<std::int32_t>(s.pid)});
+                .pid = static_cast<std::int32_t>(s.pid)};
             for (const std::string& failure : st.failures)
                 log->addFailure(failure);
         }
+        const auto cast = [&] {
+            noteRendererAlive(RenderStep::Cast);
+            if (!log) return;
+            const RendererSilence silence = takeRendererSilence();
+            logged.silenceMs = silence.ms;
+            logged.silenceAfter = silence.after;
+            logged.silenceUntil = silence.until;
+            log->add(logged);
+        };
         if (objects.scene) {
             s.objectGround->follow(pose.position.x, pose.position.y);
             if (objects.extra) objects.extra(time, s.extra);
             *s.moving = objects.motion->stamp(time, s.extra, s.objectGround);
+            noteRendererAlive(RenderStep::Objects);
         }
         if (pair) {
             // Over insets, both eyes on the nested surface.
@@ -338,6 +365,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
             right->time = time;
             frame.stats.renderMs += stats.rightMs + objectsMs;
             frame.right = std::move(right);
+            cast();
             return frame;
         }
         ig::RenderedFrame frame =
@@ -346,6 +374,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                                         g.nearM)
                 : ig::renderFrame(*s.caster, s.paged->map(), level, intr, time, sequence, g.nearM);
         clipBeyondFar(frame, g.farM, sky);
+        cast();
         return frame;
     };
 }
@@ -673,15 +702,27 @@ Pipeline::Await Pipeline::awaitFrame(ig::RenderedFrame& into, double timeout, st
             why = *ended;
             return Await::Ended;
         }
-        const std::int64_t since = std::max(start, ring_->lastAliveNs());
+        const std::int64_t alive = ring_->lastAliveNs();
+        const std::int64_t since = std::max(start, alive);
         const double waited = static_cast<double>(io::monotonicNs() - since) * 1e-9;
         if (waited > timeout) {
-            why = "silent for " + std::to_string(std::lround(waited * 1e3)) + " ms";
+            why = silenceCause(waited, alive >= start);
             return Await::Silent;
         }
         const timespec pause{0, 200000};
         nanosleep(&pause, nullptr);
     }
+}
+
+std::string Pipeline::silenceCause(double seconds, bool afterSignOfLife, double unwatched) const {
+    std::string cause = "silent for " + std::to_string(std::lround(seconds * 1e3)) + " ms";
+    // Where the render fell silent: the step of its last sign of life in this frame.
+    if (afterSignOfLife) cause += std::string(" after ") + renderStepName(ring_->lastAliveStep());
+    if (unwatched > 0.0) {
+        cause += " (and " + std::to_string(std::lround(unwatched * 1e3)) +
+                 " ms more while the supervisor itself did not run)";
+    }
+    return cause;
 }
 
 void Pipeline::restartProcess(const std::string& cause) {
@@ -731,11 +772,14 @@ void Pipeline::superviseLoop() {
                 const std::int64_t nowNs = io::monotonicNs();
                 // A sign of life between frames counts (a frame whose tiles take seconds to
                 // place), one from before this process started does not.
+                const std::int64_t alive = ring_->lastAliveNs();
                 const std::int64_t since =
-                    std::max({ring_->lastPublishNs(), ring_->lastAliveNs(), processStartNs_});
-                const double silent = static_cast<double>(nowNs - since) * 1e-9;
+                    std::max({ring_->lastPublishNs(), alive, processStartNs_});
+                // The time this thread itself did not run is not counted (SilenceWatch).
+                const double silent = static_cast<double>(silence_.look(nowNs, since)) * 1e-9;
                 if (silent > silenceAllowed()) {
-                    cause = "silent for " + std::to_string(std::lround(silent * 1e3)) + " ms";
+                    cause = silenceCause(silent, alive == since,
+                                         static_cast<double>(silence_.unwatchedNs()) * 1e-9);
                 }
             }
             if (!cause.empty()) {

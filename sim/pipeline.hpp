@@ -245,6 +245,10 @@ class Pipeline {
     enum class Await { Frame, Ended, Bad, Silent };
     Await awaitFrame(ig::RenderedFrame& into, double timeout, std::string& why);
     void superviseLoop();
+    // "silent for N ms", and after which step when the renderer's last sign of life came in
+    // this frame (FrameRing::lastAliveStep).
+    // With `unwatched`, the part of it the supervisor was not running (SilenceWatch).
+    std::string silenceCause(double seconds, bool afterSignOfLife, double unwatched = 0.0) const;
     void restartProcess(const std::string& cause);
     double renderTimeout() const;
     double startTimeout() const;
@@ -287,6 +291,7 @@ class Pipeline {
     std::uint64_t restartsClosed_ = 0;            // field thread: restarts whose gap is accounted
     std::atomic<std::uint64_t> requested_{0};     // the newest sequence asked of the renderer
     std::atomic<std::uint64_t> restartAfter_{0};  // at the last restart: frames after it are newer
+    SilenceWatch silence_;                        // supervisor: the renderer's silence watched
     std::int64_t processStartNs_ = 0;         // supervisor: when the running renderer was started
     std::atomic<bool> processFresh_{false};   // the running renderer has sent no frame yet
     std::atomic<double> renderSeconds_{0.0};  // running render time (for the timeout)

@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <cmath>
@@ -31,6 +32,12 @@ std::vector<ExtraObject> gRequestObjects;
 thread_local RenderView tRequestView;
 // The renderer process's ring (null in any other process).
 std::atomic<FrameRing*> gAliveRing{nullptr};
+// noteRendererAlive's last sign of life (clock, ns; 0 before any) and step; the longest
+// silence since takeRendererSilence (ns) and its steps (after << 8 | until).
+std::atomic<std::int64_t> gLastAliveNs{0};
+std::atomic<RenderStep> gLastAliveStep{RenderStep::Request};
+std::atomic<std::int64_t> gSilenceNs{0};
+std::atomic<std::uint16_t> gSilenceSteps{0};
 
 void sleepSeconds(double s) {
     if (!(s > 0.0)) return;
@@ -66,10 +73,37 @@ void setRequestView(const RenderView& view) {
     tRequestView = view;
 }
 
-void noteRendererAlive() {
-    if (FrameRing* ring = gAliveRing.load(std::memory_order_relaxed)) {
-        ring->noteAlive(io::monotonicNs());
+void noteRendererAlive(RenderStep step) {
+    const std::int64_t now = io::monotonicNs();
+    if (FrameRing* ring = gAliveRing.load(std::memory_order_relaxed)) ring->noteAlive(now, step);
+    const std::int64_t last = gLastAliveNs.exchange(now, std::memory_order_relaxed);
+    const RenderStep after = gLastAliveStep.exchange(step, std::memory_order_relaxed);
+    if (last > 0 && now - last > gSilenceNs.load(std::memory_order_relaxed)) {
+        gSilenceNs.store(now - last, std::memory_order_relaxed);
+        gSilenceSteps.store(static_cast<std::uint16_t>(static_cast<unsigned>(after) << 8 |
+                                                       static_cast<unsigned>(step)),
+                            std::memory_order_relaxed);
     }
+}
+
+RendererSilence takeRendererSilence() {
+    RendererSilence s;
+    s.ms = static_cast<double>(gSilenceNs.exchange(0, std::memory_order_relaxed)) * 1e-6;
+    const unsigned steps = gSilenceSteps.exchange(0, std::memory_order_relaxed);
+    s.after = static_cast<RenderStep>(steps >> 8);
+    s.until = static_cast<RenderStep>(steps & 0xffu);
+    return s;
+}
+
+std::int64_t SilenceWatch::look(std::int64_t nowNs, std::int64_t sinceNs) {
+    if (sinceNs != since_) {  // a sign of life since the last look: a new silence
+        since_ = sinceNs;
+        unwatched_ = 0;
+    }
+    const std::int64_t gap = nowNs - std::max(lastLook_, sinceNs);
+    if (gap > kMaxLookGapNs) unwatched_ += gap - kMaxLookGapNs;
+    lastLook_ = std::max(lastLook_, nowNs);
+    return std::max<std::int64_t>(nowNs - sinceNs - unwatched_, 0);
 }
 
 RendererFault parseRendererFault(std::string_view text, std::string_view flag) {

@@ -53,10 +53,22 @@ std::span<const ExtraObject> requestObjects();
 RenderView requestView();
 void setRequestView(const RenderView& view);
 
-// In the renderer process, while its renderer runs: tells the supervisor that the render is
-// still making progress (a frame whose tiles take seconds to place is not a hang:
-// FrameRing::noteAlive); nothing in any other process. Any thread of the renderer.
-void noteRendererAlive();
+// While a renderer runs, `step` just done: in the renderer process, tells the supervisor that
+// the render is still making progress (a frame whose tiles take seconds to place is not a
+// hang: FrameRing::noteAlive). In any process, measures the renderer's silences (below). The
+// renderer's thread.
+void noteRendererAlive(RenderStep step);
+
+// The longest time between two signs of life of this process's renderer since the last call
+// (the first sign of a process excluded), with the step after which it fell silent and the one
+// that ended the silence; the next call measures from there. A frame's renderer calls it at
+// its first step (discarding the wait for the request) and after its last.
+struct RendererSilence {
+    double ms = 0.0;
+    RenderStep after = RenderStep::Request;
+    RenderStep until = RenderStep::Request;
+};
+RendererSilence takeRendererSilence();
 
 struct RendererProcessOptions {
     int threads = 0;        // the renderer's worker threads; 0: every core
@@ -64,6 +76,25 @@ struct RendererProcessOptions {
     bool paced = true;      // false: render each request once, as soon as it is posted
     int nice = 0;           // the renderer process's nice value (0: as started)
     std::optional<RendererFault> fault;
+};
+
+// How long a renderer has been silent as its supervisor watched it: the time since its last
+// sign of life, less the time the supervisor itself did not run. A look counts at most
+// kMaxLookGapNs since the one before: a host that stops the supervising thread for half a
+// second has not watched the renderer be silent for it (its renderer was most likely stopped
+// as well). A supervisor looking every few milliseconds counts a hang in full.
+class SilenceWatch {
+  public:
+    static constexpr std::int64_t kMaxLookGapNs = 50'000'000;
+    // A look at `nowNs` when the last sign of life came at `sinceNs`: the silence watched (ns).
+    std::int64_t look(std::int64_t nowNs, std::int64_t sinceNs);
+    // Of the current silence, the time not watched (ns).
+    std::int64_t unwatchedNs() const { return unwatched_; }
+
+  private:
+    std::int64_t since_ = 0;
+    std::int64_t lastLook_ = 0;
+    std::int64_t unwatched_ = 0;
 };
 
 class RendererProcess {

@@ -45,6 +45,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -281,6 +282,33 @@ nlohmann::json pagingSummary(const sim::PagingLog& pagingLog, double cacheMb,
     j["peak_rss_mb"] = rendererProcess ? fieldPeak + rendererPeakMb : fieldPeak;
     j["field_process_peak_rss_mb"] = fieldPeak;
     j["renderer_process_peak_rss_mb"] = rendererProcess ? rendererPeakMb : 0.0;
+    // The renderer's longest silence in each frame (between two signs of life, which is what
+    // the supervisor's silence rule sees): the longest of the run and where it fell, and the
+    // frames with one over 100 ms by the steps it lay between.
+    std::vector<double> silences;
+    const sim::PagingLog::Frame* longest = nullptr;
+    std::map<std::string, std::pair<std::size_t, double>> longSilences;  // frames, longest
+    for (const sim::PagingLog::Frame& f : frames) {
+        silences.push_back(f.silenceMs);
+        if (!longest || f.silenceMs > longest->silenceMs) longest = &f;
+        if (f.silenceMs > 100.0) {
+            auto& [count, ms] = longSilences[std::string(sim::renderStepName(f.silenceAfter)) +
+                                             " -> " + sim::renderStepName(f.silenceUntil)];
+            ++count;
+            ms = std::max(ms, f.silenceMs);
+        }
+    }
+    j["renderer_silence_ms_p99"] = silences.empty() ? 0.0 : sim::percentiles(silences).p99;
+    j["renderer_silence_ms_max"] = longest ? longest->silenceMs : 0.0;
+    j["renderer_silence_max_between"] =
+        longest ? std::string(sim::renderStepName(longest->silenceAfter)) + " -> " +
+                      sim::renderStepName(longest->silenceUntil)
+                : std::string();
+    j["renderer_silence_max_time"] = longest ? longest->time : 0.0;
+    nlohmann::json over = nlohmann::json::object();
+    for (const auto& [between, counted] : longSilences)
+        over[between] = {{"frames", counted.first}, {"max_ms", counted.second}};
+    j["renderer_silences_over_100ms"] = over;
     return j;
 }
 
@@ -1259,6 +1287,13 @@ int main(int argc, char** argv) {
                 pagingJson["frames_reduced_detail"].get<std::size_t>(),
                 pagingJson["detail_min"].get<double>(), pagingJson["peak_rss_mb"].get<double>(),
                 rendererProcess ? " (field and renderer processes)" : "", terrain.cacheMb);
+            std::fprintf(stderr,
+                         "paging: the renderer's longest silence %.0f ms (%s, t = %.2f s), "
+                         "p99 of frames %.0f ms\n",
+                         pagingJson["renderer_silence_ms_max"].get<double>(),
+                         pagingJson["renderer_silence_max_between"].get<std::string>().c_str(),
+                         pagingJson["renderer_silence_max_time"].get<double>(),
+                         pagingJson["renderer_silence_ms_p99"].get<double>());
             for (const std::string& m : pagingLog->failures())
                 std::fprintf(stderr, "paging: %s (drawn from a coarser level)\n", m.c_str());
             if (fieldGround) {

@@ -5,6 +5,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -146,6 +147,51 @@ TEST(PagedTerrain, EqualsTheInMemoryRenderBitForBitOverASweep) {
     EXPECT_GT(s.bytesRead, paged.cache().budgetBytes());
     EXPECT_LE(paged.cache().residentBytes(), paged.cache().budgetBytes());
     EXPECT_EQ(s.failures, 0u);
+}
+
+// The placing tells its progress in order, step by step, and gives back and backs pages a few at
+// a time when asked to (a renderer process's signs of life: thousands of tiles can take the
+// kernel a second): each frame's steps run Footprint .. StandIns without going back, frames
+// call Released and Backed more than once, and the map is the in-memory one to the bit all the
+// same.
+TEST(PagedTerrain, PlacingReportsItsStepsInOrderAndAdvisesPagesAFewAtATime) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain::Options o = smallBudget();
+    o.mapBudgetBytes = std::size_t{256} << 10;  // pages given back every few frames
+    o.progressPages = 4;
+    std::vector<PlacingStep> steps;
+    o.progress = [&steps](PlacingStep s) { steps.push_back(s); };
+    PagedTerrain paged(db, o);
+    const auto inMemory = makeCaster(CasterKind::Reference, f.map);
+    const auto fromCache = makeCaster(CasterKind::Reference, paged.map());
+    int pose = 0, released = 0, backed = 0, manyReleased = 0, manyBacked = 0;
+    for (const Pose& p : lowSweep(f.map, 16)) {
+        steps.clear();
+        paged.prepare(Camera(p, kView), true);
+        ASSERT_GE(steps.size(), 4u) << "pose " << pose;
+        EXPECT_EQ(steps.front(), PlacingStep::Footprint) << "pose " << pose;
+        EXPECT_EQ(steps[1], PlacingStep::Requested) << "pose " << pose;
+        EXPECT_EQ(steps.back(), PlacingStep::StandIns) << "pose " << pose;
+        EXPECT_TRUE(std::is_sorted(steps.begin(), steps.end())) << "pose " << pose;
+        const auto count = [&steps](PlacingStep s) {
+            return static_cast<int>(std::count(steps.begin(), steps.end(), s));
+        };
+        EXPECT_EQ(count(PlacingStep::StandIns), 1) << "pose " << pose;
+        EXPECT_GE(count(PlacingStep::Decided), 1) << "pose " << pose;
+        released += count(PlacingStep::Released);
+        backed += count(PlacingStep::Backed);
+        manyReleased += count(PlacingStep::Released) > 1;
+        manyBacked += count(PlacingStep::Backed) > 1;
+        expectSameImage(renderFrame(*inMemory, f.map, p, kView),
+                        renderFrame(*fromCache, paged.map(), p, kView),
+                        "pose " + std::to_string(pose));
+        ++pose;
+    }
+    std::printf("progress: %d calls after pages given back, %d after pages backed\n", released,
+                backed);
+    EXPECT_GT(manyReleased, 0) << "no frame gave back more than 4 pages";
+    EXPECT_GT(manyBacked, 0) << "no frame backed more than 4 pages";
 }
 
 // The fast caster over the paged map and the sparse pyramid the paging fills, at every level

@@ -546,7 +546,7 @@ TEST(RendererProcess, ASlowRenderThatShowsSignsOfLifeIsNotAHang) {
             if (sequence == 3) {
                 for (int i = 0; i < 75; ++i) {
                     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-                    if (alive) sim::noteRendererAlive();
+                    if (alive) sim::noteRendererAlive(sim::RenderStep::Written);
                 }
             }
             return inner(pose, time, sequence);
@@ -571,7 +571,86 @@ TEST(RendererProcess, ASlowRenderThatShowsSignsOfLifeIsNotAHang) {
             << restarted.result.stats.restarts[0].cause;
     }
     // In the field process (no renderer process) a sign of life is nothing.
-    sim::noteRendererAlive();
+    sim::noteRendererAlive(sim::RenderStep::Written);
+}
+
+// A renderer that shows signs of life for a while and then falls silent is restarted, and the
+// cause says after which step it fell silent.
+TEST(RendererProcess, TheRestartSaysAfterWhichStepTheRendererFellSilent) {
+    World world;
+    const sim::FrameRenderer inner = world.renderer();
+    const sim::FrameRenderer stuck = [inner](const ig::Pose& pose, double time,
+                                             std::uint64_t sequence) {
+        if (sequence == 3) {
+            for (int i = 0; i < 5; ++i) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(20));
+                sim::noteRendererAlive(sim::RenderStep::Backed);
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+        }
+        return inner(pose, time, sequence);
+    };
+    for (const sim::ClockMode clock : {sim::ClockMode::Simulated, sim::ClockMode::Wall}) {
+        SCOPED_TRACE(clock == sim::ClockMode::Wall ? "wall clock" : "simulated clock");
+        sim::PipelineOptions o = processOptions(2.0);
+        o.clock = clock;
+        o.renderTimeout = 0.4;
+        const PipelineRun run = runPipeline(world, o, kGentleScript, &stuck);
+        ASSERT_TRUE(run.result.ok()) << run.result.error;
+        ASSERT_FALSE(run.result.stats.restarts.empty());
+        EXPECT_NE(run.result.stats.restarts[0].cause.find("silent for"), std::string::npos)
+            << run.result.stats.restarts[0].cause;
+        EXPECT_NE(run.result.stats.restarts[0].cause.find("after pages backed"), std::string::npos)
+            << run.result.stats.restarts[0].cause;
+    }
+}
+
+// The supervisor counts the renderer's silence only while it watched: a look long after the one
+// before (the supervising thread itself not run: a loaded or paused host) counts at most
+// kMaxLookGapNs of the gap; looks a few milliseconds apart count a hang in full; a sign of life
+// starts a new silence.
+TEST(RendererProcess, TheSilenceWatchedLeavesOutTheTimeTheSupervisorDidNotRun) {
+    constexpr std::int64_t ms = 1'000'000;
+    const std::int64_t maxGap = sim::SilenceWatch::kMaxLookGapNs;
+    sim::SilenceWatch hang;
+    std::int64_t silent = 0;
+    for (std::int64_t t = 2 * ms; t <= 600 * ms; t += 2 * ms)
+        silent = hang.look(t, 0);
+    EXPECT_EQ(silent, 600 * ms);
+    EXPECT_EQ(hang.unwatchedNs(), 0);
+    sim::SilenceWatch paused;
+    EXPECT_EQ(paused.look(10 * ms, 0), 10 * ms);
+    EXPECT_EQ(paused.look(12 * ms, 0), 12 * ms);
+    // The supervisor away 600 ms: all but kMaxLookGapNs of it unwatched.
+    EXPECT_EQ(paused.look(612 * ms, 0), 12 * ms + maxGap);
+    EXPECT_EQ(paused.unwatchedNs(), 600 * ms - maxGap);
+    EXPECT_EQ(paused.look(614 * ms, 0), 14 * ms + maxGap);
+    // A sign of life came while the supervisor was away again: only the part after it counts.
+    EXPECT_EQ(paused.look(1000 * ms, 900 * ms), maxGap);
+    EXPECT_EQ(paused.look(1002 * ms, 900 * ms), maxGap + 2 * ms);
+    // One just before the look: counted in full.
+    EXPECT_EQ(paused.look(1010 * ms, 1005 * ms), 5 * ms);
+    EXPECT_EQ(paused.unwatchedNs(), 0);
+}
+
+// The renderer's longest silence between two signs of life, with the steps it lay between; the
+// next measure starts over.
+TEST(RendererProcess, TheLongestSilenceIsMeasuredBetweenSteps) {
+    (void)sim::takeRendererSilence();
+    sim::noteRendererAlive(sim::RenderStep::Request);
+    (void)sim::takeRendererSilence();
+    sim::noteRendererAlive(sim::RenderStep::Footprint);
+    sim::noteRendererAlive(sim::RenderStep::Requested);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    sim::noteRendererAlive(sim::RenderStep::Released);
+    sim::noteRendererAlive(sim::RenderStep::Cast);
+    const sim::RendererSilence s = sim::takeRendererSilence();
+    EXPECT_GE(s.ms, 300.0);
+    EXPECT_EQ(s.after, sim::RenderStep::Requested);
+    EXPECT_EQ(s.until, sim::RenderStep::Released);
+    EXPECT_STREQ(sim::renderStepName(s.after), "tiles requested");
+    const sim::RendererSilence none = sim::takeRendererSilence();
+    EXPECT_EQ(none.ms, 0.0);
 }
 
 // A renderer whose first frame in each process is slow (a paged map reads its first view's
