@@ -241,6 +241,19 @@ def paged_flight(p):
                   f"placing {per(lambda r: fmt(r['paging']['page_ms_mean'], 2))} ms mean, "
                   f"{per(lambda r: fmt(r['paging']['page_ms_max'], 1))} ms max a frame",
                   NO_TARGET, cmd)
+            if all("renderer_silence_ms_max" in r["paging"] for r in runs):
+                restarts = [len(r["renderer_restarts"]) for r in runs]
+                causes = [x["cause"] for r in runs for x in r["renderer_restarts"]]
+                causes = causes[:3] + ([f"{len(causes) - 3} more"] if len(causes) > 3 else [])
+                p.row(what + ": renderer restarts; the renderer's longest silence in a frame "
+                      "(between two of its signs of life; each process's first frame apart)",
+                      "0 restarts",
+                      f"{'/'.join(str(x) for x in restarts)} restarts"
+                      + (f" ({'; '.join(causes)})" if causes else "")
+                      + f"; longest silence {per(lambda r: fmt(r['paging']['renderer_silence_ms_max'], 0))}"
+                      f" ms ({' / '.join(r['paging']['renderer_silence_max_between'] for r in runs)}),"
+                      f" p99 {per(lambda r: fmt(r['paging']['renderer_silence_ms_p99'], 0))} ms",
+                      status(max(restarts) == 0), cmd)
             if "frames_reduced_detail" in b["paging"]:
                 p.row(what + ": frames drawn at lower detail; age of the frame each field is "
                       "warped from", "—",
