@@ -107,6 +107,13 @@ std::size_t PagedTerrain::substitutedTiles() const {
     return n;
 }
 
+std::vector<TileKey> PagedTerrain::standIns() const {
+    std::vector<TileKey> out;
+    for (const auto& [key, p] : placed_)
+        if (key.kind == TileKind::Display && p.sourceLevel != key.level) out.push_back(key);
+    return out;
+}
+
 std::size_t PagedTerrain::placedBytes() const {
     return pageRefs_.size() * kPage;
 }
@@ -661,10 +668,29 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
             sinceProgress = 0;
         }
     }
-    // Stand-ins' cell maxima from the map as it now is (an exact neighbour may have replaced
-    // a shared edge).
-    for (const auto& [key, p] : placed_)
-        if (key.kind == TileKind::Display && p.sourceLevel != key.level) updateCellMax(key);
+    // Stand-ins' cell maxima from the map as it now is: those written in this frame, and those
+    // beside a tile written in it (an exact neighbour may have replaced a shared edge). The
+    // others' samples, and so their maxima, are as the last frame left them.
+    std::set<TileKey> written;
+    for (const Write& w : writes)
+        if (w.key.kind == TileKind::Display) written.insert(w.key);
+    const auto besideWritten = [&written](const TileKey& key) {
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+                if (written.count(TileKey{key.kind, key.level, key.tx + dx, key.ty + dy}))
+                    return true;
+        return false;
+    };
+    sinceProgress = 0;
+    for (const auto& [key, p] : placed_) {
+        if (key.kind != TileKind::Display || p.sourceLevel == key.level || !besideWritten(key))
+            continue;
+        updateCellMax(key);
+        if (options_.progress && ++sinceProgress == kProgressTiles) {
+            options_.progress(PlacingStep::StandIns);
+            sinceProgress = 0;
+        }
+    }
     if (options_.progress) options_.progress(PlacingStep::StandIns);
     copiedPerFrame_ = 0.75 * copiedPerFrame_ + 0.25 * static_cast<double>(st.copied);
     if (st.copied >= kMinTilesToMeasure) {

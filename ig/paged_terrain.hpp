@@ -55,7 +55,7 @@ enum class PlacingStep : std::uint8_t {
     Decided,    // the tiles to write chosen and their pages counted (kProgressTiles at a time)
     Backed,     // fresh pages backed ahead of the writes (Options::progressPages at a time)
     Written,    // tiles copied into the map (kProgressTiles at a time)
-    StandIns,   // the stand-ins' cell maxima made; the frame's tiles are placed
+    StandIns,   // stand-ins' cell maxima made (kProgressTiles at a time); last, all placed
 };
 
 class PagedTerrain {
@@ -168,6 +168,8 @@ class PagedTerrain {
     // Display tiles placed in the map (and pyramid) now, and how many of them are stand-ins.
     std::size_t placedTiles() const;
     std::size_t substitutedTiles() const;
+    // The display tiles placed as stand-ins now.
+    std::vector<TileKey> standIns() const;
     // Bytes of the pages that placed tiles (display and node), and those whose pages are not
     // given back yet, have written: the most the map's and pyramid's arrays can hold.
     std::size_t placedBytes() const;

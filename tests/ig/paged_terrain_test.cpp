@@ -177,7 +177,7 @@ TEST(PagedTerrain, PlacingReportsItsStepsInOrderAndAdvisesPagesAFewAtATime) {
         const auto count = [&steps](PlacingStep s) {
             return static_cast<int>(std::count(steps.begin(), steps.end(), s));
         };
-        EXPECT_EQ(count(PlacingStep::StandIns), 1) << "pose " << pose;
+        EXPECT_GE(count(PlacingStep::StandIns), 1) << "pose " << pose;
         EXPECT_GE(count(PlacingStep::Decided), 1) << "pose " << pose;
         released += count(PlacingStep::Released);
         backed += count(PlacingStep::Backed);
@@ -423,6 +423,48 @@ TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
     const RenderedFrame back =
         renderFrame(*makeCaster(CasterKind::Reference, paged.map()), paged.map(), pose, kView);
     expectSameImage(back, full, "after the tile arrived");
+}
+
+// A stand-in's cell maxima (the bounds the marches skip by) follow its samples over a sweep in
+// which a third of the tiles never come: its own written from the coarser level, and its edges
+// replaced by exact neighbours placed in later frames. Each frame only the stand-ins written or
+// beside a tile written are made again; every stand-in's cells must agree with its samples.
+TEST(PagedTerrain, StandInsCellMaximaFollowTheirSamplesAsNeighboursArrive) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    PagedTerrain paged(db, smallBudget());
+    paged.cache().setWithheld([](const TileKey& k) {
+        return k.kind == TileKind::Display && k.level == 0 && (k.tx * 7 + k.ty * 3) % 3 == 0;
+    });
+    const TerrainMap& m = paged.map();
+    const auto raw = [&m](int x, int y) {
+        return m.rawHeights()[static_cast<std::size_t>(y) * m.width() + x];
+    };
+    std::size_t checked = 0;
+    // A slow turn and drift: tiles enter the footprint a few at a time beside stand-ins placed
+    // in earlier frames.
+    Pose p = lowSweep(f.map, 1)[0];
+    for (int pose = 0; pose < 36; ++pose) {
+        p.yaw += 4.0 * M_PI / 180.0;
+        p.position.x += 15.0;
+        paged.prepare(Camera(p, kView), true);
+        std::size_t wrong = 0;
+        for (const TileKey& key : paged.standIns()) {
+            if (key.level != 0) continue;
+            int x0, y0, tw, th;
+            db.layout().tileExtent(key, x0, y0, tw, th);
+            for (int cy = y0; cy + 1 < y0 + th; ++cy) {
+                for (int cx = x0; cx + 1 < x0 + tw; ++cx) {
+                    const std::uint16_t expected = std::max(
+                        {raw(cx, cy), raw(cx + 1, cy), raw(cx, cy + 1), raw(cx + 1, cy + 1)});
+                    wrong += m.cellMaxRaw(cx, cy) != expected;
+                }
+            }
+            ++checked;
+        }
+        EXPECT_EQ(wrong, 0u) << "pose " << pose << ": cells whose maximum is not their samples'";
+    }
+    EXPECT_GT(checked, 100u) << "stand-ins checked over the sweep";
 }
 
 // The fast caster with a level-0 tile and a coarser-level tile withheld: neither stalls the
