@@ -412,6 +412,13 @@ FrameRenderer makeSceneRenderer(const ig::TerrainMap& map, const RenderGeometry&
 
 namespace {
 
+// The calling thread's CPU time, ns.
+std::int64_t threadCpuNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 // Lowers the priority of every thread that works in the renderer's arena, so the field loop
 // gets a processor as soon as it wakes, even with the renderer using every core.
 class NiceObserver final : public tbb::task_scheduler_observer {
@@ -900,6 +907,8 @@ PipelineResult Pipeline::run() {
     std::uint64_t requestSequence = 1;
     for (std::uint64_t n = 0; n < fieldCount_; ++n) {
         const double deadline = pacer.wait(n).deadline;
+        const std::int64_t wokeNs = simulated ? 0 : io::monotonicNs();
+        const std::int64_t wokeCpuNs = simulated ? 0 : threadCpuNs();
         if (renderFailed_.load(std::memory_order_acquire)) break;
         if (stopAsked()) {
             result.stopped = true;
@@ -989,10 +998,17 @@ PipelineResult Pipeline::run() {
                 "the output refused field " + std::to_string(n) + ": " + std::strerror(-rc);
             break;
         }
+        // The time this thread was not running while it made the field (wall clock only).
+        const double offCpuMs = simulated
+                                    ? -1.0
+                                    : std::max(static_cast<double>((io::monotonicNs() - wokeNs) -
+                                                                   (threadCpuNs() - wokeCpuNs)) *
+                                                   1e-6,
+                                               0.0);
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
                          field.frameSequence, field.warp.model, field.warp.depthOverBudget,
                          field.warp.depthAbandoned, rightWarpMs, rightFallback, rightModel,
-                         disparity, firstDisparity});
+                         disparity, firstDisparity, offCpuMs});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {

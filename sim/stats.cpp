@@ -41,7 +41,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     }
     if (renderSeconds > 0.0) s.renderFps = static_cast<double>(s.framesRendered) / renderSeconds;
 
-    std::vector<double> intervals, jitter, lateness, ages, warps, rightWarps, disparities,
+    std::vector<double> intervals, jitter, lateness, ages, warps, offCpu, rightWarps, disparities,
         fitDisparities;
     intervals.reserve(records_.size());
     jitter.reserve(records_.size());
@@ -61,11 +61,13 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             ++s.missedDeadlines;
             if (s.missed.size() < StatsSummary::kMaxMissedListed) {
                 s.missed.push_back(MissedField{i, r.deadline - records_.front().deadline,
-                                               (r.handoff - r.deadline) * 1e3, r.warpMs, r.model});
+                                               (r.handoff - r.deadline) * 1e3, r.warpMs, r.model,
+                                               r.offCpuMs});
             }
         }
         ages.push_back(r.frameAge * 1e3);
         warps.push_back(r.warpMs);
+        if (r.offCpuMs >= 0.0) offCpu.push_back(r.offCpuMs);
         if (r.fallback != prp::Fallback::None) {
             ++s.fallbacks;
         }
@@ -92,6 +94,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
     s.latenessMs = percentiles(std::move(lateness));
     s.frameAgeMs = percentiles(std::move(ages));
     s.warpMs = percentiles(std::move(warps));
+    s.offCpuMs = percentiles(std::move(offCpu));
     s.rightWarpMs = percentiles(std::move(rightWarps));
     s.verticalDisparityPx = percentiles(std::move(disparities));
     s.fitVerticalDisparityPx = percentiles(std::move(fitDisparities));
@@ -141,6 +144,8 @@ nlohmann::json missedJson(const std::vector<MissedField>& missed) {
                        {"slot_s", m.slot},
                        {"lateness_ms", m.latenessMs},
                        {"warp_ms", m.warpMs},
+                       {"off_cpu_ms",
+                        m.offCpuMs >= 0.0 ? nlohmann::json(m.offCpuMs) : nlohmann::json(nullptr)},
                        {"warp", std::string(prp::warpModelName(m.model))}});
     }
     return out;
@@ -165,6 +170,7 @@ nlohmann::json toJson(const StatsSummary& s) {
         {"field_lateness_ms", toJson(s.latenessMs)},
         {"frame_age_ms", toJson(s.frameAgeMs)},
         {"warp_ms", toJson(s.warpMs)},
+        {"field_off_cpu_ms", toJson(s.offCpuMs)},
         {"render_fps", s.renderFps},
         {"render_ms_mean", s.renderMsMean},
         {"frames_rendered", s.framesRendered},

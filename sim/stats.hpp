@@ -42,6 +42,11 @@ struct FieldRecord {
     double verticalDisparityPx = -1.0;
     // The same before any eye was switched to the depth model for it (kMaxVerticalDisparityRows).
     double fitVerticalDisparityPx = -1.0;
+    // Wall clock: of the field's work (wake to hand-off), the time its thread was not running
+    // (wall time less the thread's CPU time), ms; -1 on the simulated clock. A late field with
+    // little of it was slow on the processor (or the host stopped it unseen: a guest whose host
+    // reports no steal time counts a host's stall as run); with much of it, it was preempted.
+    double offCpuMs = -1.0;
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -67,6 +72,7 @@ struct MissedField {
     double latenessMs = 0.0;  // hand-off - slot start
     double warpMs = 0.0;
     prp::WarpModel model = prp::WarpModel::Poly;
+    double offCpuMs = -1.0;  // FieldRecord::offCpuMs
 };
 
 struct StatsSummary {
@@ -95,6 +101,7 @@ struct StatsSummary {
     Percentiles latenessMs;              // hand-off - slot start
     Percentiles frameAgeMs;
     Percentiles warpMs;
+    Percentiles offCpuMs;  // FieldRecord::offCpuMs, over the fields that measured it
     double renderFps = 0.0;
     double renderMsMean = 0.0;
     double elapsedSeconds = 0.0;  // clock seconds from the first slot to the last hand-off

@@ -174,6 +174,7 @@ TEST(Pipeline, SimulatedTenSecondsGivesEveryFieldAtItsInstant) {
         EXPECT_NEAR(run.records[n].frameAge, age, 1e-9);
         // Simulated time: every field leaves exactly at its slot.
         EXPECT_NEAR(run.records[n].handoff - run.records[n].deadline, 0.0, 1e-12);
+        EXPECT_EQ(run.records[n].offCpuMs, -1.0) << "no time off the processor, simulated";
     }
     // Six renders a second, every one of them shown.
     EXPECT_NEAR(static_cast<double>(run.result.stats.framesRendered), 10.0 * 6.0, 1.0);
@@ -250,6 +251,7 @@ TEST(Pipeline, WallClockRendererStallShowsInFrameAge) {
             EXPECT_GE(run.records[n].handoff, run.records[n - 1].handoff);
         }
         EXPECT_GE(run.records[n].handoff, run.records[n].deadline);
+        EXPECT_GE(run.records[n].offCpuMs, 0.0) << "the time off the processor, measured";
     }
     EXPECT_GE(run.result.stats.frameAgeMs.max, 250.0);
     EXPECT_GE(run.result.stats.framesRendered, 3u);

@@ -39,6 +39,7 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
         r.handoff = r.deadline + (i % 50 == 49 ? 1.5 * T : 0.001);
         r.frameAge = 0.01 * (i % 5);
         r.warpMs = 2.0;
+        r.offCpuMs = i % 50 == 49 ? 12.0 : 0.5;  // the late fields were preempted
         r.frameSequence = static_cast<std::uint64_t>(i / 5);
         r.fallback = i % 40 == 0 ? prp::Fallback::Affine : prp::Fallback::None;
         c.addField(r);
@@ -73,7 +74,10 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
         EXPECT_NEAR(m["lateness_ms"].get<double>(), 1.5 * T * 1e3, 1e-9);
         EXPECT_EQ(m["warp_ms"].get<double>(), 2.0);
         EXPECT_EQ(m["warp"].get<std::string>(), "poly");
+        EXPECT_EQ(m["off_cpu_ms"].get<double>(), 12.0);
     }
+    EXPECT_EQ(j["field_off_cpu_ms"]["p50"].get<double>(), 0.5);
+    EXPECT_EQ(j["field_off_cpu_ms"]["max"].get<double>(), 12.0);
     for (const char* key : {"p50", "p99", "p99.9", "max"})
         EXPECT_TRUE(j["field_interval_ms"].contains(key));
     EXPECT_TRUE(j["renderer_restarts"].is_array());
