@@ -566,8 +566,9 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     const auto start = std::chrono::steady_clock::now();
 
     // Tiles no longer needed leave first. Their pages stay (a page is counted once per tile
-    // holding it) until the pages held pass the map's budget; then the oldest leavers give
-    // theirs back, down to half of it.
+    // holding it) until the pages held, this frame's new ones included, pass the map's budget;
+    // then the oldest leavers give theirs back, down to half of it (below, once the writes
+    // are decided).
     for (auto it = placed_.begin(); it != placed_.end();) {
         if (!required.count(it->first)) {
             leaving_[it->first] = frame_;
@@ -578,23 +579,6 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
     }
     for (const TileKey& k : required)
         leaving_.erase(k);
-    const std::size_t budget =
-        options_.mapBudgetBytes > 0 ? options_.mapBudgetBytes : cache_.budgetBytes();
-    if (pageRefs_.size() * kPage > budget && !leaving_.empty()) {
-        std::vector<std::pair<std::uint64_t, TileKey>> oldest;
-        for (const auto& [key, f] : leaving_)
-            oldest.emplace_back(f, key);
-        std::sort(oldest.begin(), oldest.end());
-        std::vector<std::uintptr_t> freed;
-        for (const auto& [f, key] : oldest) {
-            if (pageRefs_.size() * kPage <= budget / 2) break;
-            leaving_.erase(key);
-            held_.erase(key);
-            release(key, freed);
-            ++st.released;
-        }
-        givePagesBack(freed);
-    }
 
     // The writes are decided first and made once their fresh pages are backed, in the order
     // decided (a stand-in leaves the edge samples an exact neighbour placed in this frame
@@ -655,6 +639,27 @@ PagedFrameStats PagedTerrain::page(const std::set<TileKey>& required,
         place(key, Placed{key.level, false});
     }
     if (options_.progress) options_.progress(PlacingStep::Decided);
+    // The budget counts the pages this frame's new tiles hold too (counted before them, a
+    // fast low pass held the budget and a frame's worth of new pages besides: 1.07 GB over a
+    // 512 MB budget). A page a leaver shares with a tile placed now stays held; the pages
+    // freed are not fresh ones, which no tile held before.
+    const std::size_t budget =
+        options_.mapBudgetBytes > 0 ? options_.mapBudgetBytes : cache_.budgetBytes();
+    if (pageRefs_.size() * kPage > budget && !leaving_.empty()) {
+        std::vector<std::pair<std::uint64_t, TileKey>> oldest;
+        for (const auto& [key, f] : leaving_)
+            oldest.emplace_back(f, key);
+        std::sort(oldest.begin(), oldest.end());
+        std::vector<std::uintptr_t> freed;
+        for (const auto& [f, key] : oldest) {
+            if (pageRefs_.size() * kPage <= budget / 2) break;
+            leaving_.erase(key);
+            held_.erase(key);
+            release(key, freed);
+            ++st.released;
+        }
+        givePagesBack(freed);
+    }
     populateFresh();
     sinceProgress = 0;
     for (const Write& w : writes) {

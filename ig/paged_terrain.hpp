@@ -51,8 +51,8 @@ struct PagedFrameStats {
 enum class PlacingStep : std::uint8_t {
     Footprint,  // the tiles required and prefetched are known
     Requested,  // the cache has them (or has them on the way)
-    Released,   // pages given back (Options::progressPages at a time)
     Decided,    // the tiles to write chosen and their pages counted (kProgressTiles at a time)
+    Released,   // pages given back (Options::progressPages at a time)
     Backed,     // fresh pages backed ahead of the writes (Options::progressPages at a time)
     Written,    // tiles copied into the map (kProgressTiles at a time)
     StandIns,   // stand-ins' cell maxima made (kProgressTiles at a time); last, all placed

@@ -48,8 +48,8 @@ enum class RenderStep : std::uint8_t {
     WarmUp,     // the first frame's view all round requested
     Footprint,  // the placing's steps (ig::PlacingStep)
     Requested,
-    Released,
     Decided,
+    Released,
     Backed,
     Written,
     StandIns,

@@ -33,6 +33,12 @@ class PagingLog {
         // The rendering process's peak resident set so far (bytes; 0 where unknown): a renderer
         // process's own, which the field process's does not include.
         std::uint64_t peakRssBytes = 0;
+        // Its resident set after the frame, and of it at most: the tile cache's tiles, and the
+        // pages the tiles placed in the map and pyramid hold (PagedTerrain::placedBytes), insets
+        // included. The rest is the frames, the threads, the mapped slope bounds.
+        std::uint64_t rssBytes = 0;
+        std::uint64_t cacheBytes = 0;
+        std::uint64_t mapBytes = 0;
         std::int32_t pid = 0;  // the process that rendered it
         // The renderer's longest silence in the frame, from taking the request to the image
         // cast (sim::takeRendererSilence): what the supervisor's silence rule sees of it.

@@ -162,6 +162,20 @@ FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderG
     };
 }
 
+namespace {
+
+// This process's resident set now (bytes; 0 where unknown).
+std::uint64_t residentBytes() {
+    std::FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return 0;
+    unsigned long long size = 0, resident = 0;
+    const bool read = std::fscanf(f, "%llu %llu", &size, &resident) == 2;
+    std::fclose(f);
+    return read ? resident * static_cast<std::uint64_t>(sysconf(_SC_PAGESIZE)) : 0;
+}
+
+}  // namespace
+
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
                                 const ig::RenderOptions& options, std::shared_ptr<PagingLog> log,
@@ -302,10 +316,14 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         PagingLog::Frame logged;
         if (log) {
             ig::TileCacheStats cs = s.paged->cache().stats();
+            std::size_t cacheBytes = s.paged->cache().residentBytes();
+            std::size_t mapBytes = s.paged->placedBytes();
             for (std::size_t k = 0; k < s.nested->insetCount(); ++k) {
                 const ig::TileCacheStats own = s.nested->inset(k).cache().stats();
                 cs.tilesRead += own.tilesRead;
                 cs.bytesRead += own.bytesRead;
+                cacheBytes += s.nested->inset(k).cache().residentBytes();
+                mapBytes += s.nested->inset(k).placedBytes();
             }
             rusage usage{};
             const bool rss = getrusage(RUSAGE_SELF, &usage) == 0;
@@ -320,6 +338,8 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
                 .bytesRead = cs.bytesRead,
                 .detail = intr.detail,
                 .peakRssBytes = rss ? static_cast<std::uint64_t>(usage.ru_maxrss) * 1024 : 0,
+                .cacheBytes = cacheBytes,
+                .mapBytes = mapBytes,
                 .pid = static_cast<std::int32_t>(s.pid)};
             for (const std::string& failure : st.failures)
                 log->addFailure(failure);
@@ -327,6 +347,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         const auto cast = [&] {
             noteRendererAlive(RenderStep::Cast);
             if (!log) return;
+            logged.rssBytes = residentBytes();
             const RendererSilence silence = takeRendererSilence();
             logged.silenceMs = silence.ms;
             logged.silenceAfter = silence.after;

@@ -313,6 +313,21 @@ nlohmann::json pagingSummary(const sim::PagingLog& pagingLog, double cacheMb,
     for (const auto& [between, counted] : longSilences)
         over[between] = {{"frames", counted.first}, {"max_ms", counted.second}};
     j["renderer_silences_over_100ms"] = over;
+    // The renderer's largest resident set after a frame, and what it held then.
+    const sim::PagingLog::Frame* fullest = nullptr;
+    for (const sim::PagingLog::Frame& f : frames)
+        if (!fullest || f.rssBytes > fullest->rssBytes) fullest = &f;
+    if (fullest) {
+        const double mb = 1.0 / 1048576.0;
+        const double rssMb = static_cast<double>(fullest->rssBytes) * mb;
+        const double tilesMb = static_cast<double>(fullest->cacheBytes) * mb;
+        const double mapMb = static_cast<double>(fullest->mapBytes) * mb;
+        j["renderer_fullest_frame"] = {{"time_s", fullest->time},
+                                       {"rss_mb", rssMb},
+                                       {"tile_cache_mb", tilesMb},
+                                       {"map_pages_held_mb", mapMb},
+                                       {"rest_mb", rssMb - tilesMb - mapMb}};
+    }
     return j;
 }
 

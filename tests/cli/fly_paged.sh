@@ -39,6 +39,11 @@ assert p["tiles_read"] > 100, p
 assert p["failed_tiles"] == 0, p
 assert p["frames_reduced_detail"] == 0 and p["detail_min"] == 1.0, p
 assert p["frames_not_kept"] == 0, p
+# The renderer's fullest frame and what it held: the cache within its budget; its silences.
+full = p["renderer_fullest_frame"]
+assert full["rss_mb"] > 0 and 0 < full["tile_cache_mb"] <= 6, full
+assert full["map_pages_held_mb"] > 0, full
+assert 0 <= p["renderer_silence_ms_p99"] <= p["renderer_silence_ms_max"], p
 if sys.argv[2] == "thread":
     # The budget holds a frame: the first frame waits for its tiles, and the misses end within
     # the first second.

@@ -425,6 +425,41 @@ TEST(PagedTerrain, WithheldTileGivesTheCoarserLevelsImageWithoutStalling) {
     expectSameImage(back, full, "after the tile arrived");
 }
 
+// The map's budget counts the pages of the frame's new tiles too: flying from one view to a
+// distant one, the tiles left behind give their pages back in the frame that places the new
+// ones, so the pages held stay within the budget (not the budget and a frame's worth besides).
+TEST(PagedTerrain, TheMapBudgetHoldsWithTheFramesNewPagesCounted) {
+    const PagedFixture& f = fixture();
+    const TerrainDb db = TerrainDb::open(f.path);
+    const std::vector<Pose> sweep = lowSweep(f.map, 16);
+    const Pose& a = sweep[1];
+    const Pose& b = sweep[13];
+    const auto alone = [&](const Pose& p) {
+        PagedTerrain::Options o = smallBudget();
+        o.mapBudgetBytes = std::size_t{1} << 30;
+        PagedTerrain paged(db, o);
+        paged.prepare(Camera(p, kView), true);
+        return paged.placedBytes();
+    };
+    const std::size_t bytesA = alone(a), bytesB = alone(b);
+    PagedTerrain::Options o = smallBudget();
+    o.mapBudgetBytes = std::max(bytesA, bytesB) * 6 / 5;
+    PagedTerrain paged(db, o);
+    paged.prepare(Camera(a, kView), true);
+    EXPECT_EQ(paged.placedBytes(), bytesA) << "under the budget, nothing given back";
+    const PagedFrameStats st = paged.prepare(Camera(b, kView), true);
+    std::printf("pages held: view A %zu bytes, view B %zu, budget %zu, after A then B %zu\n",
+                bytesA, bytesB, o.mapBudgetBytes, paged.placedBytes());
+    EXPECT_GT(st.released, 0u) << "the tiles of view A gave their pages back";
+    EXPECT_LE(paged.placedBytes(), o.mapBudgetBytes);
+    // And the frame is whole.
+    const auto caster = makeCaster(CasterKind::Reference, f.map);
+    expectSameImage(
+        renderFrame(*caster, f.map, b, kView),
+        renderFrame(*makeCaster(CasterKind::Reference, paged.map()), paged.map(), b, kView),
+        "view B");
+}
+
 // A stand-in's cell maxima (the bounds the marches skip by) follow its samples over a sweep in
 // which a third of the tiles never come: its own written from the coarser level, and its edges
 // replaced by exact neighbours placed in later frames. Each frame only the stand-ins written or
