@@ -217,9 +217,18 @@ def paged_flight(p):
             if base:
                 baseline = (f"; the same flight over a 4096² map in memory, in turn: "
                             f"{'/'.join(str(r['missed_deadlines']) for r in base)} missed")
+            fullest = [r["paging"]["renderer_fullest_frame"] for r in runs
+                       if "renderer_fullest_frame" in r["paging"]]
+            held = ""
+            if fullest:
+                top = max(fullest, key=lambda x: x["rss_mb"])
+                held = (f"; the renderer's fullest frame {fmt(top['rss_mb'], 0)} MB: tile cache "
+                        f"{fmt(top['tile_cache_mb'], 0)}, map pages "
+                        f"{fmt(top['map_pages_held_mb'], 0)}, the rest "
+                        f"{fmt(top['rest_mb'], 0)}")
             p.row(what + ": peak resident memory; missed fields", "≤ 2 GB; 0 missed",
                   f"peak RSS {fmt(rss, 0)} MB" + (" (field and renderer processes)"
-                                                 if renderer == "process" else "")
+                                                 if renderer == "process" else "") + held
                   + f"; {'/'.join(str(m) for m in missed)} missed of {b['fields']} fields; "
                   f"renderer {per(lambda r: fmt(r['render_fps'], 1))} fps{baseline}",
                   status(rss <= 2048 and max(missed) == 0), cmd)

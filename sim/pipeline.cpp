@@ -928,6 +928,7 @@ PipelineResult Pipeline::run() {
     std::uint64_t requestSequence = 1;
     for (std::uint64_t n = 0; n < fieldCount_; ++n) {
         const double deadline = pacer.wait(n).deadline;
+        const double wokeLateMs = simulated ? -1.0 : std::max(clock_.now() - deadline, 0.0) * 1e3;
         const std::int64_t wokeNs = simulated ? 0 : io::monotonicNs();
         const std::int64_t wokeCpuNs = simulated ? 0 : threadCpuNs();
         if (renderFailed_.load(std::memory_order_acquire)) break;
@@ -1029,7 +1030,7 @@ PipelineResult Pipeline::run() {
         stats_.addField({deadline, handoff, field.frameAge, field.warpMs, field.warp.fallback,
                          field.frameSequence, field.warp.model, field.warp.depthOverBudget,
                          field.warp.depthAbandoned, rightWarpMs, rightFallback, rightModel,
-                         disparity, firstDisparity, offCpuMs});
+                         disparity, firstDisparity, offCpuMs, wokeLateMs});
         if (handoff > deadline + prp::kFieldPeriod) ++missed;
         if (options_.onField) options_.onField(field, buffer);
         if (options_.progress && handoff >= nextProgress) {

@@ -62,7 +62,7 @@ StatsSummary StatsCollector::summarize(double renderSeconds, bool simulatedClock
             if (s.missed.size() < StatsSummary::kMaxMissedListed) {
                 s.missed.push_back(MissedField{i, r.deadline - records_.front().deadline,
                                                (r.handoff - r.deadline) * 1e3, r.warpMs, r.model,
-                                               r.offCpuMs});
+                                               r.offCpuMs, r.wakeLateMs});
             }
         }
         ages.push_back(r.frameAge * 1e3);
@@ -146,6 +146,8 @@ nlohmann::json missedJson(const std::vector<MissedField>& missed) {
                        {"warp_ms", m.warpMs},
                        {"off_cpu_ms",
                         m.offCpuMs >= 0.0 ? nlohmann::json(m.offCpuMs) : nlohmann::json(nullptr)},
+                       {"wake_late_ms", m.wakeLateMs >= 0.0 ? nlohmann::json(m.wakeLateMs)
+                                                            : nlohmann::json(nullptr)},
                        {"warp", std::string(prp::warpModelName(m.model))}});
     }
     return out;

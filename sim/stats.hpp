@@ -47,6 +47,8 @@ struct FieldRecord {
     // little of it was slow on the processor (or the host stopped it unseen: a guest whose host
     // reports no steal time counts a host's stall as run); with much of it, it was preempted.
     double offCpuMs = -1.0;
+    // Wall clock: how late the loop woke for the field (wake - slot start), ms; -1 simulated.
+    double wakeLateMs = -1.0;
 };
 
 // One renderer process that ended and was replaced (process renderer only).
@@ -72,7 +74,8 @@ struct MissedField {
     double latenessMs = 0.0;  // hand-off - slot start
     double warpMs = 0.0;
     prp::WarpModel model = prp::WarpModel::Poly;
-    double offCpuMs = -1.0;  // FieldRecord::offCpuMs
+    double offCpuMs = -1.0;    // FieldRecord::offCpuMs
+    double wakeLateMs = -1.0;  // FieldRecord::wakeLateMs
 };
 
 struct StatsSummary {

@@ -175,6 +175,7 @@ TEST(Pipeline, SimulatedTenSecondsGivesEveryFieldAtItsInstant) {
         // Simulated time: every field leaves exactly at its slot.
         EXPECT_NEAR(run.records[n].handoff - run.records[n].deadline, 0.0, 1e-12);
         EXPECT_EQ(run.records[n].offCpuMs, -1.0) << "no time off the processor, simulated";
+        EXPECT_EQ(run.records[n].wakeLateMs, -1.0);
     }
     // Six renders a second, every one of them shown.
     EXPECT_NEAR(static_cast<double>(run.result.stats.framesRendered), 10.0 * 6.0, 1.0);
@@ -252,6 +253,7 @@ TEST(Pipeline, WallClockRendererStallShowsInFrameAge) {
         }
         EXPECT_GE(run.records[n].handoff, run.records[n].deadline);
         EXPECT_GE(run.records[n].offCpuMs, 0.0) << "the time off the processor, measured";
+        EXPECT_GE(run.records[n].wakeLateMs, 0.0) << "the wake's lateness, measured";
     }
     EXPECT_GE(run.result.stats.frameAgeMs.max, 250.0);
     EXPECT_GE(run.result.stats.framesRendered, 3u);

@@ -40,6 +40,7 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
         r.frameAge = 0.01 * (i % 5);
         r.warpMs = 2.0;
         r.offCpuMs = i % 50 == 49 ? 12.0 : 0.5;  // the late fields were preempted
+        r.wakeLateMs = 0.25;
         r.frameSequence = static_cast<std::uint64_t>(i / 5);
         r.fallback = i % 40 == 0 ? prp::Fallback::Affine : prp::Fallback::None;
         c.addField(r);
@@ -75,6 +76,7 @@ TEST(StatsCollector, CountsMissesFramesAndFallbacks) {
         EXPECT_EQ(m["warp_ms"].get<double>(), 2.0);
         EXPECT_EQ(m["warp"].get<std::string>(), "poly");
         EXPECT_EQ(m["off_cpu_ms"].get<double>(), 12.0);
+        EXPECT_EQ(m["wake_late_ms"].get<double>(), 0.25);
     }
     EXPECT_EQ(j["field_off_cpu_ms"]["p50"].get<double>(), 0.5);
     EXPECT_EQ(j["field_off_cpu_ms"]["max"].get<double>(), 12.0);
