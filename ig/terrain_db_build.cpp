@@ -31,21 +31,36 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <string_view>
 
 namespace ig {
 
-std::size_t peakResidentBytes() {
+namespace {
+
+// A "Key:   N kB" line of /proc/self/status, bytes; 0 where unknown.
+std::size_t statusBytes(std::string_view key) {
     std::ifstream f("/proc/self/status");
     std::string line;
     while (std::getline(f, line)) {
-        if (line.rfind("VmHWM:", 0) == 0) {
-            std::istringstream s(line.substr(6));
+        if (line.size() > key.size() && line.compare(0, key.size(), key) == 0 &&
+            line[key.size()] == ':') {
+            std::istringstream s(line.substr(key.size() + 1));
             std::size_t kb = 0;
             s >> kb;
             return kb * 1024;
         }
     }
     return 0;
+}
+
+}  // namespace
+
+std::size_t peakResidentBytes() {
+    return statusBytes("VmHWM");
+}
+
+std::size_t residentBytes() {
+    return statusBytes("VmRSS");
 }
 
 namespace {

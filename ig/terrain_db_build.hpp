@@ -74,7 +74,9 @@ struct DbBuildStats {
 DbBuildStats buildTerrainDb(TerrainRowSource& source, const std::string& path,
                             const DbBuildOptions& options);
 
-// The process's peak resident set (VmHWM), bytes; 0 where unknown.
+// The process's peak resident set (VmHWM) and its resident set now (VmRSS), bytes; 0 where
+// unknown.
 std::size_t peakResidentBytes();
+std::size_t residentBytes();
 
 }  // namespace ig

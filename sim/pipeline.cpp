@@ -6,6 +6,7 @@
 #include "ig/paged_insets.hpp"
 #include "ig/shading.hpp"
 #include "ig/stereo.hpp"
+#include "ig/terrain_db_build.hpp"
 #include "sim/stereo_output.hpp"
 
 #include <pthread.h>
@@ -161,20 +162,6 @@ FrameRenderer makeNestedRenderer(const ig::NestedTerrain& terrain, const RenderG
         return frame;
     };
 }
-
-namespace {
-
-// This process's resident set now (bytes; 0 where unknown).
-std::uint64_t residentBytes() {
-    std::FILE* f = std::fopen("/proc/self/statm", "r");
-    if (!f) return 0;
-    unsigned long long size = 0, resident = 0;
-    const bool read = std::fscanf(f, "%llu %llu", &size, &resident) == 2;
-    std::fclose(f);
-    return read ? resident * static_cast<std::uint64_t>(sysconf(_SC_PAGESIZE)) : 0;
-}
-
-}  // namespace
 
 FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain::Options& paging,
                                 const RenderGeometry& geometry, ig::CasterKind kind,
@@ -347,7 +334,7 @@ FrameRenderer makePagedRenderer(const ig::TerrainDb& db, const ig::PagedTerrain:
         const auto cast = [&] {
             noteRendererAlive(RenderStep::Cast);
             if (!log) return;
-            logged.rssBytes = residentBytes();
+            logged.rssBytes = ig::residentBytes();
             const RendererSilence silence = takeRendererSilence();
             logged.silenceMs = silence.ms;
             logged.silenceAfter = silence.after;
