@@ -1347,6 +1347,16 @@ def objects(p):
                              f"colour error {fmt(r['mae_pct'], 3)} %")
         p.row(f"The fast caster's objects against the reference caster's, same view, {e}", "—",
               "; ".join(parts), NO_TARGET, cmd)
+    sw = doc.get("splat_vs_walk")
+    if sw:
+        p.row(f"The object pass with near boxes splatted (each cell holding an entry projected on "
+              f"its own, nearest first) vs every box walked by every pixel of its footprint, same "
+              f"terrain image, {img}, 1 thread", "—",
+              f"{spread(ratios(sw['walk_ms'], sw['splat_ms']), 2, '×')} faster "
+              f"({spread(sw['splat_ms'], 0, ' ms')} vs {spread(sw['walk_ms'], 0, ' ms')}); "
+              f"{sw['splatted']} of {sw['boxes']} boxes splatted ({sw['columns']} columns); ids "
+              f"and depths {'identical' if sw['ids_depths_identical'] else 'differ'}",
+              NO_TARGET, cmd)
     pv = doc.get("pass_vs_per_pixel")
     if pv:
         e = doc["error_image"].replace("x", "×")
