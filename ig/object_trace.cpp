@@ -294,18 +294,27 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
             }
         }
         if (tb >= t1 || tb >= tz) return;
-        if (tx <= ty) {
+        // The next cell's entry as the per-pixel walk finds it: the line crossed. Unless this
+        // cell was left no later than it was entered: a first cell found from the position at
+        // the box's padded entry can lie beside the one a ray passing within rounding of a
+        // vertical edge really enters. Then the later entry carries on, and at a tie the cell is
+        // entered across y (the per-pixel walk steps x first at a corner, then y into it).
+        const int stepped = tx <= ty ? 0 : 1;
+        if (tb > ta) {
+            axis = stepped;
+            ta = tb;
+        } else if (tb == ta && axis >= 0) {
+            axis = std::max(axis, stepped);
+        }
+        if (stepped == 0) {
             ix += stepX;
-            axis = 0;
             if (ix < 0 || ix > nx) return;
             tx = (lineX[ix + upX] - o.x) * invX;
         } else {
             iy += stepY;
-            axis = 1;
             if (iy < 0 || iy > ny) return;
             ty = (lineY[iy + upY] - o.y) * invY;
         }
-        ta = tb;
     }
 }
 

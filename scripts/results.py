@@ -1354,8 +1354,8 @@ def objects(p):
               f"terrain image, {img}, 1 thread", "—",
               f"{spread(ratios(sw['walk_ms'], sw['splat_ms']), 2, '×')} faster "
               f"({spread(sw['splat_ms'], 0, ' ms')} vs {spread(sw['walk_ms'], 0, ' ms')}); "
-              f"{sw['splatted']} of {sw['boxes']} boxes splatted ({sw['columns']} columns); ids "
-              f"and depths {'identical' if sw['ids_depths_identical'] else 'differ'}",
+              f"{sw['splatted']} of {sw['boxes']} boxes splatted ({sw['columns']} columns); "
+              f"images {'identical' if sw['identical'] else 'differ'}",
               NO_TARGET, cmd)
     pv = doc.get("pass_vs_per_pixel")
     if pv:
