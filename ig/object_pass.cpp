@@ -30,8 +30,6 @@ constexpr double kNear = 1e-6;
 constexpr double kBoxPad = 1e-3;
 // Pixels added around a box's projection (a fraction of one).
 constexpr double kMargin = 1e-3;
-// Margin of a stick list's height range (float) against its runs' (double), as the walk's.
-constexpr double kListPad = 1e-3;
 
 // One box's pixel rectangle (inclusive), and which box it is.
 struct Footprint {
@@ -239,22 +237,14 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
             f.lo[2] = box.zLo - 2 * kBoxPad;
             f.hi[2] = box.zHi + 2 * kBoxPad;
             const double area = static_cast<double>(f.x1 - f.x0 + 1) * (f.y1 - f.y0 + 1);
-            const std::int64_t cells = (box.cx1 - box.cx0 + 1) * (box.cy1 - box.cy0 + 1);
-            const double perColumn = options.splatPixelsPerColumn;
-            if (area >= perColumn) {
-                const float* r = layer.boxColumnRanges(box);
-                std::int64_t filled = 0;
-                for (std::int64_t i = 0; i < cells; ++i)
-                    filled += r[2 * i] <= r[2 * i + 1];
-                if (area >= perColumn * static_cast<double>(filled)) {
-                    f.splat = true;
-                    f.firstColumn = static_cast<std::uint32_t>(columns.size());
-                    splatColumns(layer, box, camera, x0, x1, h, columns);
-                    f.columns = static_cast<std::uint32_t>(columns.size()) - f.firstColumn;
-                    if (f.columns == 0) continue;
-                    for (std::uint32_t c = f.firstColumn; c < f.firstColumn + f.columns; ++c)
-                        columns[c].foot = static_cast<std::uint32_t>(feet.size());
-                }
+            if (area >= options.splatPixelsPerColumn * static_cast<double>(box.filled)) {
+                f.splat = true;
+                f.firstColumn = static_cast<std::uint32_t>(columns.size());
+                splatColumns(layer, box, camera, x0, x1, h, columns);
+                f.columns = static_cast<std::uint32_t>(columns.size()) - f.firstColumn;
+                if (f.columns == 0) continue;
+                for (std::uint32_t c = f.firstColumn; c < f.firstColumn + f.columns; ++c)
+                    columns[c].foot = static_cast<std::uint32_t>(feet.size());
             }
             feet.push_back(f);
         }
@@ -354,16 +344,14 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
             const Footprint& f = feet[col.foot];
             const ObjectLayer& layer = *layers[f.layer];
             const ObjectBox& box = layer.boxes()[f.box];
-            const StickTable& table = layer.table();
             const double* lineX = layer.boxLinesX(box);
             const double* lineY = layer.boxLinesY(box);
-            const float* ranges = layer.boxColumnRanges(box);
-            const std::int64_t nx = box.cx1 - box.cx0 + 1;
             const int ya = std::max(col.y0, ty0), yb = std::min(col.y1, ty0 + th - 1);
             const int xa = std::max(col.x0, tx0), xb = std::min(col.x1, tx0 + tw - 1);
             const std::span<const ObjectCell> entries =
                 layer.boxCellsAt(box, box.cx0 + col.ix, box.cy0 + col.iy);
-            const float* range = ranges + 2 * (col.iy * nx + col.ix);
+            const float* range =
+                layer.boxColumnRanges(box) + 2 * (col.iy * (box.cx1 - box.cx0 + 1) + col.ix);
             for (int y = ya; y <= yb; ++y) {
                 for (int x = xa; x <= xb; ++x) {
                     const std::size_t p = static_cast<std::size_t>(y - ty0) * tw + (x - tx0);
@@ -387,20 +375,11 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
                     const double tx = d.x != 0.0 ? (lineX[col.ix + upX] - o.x) * invX : INFINITY;
                     const double ty = d.y != 0.0 ? (lineY[col.iy + upY] - o.y) * invY : INFINITY;
                     const double tb = std::min({tx, ty, r.t1});
-                    if (!(tb >= ta)) continue;
-                    const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
-                    const double zLo = std::min(zA, zB) - kListPad;
-                    const double zHi = std::max(zA, zB) + kListPad;
-                    if (zHi < range[0] || zLo > range[1]) continue;
+                    double zLo, zHi;
+                    if (!(tb >= ta) || !boxCellHeightMet(range, o, d, ta, tb, zLo, zHi)) continue;
                     s.cellHits.clear();
-                    for (const ObjectCell& cell : entries) {
-                        if (cell.id != box.id) continue;
-                        if (zHi < cell.baseZ + table.bottom(cell.stick) ||
-                            zLo > cell.baseZ + table.top(cell.stick)) {
-                            continue;
-                        }
-                        collectVoxelHits(table, cell, o, d, ta, tb, axis, s.cellHits);
-                    }
+                    collectBoxCellHits(layer.table(), entries, box.id, zLo, zHi, o, d, ta, tb, axis,
+                                       s.cellHits);
                     for (const VoxelHit& hit : s.cellHits) {
                         if (hit.color.a == 255) r.cutoff = std::min(r.cutoff, hit.enter);
                         const auto at = static_cast<std::uint32_t>(s.splatHits.size());

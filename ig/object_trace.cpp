@@ -16,8 +16,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Height added above and below an object's box when the ray is clipped to it: the box's range
 // is float, its voxels' heights double.
 constexpr double kBoxPad = 1e-3;
-// Margin of a stick list's height range (float) against its runs' (double): a millimetre.
-constexpr double kListPad = 1e-3;
 
 // Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
 // over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
@@ -271,27 +269,14 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
     for (;;) {
         if (ta > cutoff) return;  // behind an opaque voxel already found
         const double tb = std::min({tx, ty, t1});
-        if (tb >= ta) {
-            // The ray's height range over the cell, widened by a millimetre: an entry whose
-            // sticks lie wholly above or below it gives collectVoxelHits nothing to collect.
-            const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
-            const double zLo = std::min(zA, zB) - kListPad, zHi = std::max(zA, zB) + kListPad;
-            // The cell's own height range first (the hull of those entries' ranges): most cells
-            // a ray crosses in a box are empty or passed above or below.
-            const float* r = ranges + 2 * (iy * (nx + 1) + ix);
-            if (!(zHi < r[0] || zLo > r[1])) {
-                const std::size_t before = hits.size();
-                for (const ObjectCell& cell : layer.boxCellsAt(box, box.cx0 + ix, box.cy0 + iy)) {
-                    if (cell.id != box.id) continue;
-                    if (zHi < cell.baseZ + table.bottom(cell.stick) ||
-                        zLo > cell.baseZ + table.top(cell.stick)) {
-                        continue;
-                    }
-                    collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
-                }
-                for (std::size_t i = before; i < hits.size(); ++i)
-                    if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
-            }
+        double zLo, zHi;
+        if (tb >= ta &&
+            boxCellHeightMet(ranges + 2 * (iy * (nx + 1) + ix), o, d, ta, tb, zLo, zHi)) {
+            const std::size_t before = hits.size();
+            collectBoxCellHits(table, layer.boxCellsAt(box, box.cx0 + ix, box.cy0 + iy), box.id,
+                               zLo, zHi, o, d, ta, tb, axis, hits);
+            for (std::size_t i = before; i < hits.size(); ++i)
+                if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
         }
         if (tb >= t1 || tb >= tz) return;
         // The next cell's entry as the per-pixel walk finds it: the line crossed. Unless this

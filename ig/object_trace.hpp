@@ -68,6 +68,35 @@ bool objectRaySpan(const TerrainMap& map, float lo, float hi, const glm::dvec3& 
 void collectVoxelHits(const StickTable& table, const ObjectCell& cell, const glm::dvec3& o,
                       const glm::dvec3& d, double ta, double tb, int axis,
                       std::vector<VoxelHit>& hits);
+// One cell of an object's box, as collectBoxHits tests it before decoding any run, shared with
+// the footprint pass's splatted cells. First the ray's height range over [ta, tb], widened by a
+// millimetre (the lists' ranges are float, their runs double), against the cell's own range
+// `range` (ObjectLayer::boxColumnRanges: the hull of its entries'): false when it misses, as it
+// does for most cells a ray crosses in a box.
+inline bool boxCellHeightMet(const float range[2], const glm::dvec3& o, const glm::dvec3& d,
+                             double ta, double tb, double& zLo, double& zHi) {
+    constexpr double kListPad = 1e-3;
+    const double zA = o.z + ta * d.z, zB = o.z + tb * d.z;
+    zLo = (zA < zB ? zA : zB) - kListPad;
+    zHi = (zA < zB ? zB : zA) + kListPad;
+    return !(zHi < range[0] || zLo > range[1]);
+}
+// Then the voxels of the cell's entries of object `id` (`entries`: ObjectLayer::boxCellsAt) that
+// the ray meets over [ta, tb], entered across `axis`; an entry whose sticks lie wholly above or
+// below [zLo, zHi] is passed without decoding its runs (they would give nothing).
+inline void collectBoxCellHits(const StickTable& table, std::span<const ObjectCell> entries,
+                               std::uint16_t id, double zLo, double zHi, const glm::dvec3& o,
+                               const glm::dvec3& d, double ta, double tb, int axis,
+                               std::vector<VoxelHit>& hits) {
+    for (const ObjectCell& cell : entries) {
+        if (cell.id != id) continue;
+        if (zHi < cell.baseZ + table.bottom(cell.stick) ||
+            zLo > cell.baseZ + table.top(cell.stick)) {
+            continue;
+        }
+        collectVoxelHits(table, cell, o, d, ta, tb, axis, hits);
+    }
+}
 // Appends the voxels of object `box` (its id's entries only) that the ray meets within
 // [t0, t1] (objectRaySpan's span): the same hits, entries and faces as traceObjects' walk finds
 // in those cells, found by walking the box's cells alone from the one the ray enters first.

@@ -302,6 +302,14 @@ void ObjectLayer::indexBoxes() {
         r[0] = std::min(r[0], c.baseZ + table_.bottom(c.stick));
         r[1] = std::max(r[1], c.baseZ + table_.top(c.stick));
     }
+    for (ObjectBox& box : boxes_) {
+        const float* r = columnRanges_.data() + box.ranges;
+        const auto cells =
+            static_cast<std::size_t>((box.cx1 - box.cx0 + 1) * (box.cy1 - box.cy0 + 1));
+        box.filled = 0;
+        for (std::size_t i = 0; i < cells; ++i)
+            box.filled += r[2 * i] <= r[2 * i + 1];
+    }
 }
 
 std::span<const ObjectCell> ObjectLayer::cellsAt(std::int64_t cx, std::int64_t cy) const {

@@ -147,6 +147,7 @@ struct ObjectBox {
     std::uint32_t cells = 0;   // first of its cells' offsets from their row's start, row by row
     std::uint32_t ranges = 0;  // first of its cells' height ranges (ObjectLayer::boxColumnRanges)
     std::uint32_t lines = 0;   // first of its grid lines (ObjectLayer::boxLinesX)
+    std::uint32_t filled = 0;  // its cells holding an entry of its id
 };
 
 // Objects over one terrain map, on an object grid that divides each terrain cell into k x k
