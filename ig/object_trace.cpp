@@ -17,46 +17,62 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // is float, its voxels' heights double.
 constexpr double kBoxPad = 1e-3;
 
-// Visits the cells of a grid of n cells of `size` per axis (origin `base`) that the ray meets
-// over [t0, t1], in order: visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter
-// (0 x, 1 y, -1 the first cell). Stops when visit returns false.
-template <typename Visit>
+// Visits the cells [x0, x1] x [y0, y1] of a grid that the ray meets over [t0, t1], in order:
+// visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter (0 x, 1 y; `axis` for the
+// first cell). Cell cx lies between lines lineX(cx) and lineX(cx + 1) (likewise y); `baseX`,
+// `sizeX` only place the first cell (by position) before the lines confirm it. Stops when visit
+// returns false.
+template <typename LineX, typename LineY, typename Visit>
 void walkGrid(double ox, double oy, double dx, double dy, double baseX, double baseY, double sizeX,
-              double sizeY, std::int64_t x0, std::int64_t y0, std::int64_t x1, std::int64_t y1,
-              double t0, double t1, int axis, Visit visit) {
+              double sizeY, LineX lineX, LineY lineY, std::int64_t x0, std::int64_t y0,
+              std::int64_t x1, std::int64_t y1, double t0, double t1, int axis, Visit visit) {
     const double px = ox + t0 * dx - baseX, py = oy + t0 * dy - baseY;
     std::int64_t cx = std::clamp(static_cast<std::int64_t>(std::floor(px / sizeX)) + x0, x0, x1);
     std::int64_t cy = std::clamp(static_cast<std::int64_t>(std::floor(py / sizeY)) + y0, y0, y1);
     const int stepX = dx > 0.0 ? 1 : -1, stepY = dy > 0.0 ? 1 : -1;
     const double invX = dx != 0.0 ? 1.0 / dx : kInf, invY = dy != 0.0 ? 1.0 / dy : kInf;
-    auto nextX = [&] {
-        if (dx == 0.0) return kInf;
-        const double edge = baseX + static_cast<double>(cx - x0 + (dx > 0.0)) * sizeX;
-        return (edge - ox) * invX;
-    };
-    auto nextY = [&] {
-        if (dy == 0.0) return kInf;
-        const double edge = baseY + static_cast<double>(cy - y0 + (dy > 0.0)) * sizeY;
-        return (edge - oy) * invY;
-    };
+    // Where the ray crosses the line it enters cell c by, and the one it leaves it by.
+    const auto nearX = [&](std::int64_t c) { return (lineX(dx > 0.0 ? c : c + 1) - ox) * invX; };
+    const auto nearY = [&](std::int64_t c) { return (lineY(dy > 0.0 ? c : c + 1) - oy) * invY; };
+    const auto farX = [&](std::int64_t c) { return (lineX(dx > 0.0 ? c + 1 : c) - ox) * invX; };
+    const auto farY = [&](std::int64_t c) { return (lineY(dy > 0.0 ? c + 1 : c) - oy) * invY; };
+    // The position at t0 rounds: a ray within rounding of a line may not have crossed it yet by
+    // the lines' own reckoning, which every walk steps by. Then its first cell is the one before.
+    if (dx != 0.0) {
+        while (cx != (dx > 0.0 ? x0 : x1) && nearX(cx) > t0)
+            cx -= stepX;
+    }
+    if (dy != 0.0) {
+        while (cy != (dy > 0.0 ? y0 : y1) && nearY(cy) > t0)
+            cy -= stepY;
+    }
     double ta = t0;
-    double tx = nextX(), ty = nextY();
+    double tx = dx != 0.0 ? farX(cx) : kInf, ty = dy != 0.0 ? farY(cy) : kInf;
     for (;;) {
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta && !visit(cx, cy, ta, tb, axis)) return;
         if (tb >= t1) return;
-        if (tx <= ty) {
+        // The next cell is entered across the line crossed, where this one is left. Unless this
+        // cell was left before it was entered (the first cell, placed by position, beside the one
+        // a ray within rounding of a vertical edge enters): then the entry and its side carry
+        // on. At a tie (a ray through a corner) the cell beyond is entered across y: the later of
+        // its two lines, at one value, as every walk here takes it.
+        const int stepped = tx <= ty ? 0 : 1;
+        if (tb > ta) {
+            axis = stepped;
+            ta = tb;
+        } else if (tb == ta && axis >= 0) {
+            axis = std::max(axis, stepped);
+        }
+        if (stepped == 0) {
             cx += stepX;
-            axis = 0;
             if (cx < x0 || cx > x1) return;
-            tx = nextX();
+            tx = farX(cx);
         } else {
             cy += stepY;
-            axis = 1;
             if (cy < y0 || cy > y1) return;
-            ty = nextY();
+            ty = farY(cy);
         }
-        ta = tb;
     }
 }
 
@@ -172,8 +188,15 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
     const int bw = map.width() - 1, bh = map.height() - 1;
     std::vector<VoxelHit>& hits = scratch.hits;
     bool done = false;
+    const double spx = map.spacingX(), spy = map.spacingY();
+    // The grids' lines: the terrain's, and the objects' as objectGridLine places them (the boxes'
+    // own lines, ObjectLayer::boxLinesX/Y, so every walk crosses the same lines at the same t).
+    const auto terrainX = [&](std::int64_t i) { return static_cast<double>(i) * spx; };
+    const auto terrainY = [&](std::int64_t i) { return static_cast<double>(i) * spy; };
+    const auto objectX = [&](std::int64_t i) { return objectGridLine(i, k, spx, csx); };
+    const auto objectY = [&](std::int64_t i) { return objectGridLine(i, k, spy, csy); };
     walkGrid(
-        origin.x, origin.y, dir.x, dir.y, 0.0, 0.0, map.spacingX(), map.spacingY(), 0, 0, bw - 1,
+        origin.x, origin.y, dir.x, dir.y, 0.0, 0.0, spx, spy, terrainX, terrainY, 0, 0, bw - 1,
         bh - 1, t0, t1, -1, [&](std::int64_t bx, std::int64_t by, double ba, double bb, int baxis) {
             const double zA = origin.z + ba * dir.z, zB = origin.z + bb * dir.z;
             const double zLo = std::min(zA, zB), zHi = std::max(zA, zB);
@@ -184,10 +207,9 @@ void traceObjects(std::span<const ObjectLayer* const> layers, const glm::dvec3& 
             }
             if (!meets) return true;
             // The object cells of this terrain cell, in order along the ray.
-            walkGrid(origin.x, origin.y, dir.x, dir.y, static_cast<double>(bx) * map.spacingX(),
-                     static_cast<double>(by) * map.spacingY(), csx, csy, bx * k, by * k,
-                     bx * k + k - 1, by * k + k - 1, ba, bb, baxis,
-                     [&](std::int64_t cx, std::int64_t cy, double ta, double tb, int axis) {
+            walkGrid(origin.x, origin.y, dir.x, dir.y, terrainX(bx), terrainY(by), csx, csy,
+                     objectX, objectY, bx * k, by * k, bx * k + k - 1, by * k + k - 1, ba, bb,
+                     baxis, [&](std::int64_t cx, std::int64_t cy, double ta, double tb, int axis) {
                          hits.clear();
                          for (const ObjectLayer* l : layers) {
                              for (const ObjectCell& cell : l->cellsAt(cx, cy))
