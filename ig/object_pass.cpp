@@ -181,6 +181,7 @@ struct TileScratch {
     std::vector<VoxelHit> splatHits;                      // hits of splatted columns, all pixels
     std::vector<std::uint32_t> splatNext;                 // each one's next of its pixel
     std::vector<VoxelHit> cellHits;                       // one cell's, before they are linked
+    std::vector<std::uint32_t> tileColumns;               // the tile's columns, nearest first
 };
 
 // Where the ray (origin o, inverse direction inv: +-inf on an axis it does not move along)
@@ -339,8 +340,12 @@ void drawObjects(std::span<const ObjectLayer* const> layers, const SkyModel& sky
         // collect its voxels; the nearest opaque one found is each pixel's cutoff.
         s.splatHits.clear();
         s.splatNext.clear();
-        for (std::uint32_t ci = firstColumn; ci < lastColumn; ++ci) {
-            const SplatColumn& col = columns[columnList[ci]];
+        s.tileColumns.assign(columnList.begin() + firstColumn, columnList.begin() + lastColumn);
+        std::stable_sort(
+            s.tileColumns.begin(), s.tileColumns.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return columns[a].near < columns[b].near; });
+        for (const std::uint32_t ci : s.tileColumns) {
+            const SplatColumn& col = columns[ci];
             const Footprint& f = feet[col.foot];
             const ObjectLayer& layer = *layers[f.layer];
             const ObjectBox& box = layer.boxes()[f.box];

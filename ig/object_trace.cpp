@@ -326,11 +326,20 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
 }
 
 void sortHits(std::vector<VoxelHit>& hits) {
-    for (std::size_t i = 0; i < hits.size(); ++i)
-        hits[i].seq = static_cast<std::uint32_t>(i);
-    std::sort(hits.begin(), hits.end(), [](const VoxelHit& a, const VoxelHit& b) {
+    const auto before = [](const VoxelHit& a, const VoxelHit& b) {
         if (a.enter != b.enter) return a.enter < b.enter;
-        if (a.id != b.id) return a.id < b.id;
+        return a.id < b.id;
+    };
+    // Mostly collected in order already (the footprint pass takes the cells nearest first).
+    std::size_t i = 1;
+    while (i < hits.size() && !before(hits[i], hits[i - 1]))
+        ++i;
+    if (i >= hits.size()) return;
+    for (std::size_t j = 0; j < hits.size(); ++j)
+        hits[j].seq = static_cast<std::uint32_t>(j);
+    std::sort(hits.begin(), hits.end(), [&](const VoxelHit& a, const VoxelHit& b) {
+        if (before(a, b)) return true;
+        if (before(b, a)) return false;
         return a.seq < b.seq;
     });
 }
