@@ -355,11 +355,11 @@ TEST(ObjectPass, ObjectsSharingCellsAreOrderedAsTheReference) {
 // level, from above, straight down, from below their tops and from inside the house, equal to the
 // per-pixel trace to the bit, and so does the pass that walks every box. Straight down, many rays
 // pass within rounding of a cell's vertical edge (the view that found the whole-box walk taking
-// the other side face there). The last views look straight down from above cell corners (one a
+// the other side face there). Three views look straight down from above cell corners (one a
 // terrain cell's): rays along the image's diagonals pass exactly through cells' vertical edges
-// and corners, and one ray through an object cell's corner on a terrain cell's edge (the view
-// that found the per-pixel walk's first object cell in a terrain cell, found by position, taking
-// the other side face).
+// and corners, and through object cells' corners on terrain cells' edges (the views that found
+// the per-pixel walk's first object cell in a terrain cell, placed by position, taking the other
+// side face or passing a voxel). The last two stand inside the house with the eye on cell lines.
 TEST(ObjectPass, SplattedNearObjectsEqualThePerPixelTrace) {
     const TerrainMap map = flatMap();
     ObjectLayer layer(map, 0.5);
@@ -381,9 +381,10 @@ TEST(ObjectPass, SplattedNearObjectsEqualThePerPixelTrace) {
     const View views[] = {
         {{320.1, 300.2, 104.0}, 0.0, 0.0},     {{320.3, 305.1, 112.0}, 10.0, -30.0},
         {{321.13, 322.37, 140.0}, 0.0, -90.0}, {{330.2, 318.3, 101.0}, 95.0, 25.0},
-        {{300.4, 340.1, 106.0}, 215.0, -8.0},  {house, 30.0, -5.0},
+        {{300.4, 340.1, 106.0}, 135.0, -8.0},  {house, 30.0, -5.0},
         {{321.0, 322.0, 140.0}, 0.0, -90.0},   {{320.0, 320.0, 135.0}, 0.0, -90.0},
-        {{318.5, 321.0, 128.0}, 90.0, -90.0}};
+        {{318.5, 321.0, 128.0}, 90.0, -90.0},  {{319.5, 329.0, 102.0}, 30.0, -5.0},
+        {{320.0, 329.5, 101.0}, 200.0, 0.0}};
     std::size_t splatted = 0, objectPixels = 0;
     for (const View& v : views) {
         Pose pose;
@@ -410,6 +411,7 @@ TEST(ObjectPass, SplattedNearObjectsEqualThePerPixelTrace) {
                                << " pitch " << v.pitchDeg;
         EXPECT_EQ(w.color, 0u) << "view at " << v.at.x << "," << v.at.y << " yaw " << v.yawDeg
                                << " pitch " << v.pitchDeg;
+        EXPECT_GT(shown, 500u) << "view at " << v.at.x << "," << v.at.y;  // each view sees some
         splatted += stats.splatted;
         objectPixels += shown;
     }
