@@ -17,6 +17,24 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // is float, its voxels' heights double.
 constexpr double kBoxPad = 1e-3;
 
+// The walks' step to the next cell, after one left at tb = min(tx, ty, t1) (tx, ty: where the
+// ray crosses its far x and y lines): returns the axis crossed (0 x, 1 y), and sets the next
+// cell's entry ta and side `axis`. It is entered across the line crossed, where this one is
+// left. Unless this cell was left before it was entered (a first cell placed by position, beside
+// the one a ray within rounding of a vertical edge enters): then the entry and its side carry on.
+// At a tie (a ray through a corner) the cell beyond is entered across y: the later of its two
+// lines, at one value, as every walk here takes it.
+int stepToNextCell(double tx, double ty, double tb, double& ta, int& axis) {
+    const int stepped = tx <= ty ? 0 : 1;
+    if (tb > ta) {
+        axis = stepped;
+        ta = tb;
+    } else if (tb == ta && axis >= 0) {
+        axis = std::max(axis, stepped);
+    }
+    return stepped;
+}
+
 // Visits the cells [x0, x1] x [y0, y1] of a grid that the ray meets over [t0, t1], in order:
 // visit(cx, cy, ta, tb, axis) where axis is the axis crossed to enter (0 x, 1 y; `axis` for the
 // first cell). Cell cx lies between lines lineX(cx) and lineX(cx + 1) (likewise y); `baseX`,
@@ -52,19 +70,7 @@ void walkGrid(double ox, double oy, double dx, double dy, double baseX, double b
         const double tb = std::min({tx, ty, t1});
         if (tb >= ta && !visit(cx, cy, ta, tb, axis)) return;
         if (tb >= t1) return;
-        // The next cell is entered across the line crossed, where this one is left. Unless this
-        // cell was left before it was entered (the first cell, placed by position, beside the one
-        // a ray within rounding of a vertical edge enters): then the entry and its side carry
-        // on. At a tie (a ray through a corner) the cell beyond is entered across y: the later of
-        // its two lines, at one value, as every walk here takes it.
-        const int stepped = tx <= ty ? 0 : 1;
-        if (tb > ta) {
-            axis = stepped;
-            ta = tb;
-        } else if (tb == ta && axis >= 0) {
-            axis = std::max(axis, stepped);
-        }
-        if (stepped == 0) {
+        if (stepToNextCell(tx, ty, tb, ta, axis) == 0) {
             cx += stepX;
             if (cx < x0 || cx > x1) return;
             tx = farX(cx);
@@ -301,19 +307,9 @@ void collectBoxHits(const ObjectLayer& layer, const ObjectBox& box, const glm::d
                 if (hits[i].color.a == 255) cutoff = std::min(cutoff, hits[i].enter);
         }
         if (tb >= t1 || tb >= tz) return;
-        // The next cell's entry as the per-pixel walk finds it: the line crossed. Unless this
-        // cell was left no later than it was entered: a first cell found from the position at
-        // the box's padded entry can lie beside the one a ray passing within rounding of a
-        // vertical edge really enters. Then the later entry carries on, and at a tie the cell is
-        // entered across y (the per-pixel walk steps x first at a corner, then y into it).
-        const int stepped = tx <= ty ? 0 : 1;
-        if (tb > ta) {
-            axis = stepped;
-            ta = tb;
-        } else if (tb == ta && axis >= 0) {
-            axis = std::max(axis, stepped);
-        }
-        if (stepped == 0) {
+        // The next cell's entry as the per-pixel walk finds it (its first cell here is placed
+        // by the position at the box's padded entry).
+        if (stepToNextCell(tx, ty, tb, ta, axis) == 0) {
             ix += stepX;
             if (ix < 0 || ix > nx) return;
             tx = (lineX[ix + upX] - o.x) * invX;
